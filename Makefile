@@ -1,0 +1,56 @@
+# mimicrete: every target sets itself up on a fresh machine (venv in .venv, pinned requirements,
+# the native module built in release mode) and then does its job. `make help` lists them.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+PIP := $(VENV)/bin/pip
+STAMP := $(VENV)/.requirements.stamp
+NATIVE_STAMP := $(VENV)/.native.stamp
+RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
+
+.PHONY: help setup native train test test-rs test-py bench lint fmt experiments clean
+
+help: ## list the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
+
+$(PY):
+	python3 -m venv $(VENV)
+
+$(STAMP): $(PY) requirements/base.txt requirements/dev.txt
+	$(PIP) install --quiet --upgrade pip
+	$(PIP) install --quiet -r requirements/dev.txt
+	touch $@
+
+setup: $(STAMP) ## create or reuse .venv and install the pinned requirements
+
+$(NATIVE_STAMP): $(STAMP) $(RUST_SRC)
+	VIRTUAL_ENV=$(abspath $(VENV)) PATH=$(abspath $(VENV))/bin:$$PATH maturin develop --release --locked
+	touch $@
+
+native: $(NATIVE_STAMP) ## build mimicrete._native into .venv (maturin develop --release)
+
+train: $(NATIVE_STAMP) ## the main job end to end: synthetic hands -> demos -> train -> eval -> plots
+	$(PY) train.py
+
+test-rs: ## Rust tests of every crate
+	cargo test --workspace --release --locked
+
+test-py: $(NATIVE_STAMP) ## Python tests
+	$(PY) -m pytest tests -q
+
+test: test-rs test-py ## all tests (what CI runs)
+
+bench: $(NATIVE_STAMP) ## print every benchmark
+	$(PY) -m mimicrete.bench
+
+lint: $(STAMP) ## fmt, clippy, ruff
+	cargo fmt --all --check
+	cargo clippy --workspace --all-targets --release -- -D warnings
+	$(VENV)/bin/ruff check python tests
+
+fmt: ## format Rust and Python
+	cargo fmt --all
+	$(VENV)/bin/ruff format python tests
+
+clean: ## remove build products (keeps .venv)
+	cargo clean

@@ -1,0 +1,1 @@
+//! tile-sim (under construction).
