@@ -1,8 +1,21 @@
-//! `mimicrete._native`: the thin pyo3 layer over the Rust crates. No logic lives here.
+//! `mimicrete._native`: the thin pyo3 layer over the Rust crates. No logic lives here, only
+//! conversion between numpy/Python values and the crates' types, error mapping, and releasing the
+//! interpreter lock around heavy work. One file per wrapped crate:
+//! `kin.rs` (ur3-kin), `sim.rs` (tile-sim), `demo.rs` (demo-log); `errors.rs` holds the exception tree.
+
 use pyo3::prelude::*;
+
+mod demo;
+mod errors;
+mod kin;
+mod sim;
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    errors::register(m)?;
+    kin::register(m)?;
+    sim::register(m)?;
+    demo::register(m)?;
     Ok(())
 }

@@ -1,0 +1,5 @@
+import sys
+
+from mimicrete.cli import main
+
+sys.exit(main())

@@ -1,0 +1,36 @@
+"""``python -m mimicrete.bench [AREA ...]``: run every benchmark (or the named areas) and print."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+
+AREAS = ["kin", "sim", "demo", "teleop", "train"]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("areas", nargs="*", default=AREAS, help=f"subset of {AREAS}")
+    args = parser.parse_args()
+    failed = []
+    for area in args.areas:
+        try:
+            mod = importlib.import_module(f"mimicrete.bench.{area}")
+        except ModuleNotFoundError as e:
+            print(f"\n== {area}: not available ({e})")
+            continue
+        print(f"\n== {area} ==", flush=True)
+        t0 = time.perf_counter()
+        try:
+            mod.run()
+        except Exception as e:  # a broken benchmark must not hide the others
+            failed.append(area)
+            print(f"!! {area} failed: {type(e).__name__}: {e}")
+        print(f"   ({area} took {time.perf_counter() - t0:.1f} s)")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

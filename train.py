@@ -1,0 +1,1 @@
+import sys; from mimicrete.cli import main; sys.exit(main(['train', *sys.argv[1:]]))
