@@ -16,9 +16,9 @@ help: ## list the targets
 $(PY):
 	python3 -m venv $(VENV)
 
-$(STAMP): $(PY) requirements/base.txt requirements/dev.txt
+$(STAMP): $(PY) requirements/base.txt requirements/dev.txt requirements/constraints.txt
 	$(PIP) install --quiet --upgrade pip
-	$(PIP) install --quiet -r requirements/dev.txt
+	$(PIP) install --quiet -r requirements/dev.txt -c requirements/constraints.txt
 	touch $@
 
 setup: $(STAMP) ## create or reuse .venv and install the pinned requirements
