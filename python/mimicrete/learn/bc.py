@@ -1,0 +1,73 @@
+"""Behavioural cloning beside PPO (ML-Agents ``components/bc/module.py``).
+
+A second Adam on the actor's parameters only, learning rate = strength x PPO's initial learning rate,
+decayed linearly to 1e-10 over ``steps`` env steps (``steps: 0`` = constant for the whole run); once
+it reaches 1e-10 BC stops. After every PPO update it makes ``num_epoch`` passes over the demo
+buffer in minibatches of ``batch_size`` (capped by ``samples_per_update``). Loss: MSE between the
+policy's *sampled* (reparameterised) continuous action and the demo's, plus cross-entropy of the
+end-effector branch. The observation normaliser is not touched by BC.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from .networks import Actor, ee_value_to_index
+
+MIN_LR = 1e-10
+
+
+def bc_learning_rate(initial: float, steps: int, step: int) -> float:
+    """strength x lr at step 0, linearly to 1e-10 at ``steps`` (constant if steps == 0)."""
+    if steps <= 0:
+        return initial
+    frac = min(max(step / steps, 0.0), 1.0)
+    return (initial - MIN_LR) * (1.0 - frac) + MIN_LR
+
+
+def bc_loss(actor: Actor, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    n = actor.n_cont
+    mu, log_std, logits = actor(obs)
+    sampled = mu + log_std.exp() * torch.randn_like(mu)
+    mse = (sampled - actions[:, :n]).pow(2).mean()
+    k = ee_value_to_index(actions[:, n])
+    ce = torch.nn.functional.cross_entropy(logits, k)
+    return mse + ce
+
+
+class BehavioralCloning:
+    def __init__(self, actor: Actor, obs: np.ndarray, actions: np.ndarray, initial_lr: float,
+                 steps: int, batch_size: int, num_epoch: int, samples_per_update: int):
+        self.actor = actor
+        self.obs = torch.as_tensor(obs, dtype=torch.float32)
+        self.actions = torch.as_tensor(actions, dtype=torch.float32)
+        self.initial_lr = initial_lr
+        self.steps = steps
+        self.batch_size = batch_size
+        self.num_epoch = num_epoch
+        self.samples_per_update = samples_per_update
+        self.opt = torch.optim.Adam(actor.parameters(), lr=initial_lr)
+
+    def update(self, step: int, rng: np.random.Generator) -> tuple[float, float] | None:
+        """One BC round at env step ``step``; (mean loss, lr) or None once annealed out."""
+        lr = bc_learning_rate(self.initial_lr, self.steps, step)
+        if lr <= MIN_LR * 1.0001:
+            return None
+        for g in self.opt.param_groups:
+            g["lr"] = lr
+        n = self.obs.shape[0]
+        if self.samples_per_update > 0:
+            n = min(n, self.samples_per_update)
+        losses = []
+        for _ in range(self.num_epoch):
+            perm = torch.as_tensor(rng.permutation(self.obs.shape[0])[:n])
+            for i in range(0, n - self.batch_size + 1 if n >= self.batch_size else 1,
+                           self.batch_size):
+                idx = perm[i : i + self.batch_size]
+                loss = bc_loss(self.actor, self.obs[idx], self.actions[idx])
+                self.opt.zero_grad()
+                loss.backward()
+                self.opt.step()
+                losses.append(float(loss))
+        return float(np.mean(losses)), lr

@@ -1,0 +1,131 @@
+"""Actor and critic networks (ML-Agents' shapes: separate MLPs of ``hidden_units`` x
+``num_layers`` with Swish/SiLU activations, observation normaliser in front).
+
+The action is ML-Agents' hybrid action: a diagonal Gaussian over the ``n_cont`` joint motions with a
+state-independent sigma (``condition_sigma_on_obs=False`` for PPO) and one categorical branch over
+the three end-effector commands, mapped to ``{-1, 0, +1}`` (drop, fixed, suction) in the env's last
+action dimension. The env receives ``clip(u, -1, 1)`` for the Gaussian sample ``u``; ML-Agents sends
+``clamp(u, -3, 3) / 3`` instead (a departure: ours keeps the Gaussian mean in the demo actions'
+units, so BC's MSE and the env see the same scale).
+
+Log-probabilities are returned *per action component* (``n_cont`` Gaussian dims + 1 branch),
+because ML-Agents' PPO clips the probability ratio per component.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+from .normalizer import RunningNorm
+
+N_EE = 3  # end-effector commands: index 0 -> -1 (drop), 1 -> 0 (fixed), 2 -> +1 (suction)
+
+
+def mlp(n_in: int, hidden: int, layers: int) -> nn.Sequential:
+    mods: list[nn.Module] = []
+    d = n_in
+    for _ in range(layers):
+        lin = nn.Linear(d, hidden)
+        nn.init.kaiming_normal_(lin.weight, nonlinearity="linear")
+        nn.init.zeros_(lin.bias)
+        mods += [lin, nn.SiLU()]
+        d = hidden
+    return nn.Sequential(*mods)
+
+
+def _head(n_in: int, n_out: int, gain: float) -> nn.Linear:
+    lin = nn.Linear(n_in, n_out)
+    nn.init.kaiming_normal_(lin.weight, nonlinearity="linear")
+    lin.weight.data.mul_(gain)
+    nn.init.zeros_(lin.bias)
+    return lin
+
+
+def ee_index_to_value(k: torch.Tensor) -> torch.Tensor:
+    return k.to(torch.float32) - 1.0
+
+
+def ee_value_to_index(v: torch.Tensor) -> torch.Tensor:
+    """Demo/env value in [-1, 1] -> command index (<= -0.5 drop, >= 0.5 suction, else fixed)."""
+    return (v >= 0.5).long() * 2 + ((v > -0.5) & (v < 0.5)).long()
+
+
+class Actor(nn.Module):
+    def __init__(self, obs_dim: int, n_cont: int, hidden: int, layers: int, normalize: bool):
+        super().__init__()
+        self.n_cont = n_cont
+        self.norm = RunningNorm(obs_dim, enabled=normalize)
+        self.body = mlp(obs_dim, hidden, layers)
+        self.mu = _head(hidden, n_cont, 0.2)
+        self.log_std = nn.Parameter(torch.zeros(n_cont))
+        self.logits = _head(hidden, N_EE, 0.1)
+
+    def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(mu, log_std broadcast to mu, EE logits)."""
+        h = self.body(self.norm(obs))
+        mu = self.mu(h)
+        return mu, self.log_std.expand_as(mu), self.logits(h)
+
+    @staticmethod
+    def _log_probs(mu, log_std, logits, u, k):
+        lp_c = -0.5 * ((u - mu) / log_std.exp()).pow(2) - log_std - 0.5 * math.log(2 * math.pi)
+        lp_d = torch.log_softmax(logits, -1).gather(-1, k.unsqueeze(-1))
+        return torch.cat([lp_c, lp_d], -1)
+
+    @staticmethod
+    def _entropy(log_std, logits):
+        ent_c = (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1)
+        p = torch.softmax(logits, -1)
+        ent_d = -(p * torch.log_softmax(logits, -1)).sum(-1)
+        return ent_c + ent_d
+
+    @torch.no_grad()
+    def sample(self, obs: torch.Tensor):
+        """Stochastic action: (u (B, n_cont) raw Gaussian sample, k (B,) EE index,
+        per-component log-probs (B, n_cont + 1))."""
+        mu, log_std, logits = self(obs)
+        u = mu + log_std.exp() * torch.randn_like(mu)
+        k = torch.multinomial(torch.softmax(logits, -1), 1).squeeze(-1)
+        return u, k, self._log_probs(mu, log_std, logits, u, k)
+
+    def evaluate(self, obs: torch.Tensor, u: torch.Tensor, k: torch.Tensor):
+        """(per-component log-probs (B, n_cont + 1), entropy (B,)) of given actions."""
+        mu, log_std, logits = self(obs)
+        return self._log_probs(mu, log_std, logits, u, k), self._entropy(log_std, logits)
+
+    def deterministic(self, obs: torch.Tensor) -> torch.Tensor:
+        """Env action (B, n_cont + 1): clip(mu, -1, 1) and the most likely EE command."""
+        mu, _, logits = self(obs)
+        k = torch.argmax(logits, -1)
+        return torch.cat([mu.clamp(-1.0, 1.0), ee_index_to_value(k).unsqueeze(-1)], -1)
+
+
+def env_action(u: torch.Tensor, k: torch.Tensor) -> torch.Tensor:
+    return torch.cat([u.clamp(-1.0, 1.0), ee_index_to_value(k).unsqueeze(-1)], -1)
+
+
+class Critic(nn.Module):
+    """One value head per reward signal on a shared body (ML-Agents' ValueNetwork)."""
+
+    def __init__(self, obs_dim: int, n_heads: int, hidden: int, layers: int, normalize: bool):
+        super().__init__()
+        self.norm = RunningNorm(obs_dim, enabled=normalize)
+        self.body = mlp(obs_dim, hidden, layers)
+        self.heads = _head(hidden, n_heads, 1.0)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.heads(self.body(self.norm(obs)))
+
+
+class DeterministicPolicy(nn.Module):
+    """What the ONNX file holds: obs (B, obs_dim) -> deterministic env action (B, n_cont + 1)."""
+
+    def __init__(self, actor: Actor):
+        super().__init__()
+        self.actor = actor
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.actor.deterministic(obs)
