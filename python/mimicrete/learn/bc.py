@@ -1,8 +1,8 @@
 """Behavioural cloning beside PPO (ML-Agents ``components/bc/module.py``).
 
-A second Adam on the actor's parameters only, learning rate = strength x PPO's initial learning rate,
-decayed linearly to 1e-10 over ``steps`` env steps (``steps: 0`` = constant for the whole run); once
-it reaches 1e-10 BC stops. After every PPO update it makes ``num_epoch`` passes over the demo
+A second Adam on the actor's parameters only, learning rate = strength x PPO's initial learning
+rate, decayed linearly to 1e-10 over ``steps`` env steps (``steps: 0`` = constant for the whole
+run); once it reaches 1e-10 BC stops. After every PPO update it makes ``num_epoch`` passes over the demo
 buffer in minibatches of ``batch_size`` (capped by ``samples_per_update``). Loss: MSE between the
 policy's *sampled* (reparameterised) continuous action and the demo's, plus cross-entropy of the
 end-effector branch. The observation normaliser is not touched by BC.
@@ -37,8 +37,17 @@ def bc_loss(actor: Actor, obs: torch.Tensor, actions: torch.Tensor) -> torch.Ten
 
 
 class BehavioralCloning:
-    def __init__(self, actor: Actor, obs: np.ndarray, actions: np.ndarray, initial_lr: float,
-                 steps: int, batch_size: int, num_epoch: int, samples_per_update: int):
+    def __init__(
+        self,
+        actor: Actor,
+        obs: np.ndarray,
+        actions: np.ndarray,
+        initial_lr: float,
+        steps: int,
+        batch_size: int,
+        num_epoch: int,
+        samples_per_update: int,
+    ):
         self.actor = actor
         self.obs = torch.as_tensor(obs, dtype=torch.float32)
         self.actions = torch.as_tensor(actions, dtype=torch.float32)
@@ -62,12 +71,13 @@ class BehavioralCloning:
         losses = []
         for _ in range(self.num_epoch):
             perm = torch.as_tensor(rng.permutation(self.obs.shape[0])[:n])
-            for i in range(0, n - self.batch_size + 1 if n >= self.batch_size else 1,
-                           self.batch_size):
+            for i in range(
+                0, n - self.batch_size + 1 if n >= self.batch_size else 1, self.batch_size
+            ):
                 idx = perm[i : i + self.batch_size]
                 loss = bc_loss(self.actor, self.obs[idx], self.actions[idx])
                 self.opt.zero_grad()
                 loss.backward()
                 self.opt.step()
-                losses.append(float(loss))
+                losses.append(loss.item())
         return float(np.mean(losses)), lr

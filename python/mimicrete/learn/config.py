@@ -167,7 +167,8 @@ def _build(cls: type, data: Any, where: str) -> Any:
     }
     for key, value in data.items():
         sub = hints.get(key)
-        if sub is not None and (value is not None or key in ("hyperparameters", "network_settings")):
+        keep_default = key in ("hyperparameters", "network_settings")
+        if sub is not None and (value is not None or keep_default):
             kwargs[key] = _build(sub, value, f"{where}.{key}")
         else:
             kwargs[key] = _coerce(fields[key], value, f"{where}.{key}")
@@ -229,7 +230,7 @@ def from_dict(data: dict[str, Any]) -> TrainerConfig:
     behaviors = data["behaviors"]
     if not isinstance(behaviors, dict) or len(behaviors) != 1:
         raise ConfigError("'behaviors' must hold exactly one behavior")
-    (name, bdata), = behaviors.items()
+    ((name, bdata),) = behaviors.items()
     cfg = TrainerConfig(
         behavior_name=str(name),
         behavior=_build(BehaviorConfig, bdata, f"behaviors.{name}"),

@@ -35,8 +35,9 @@ def _num_envs_for(episodes: int, cap: int = 32) -> int:
 
 
 @torch.no_grad()
-def run_episodes(actor: Actor, env_id: str, episodes: int, seed: int,
-                 max_envs: int = 32) -> dict[str, float]:
+def run_episodes(
+    actor: Actor, env_id: str, episodes: int, seed: int, max_envs: int = 32
+) -> dict[str, float]:
     n = _num_envs_for(episodes, max_envs)
     per_env = episodes // n
     env = make_env(env_id, n, seed)
@@ -62,8 +63,9 @@ def run_episodes(actor: Actor, env_id: str, episodes: int, seed: int,
         ep_installed |= installed
         for i in np.flatnonzero(term | trunc):
             if done_count[i] < per_env:
-                results.append((bool(ep_picked[i]), bool(ep_installed[i]), int(ep_len[i]),
-                                float(ep_ret[i])))
+                results.append(
+                    (bool(ep_picked[i]), bool(ep_installed[i]), int(ep_len[i]), float(ep_ret[i]))
+                )
                 done_count[i] += 1
             ep_len[i] = 0
             ep_ret[i] = 0.0
@@ -91,8 +93,10 @@ def evaluate_run(run_dir: Path, episodes: int, seed: int | None = None) -> dict[
 
 def format_row(name: str, res: dict) -> str:
     head = f"{'run':<24} {'Picked rate':>12} {'Installed rate':>15} {'Average episode length':>23}"
-    row = (f"{name:<24} {res['picked_rate']:>12.0%} {res['installed_rate']:>15.0%} "
-           f"{res['mean_episode_length']:>23.1f}")
+    row = (
+        f"{name:<24} {res['picked_rate']:>12.0%} {res['installed_rate']:>15.0%} "
+        f"{res['mean_episode_length']:>23.1f}"
+    )
     return f"{head}\n{row}"
 
 

@@ -35,6 +35,16 @@ GRADIENT_PENALTY_WEIGHT = 10.0
 EPS = 1e-7
 
 
+def signal_terminated(terminated: np.ndarray, survivor_bias: str) -> np.ndarray:
+    """The termination mask the GAIL signal's GAE uses: the env's (``"none"``) or none at all
+    (``"bootstrap"``: terminal steps bootstrap from V_gail(final_obs) like truncations)."""
+    if survivor_bias == "none":
+        return terminated
+    if survivor_bias == "bootstrap":
+        return np.zeros_like(terminated, dtype=bool)
+    raise ValueError(f"survivor_bias {survivor_bias!r}")
+
+
 class Discriminator(nn.Module):
     def __init__(self, in_mean: torch.Tensor, in_std: torch.Tensor, hidden: int, layers: int):
         super().__init__()
@@ -70,10 +80,10 @@ def discriminator_loss(
     gp = (grad.norm(dim=1) - 1.0).pow(2).mean()
     loss = bce + GRADIENT_PENALTY_WEIGHT * gp
     stats = {
-        "loss": float(bce),
-        "grad_penalty": float(gp),
-        "expert_estimate": float(d_e.mean()),
-        "policy_estimate": float(d_p.mean()),
+        "loss": bce.item(),
+        "grad_penalty": gp.item(),
+        "expert_estimate": d_e.mean().item(),
+        "policy_estimate": d_p.mean().item(),
     }
     return loss, stats
 

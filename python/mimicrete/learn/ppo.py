@@ -27,8 +27,9 @@ def linear_decay(initial: float, final: float, step: int, max_steps: int) -> flo
     return (initial - final) * (1.0 - frac) + final
 
 
-def scheduled(kind: str | None, default_kind: str, initial: float, final: float, step: int,
-              max_steps: int) -> float:
+def scheduled(
+    kind: str | None, default_kind: str, initial: float, final: float, step: int, max_steps: int
+) -> float:
     kind = kind or default_kind
     if kind == "constant":
         return initial
@@ -50,8 +51,11 @@ class PPOStats:
 
     def mean(self) -> dict[str, float]:
         n = max(self.n, 1)
-        return {"policy_loss": self.policy_loss / n, "value_loss": self.value_loss / n,
-                "entropy": self.entropy / n}
+        return {
+            "policy_loss": self.policy_loss / n,
+            "value_loss": self.value_loss / n,
+            "entropy": self.entropy / n,
+        }
 
 
 def combine_advantages(advs: list[np.ndarray]) -> np.ndarray:

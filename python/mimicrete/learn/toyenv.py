@@ -12,6 +12,8 @@ Episodes are truncated after ``max_episode_steps``.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -116,14 +118,16 @@ def make_vec(num_envs: int, seed: int | None = None, max_episode_steps: int = 10
     return ToyTileVecEnv(num_envs, max_episode_steps=max_episode_steps, seed=seed)
 
 
-def expert_demos(episodes: int, seed: int = 0, noise: float = 0.1,
-                 max_episode_steps: int = 100) -> dict[str, np.ndarray]:
+def expert_demos(
+    episodes: int, seed: int = 0, noise: float = 0.1, max_episode_steps: int = 100
+) -> dict[str, np.ndarray]:
     """Scripted expert episodes, in the arrays of ``mimicrete.demos.load``."""
     env = ToyTileVecEnv(1, max_episode_steps=max_episode_steps, seed=seed)
     rng = np.random.default_rng(seed + 1)
     obs, _ = env.reset(seed=seed)
-    rows: dict[str, list] = {k: [] for k in
-                             ("obs", "actions", "rewards", "terminated", "truncated", "episode")}
+    rows: dict[str, list] = {
+        k: [] for k in ("obs", "actions", "rewards", "terminated", "truncated", "episode")
+    }
     ep = 0
     while ep < episodes:
         goal = TARGET if env.holding[0] else env.tile[0]
@@ -148,3 +152,64 @@ def expert_demos(episodes: int, seed: int = 0, noise: float = 0.1,
         "truncated": np.asarray(rows["truncated"], bool),
         "episode": np.asarray(rows["episode"], np.int64),
     }
+
+
+def toy_config(
+    tmp: Path,
+    *,
+    max_steps=2048,
+    buffer=512,
+    batch=128,
+    num_envs=8,
+    ckpt=1024,
+    gail=0.01,
+    bc=0.5,
+    survivor_bias="bootstrap",
+    seed=0,
+):
+    """A tiny trainer config on the toy env with toy expert demos (written into ``tmp``);
+    used by the tests and the trainer benchmark."""
+    demos = tmp / "toy_demos.npz"
+    if not demos.exists():
+        np.savez(demos, **expert_demos(12, seed=5))
+    rs: dict = {"extrinsic": {"gamma": 0.99, "strength": 1.0}}
+    if gail:
+        rs["gail"] = {
+            "gamma": 0.99,
+            "strength": gail,
+            "learning_rate": 5e-4,
+            "demo_path": str(demos),
+            "survivor_bias": survivor_bias,
+            "network_settings": {"hidden_units": 32, "num_layers": 2},
+        }
+    b: dict = {
+        "trainer_type": "ppo",
+        "hyperparameters": {
+            "batch_size": batch,
+            "buffer_size": buffer,
+            "learning_rate": 5e-4,
+            "beta": 0.01,
+            "epsilon": 0.2,
+            "lambd": 0.95,
+            "num_epoch": 2,
+        },
+        "network_settings": {"normalize": True, "hidden_units": 32, "num_layers": 2},
+        "reward_signals": rs,
+        "max_steps": max_steps,
+        "time_horizon": 400,
+        "summary_freq": buffer,
+        "checkpoint_interval": ckpt,
+        "keep_checkpoints": 3,
+        "demo_episodes": 10,
+    }
+    if bc:
+        b["behavioral_cloning"] = {"demo_path": str(demos), "strength": bc, "steps": max_steps}
+    from .config import from_dict
+
+    return from_dict(
+        {
+            "behaviors": {"Toy": b},
+            "env_settings": {"env_id": "Toy-v0", "num_envs": num_envs, "seed": seed},
+            "torch_settings": {"num_threads": 1},
+        }
+    )

@@ -31,6 +31,7 @@ import os
 import random
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +41,7 @@ import torch
 from . import config as config_mod
 from .bc import BehavioralCloning
 from .buffer import Rollout, gae, horizon_cuts
-from .gail import Gail
+from .gail import Gail, signal_terminated
 from .networks import Actor, Critic, DeterministicPolicy, env_action
 from .ppo import PPOStats, combine_advantages, ppo_loss, scheduled
 
@@ -142,8 +143,13 @@ def episode_flags(infos: dict, rewards: np.ndarray, terminated: np.ndarray):
 
 
 class Trainer:
-    def __init__(self, cfg: config_mod.TrainerConfig, run_dir: Path, demos_override: str | None,
-                 max_steps: int):
+    def __init__(
+        self,
+        cfg: config_mod.TrainerConfig,
+        run_dir: Path,
+        demos_override: str | None,
+        max_steps: int,
+    ):
         self.cfg = cfg
         self.b = cfg.behavior
         self.h = self.b.hyperparameters
@@ -170,8 +176,9 @@ class Trainer:
 
         ns = self.b.network_settings
         self.actor = Actor(self.obs_dim, N_CONT, ns.hidden_units, ns.num_layers, ns.normalize)
-        self.critic = Critic(self.obs_dim, len(self.signals), ns.hidden_units, ns.num_layers,
-                             ns.normalize)
+        self.critic = Critic(
+            self.obs_dim, len(self.signals), ns.hidden_units, ns.num_layers, ns.normalize
+        )
         self.opt = torch.optim.Adam(
             list(self.actor.parameters()) + list(self.critic.parameters()), lr=self.h.learning_rate
         )
@@ -188,15 +195,22 @@ class Trainer:
             assert self.demos is not None
             g = rs.gail
             expert_in = self._disc_inputs(self.demos["obs"], self.demos["actions"])
-            self.gail = Gail(expert_in, g.network_settings.hidden_units,
-                             g.network_settings.num_layers, g.learning_rate)
+            self.gail = Gail(
+                expert_in,
+                g.network_settings.hidden_units,
+                g.network_settings.num_layers,
+                g.learning_rate,
+            )
         self.bc = None
         bcs = self.b.behavioral_cloning
         if bcs is not None:
             assert self.demos is not None
             self.bc = BehavioralCloning(
-                self.actor, self.demos["obs"], self.demos["actions"],
-                initial_lr=self.h.learning_rate * bcs.strength, steps=bcs.steps,
+                self.actor,
+                self.demos["obs"],
+                self.demos["actions"],
+                initial_lr=self.h.learning_rate * bcs.strength,
+                steps=bcs.steps,
                 batch_size=bcs.batch_size or self.h.batch_size,
                 num_epoch=bcs.num_epoch or self.h.num_epoch,
                 samples_per_update=bcs.samples_per_update,
@@ -274,8 +288,14 @@ class Trainer:
             if ended.any():
                 ro.final_obs[t, ended] = final_obs_of(infos, ended)
                 for i in np.flatnonzero(ended):
-                    self._window.append((float(self.ep_ret[i]), int(self.ep_len[i]),
-                                         bool(self.ep_picked[i]), bool(self.ep_installed[i])))
+                    self._window.append(
+                        (
+                            float(self.ep_ret[i]),
+                            int(self.ep_len[i]),
+                            bool(self.ep_picked[i]),
+                            bool(self.ep_installed[i]),
+                        )
+                    )
                 self.ep_ret[ended] = 0.0
                 self.ep_len[ended] = 0
                 self.ep_picked[ended] = False
@@ -314,7 +334,7 @@ class Trainer:
                 r = rs.gail.strength * self.gail.rewards(torch.from_numpy(x)).reshape(T, N)
                 r = r.astype(np.float64)
                 gamma = rs.gail.gamma
-                term = ro.terminated if rs.gail.survivor_bias == "none" else np.zeros_like(cut)
+                term = signal_terminated(ro.terminated, rs.gail.survivor_bias)
                 self._log("Policy/GAIL Value Estimate", values[..., i].mean())
             self._episode_signal_sums(name, r)
             a, ret = gae(r, values[..., i], next_values[..., i], term, cut, gamma, self.h.lambd)
@@ -344,12 +364,15 @@ class Trainer:
 
     def update(self, buf: dict[str, np.ndarray]) -> None:
         h = self.h
-        lr = scheduled(h.learning_rate_schedule, "linear", h.learning_rate, 1e-10, self.step,
-                       self.max_steps)
-        eps = scheduled(h.epsilon_schedule, h.learning_rate_schedule, h.epsilon, 0.1, self.step,
-                        self.max_steps)
-        beta = scheduled(h.beta_schedule, h.learning_rate_schedule, h.beta, 1e-5, self.step,
-                         self.max_steps)
+        lr = scheduled(
+            h.learning_rate_schedule, "linear", h.learning_rate, 1e-10, self.step, self.max_steps
+        )
+        eps = scheduled(
+            h.epsilon_schedule, h.learning_rate_schedule, h.epsilon, 0.1, self.step, self.max_steps
+        )
+        beta = scheduled(
+            h.beta_schedule, h.learning_rate_schedule, h.beta, 1e-5, self.step, self.max_steps
+        )
         for g in self.opt.param_groups:
             g["lr"] = lr
         self._log("Policy/Learning Rate", lr)
@@ -364,8 +387,17 @@ class Trainer:
             for s in range(0, n - bs + 1, bs):
                 idx = perm[s : s + bs]
                 loss, (pl, vl, ent) = ppo_loss(
-                    self.actor, self.critic, t["obs"][idx], t["u"][idx], t["k"][idx],
-                    t["logp"][idx], t["adv"][idx], t["values"][idx], t["returns"][idx], eps, beta,
+                    self.actor,
+                    self.critic,
+                    t["obs"][idx],
+                    t["u"][idx],
+                    t["k"][idx],
+                    t["logp"][idx],
+                    t["adv"][idx],
+                    t["values"][idx],
+                    t["returns"][idx],
+                    eps,
+                    beta,
                 )
                 self.opt.zero_grad()
                 loss.backward()
@@ -410,7 +442,8 @@ class Trainer:
             row[k] = float(np.mean(v))
         now = time.perf_counter()
         row["Environment/Steps Per Second"] = (self.step - self._steps_at_t) / max(
-            now - self._t_summary, 1e-9)
+            now - self._t_summary, 1e-9
+        )
         self._t_summary, self._steps_at_t = now, self.step
         self._window.clear()
         for v in self._sig_window.values():
@@ -489,11 +522,18 @@ def export_onnx(actor: Actor, obs_dim: int, path: Path) -> None:
     model = DeterministicPolicy(copy.deepcopy(actor)).eval()
     dummy = torch.zeros(1, obs_dim)
     buf = io.BytesIO()
-    torch.onnx.export(
-        model, (dummy,), buf, input_names=["obs"], output_names=["actions"],
-        dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}}, opset_version=17,
-        dynamo=False,
-    )
+    with warnings.catch_warnings():  # the TorchScript exporter warns it is deprecated
+        warnings.simplefilter("ignore")
+        torch.onnx.export(
+            model,
+            (dummy,),
+            buf,
+            input_names=["obs"],
+            output_names=["actions"],
+            dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}},
+            opset_version=17,
+            dynamo=False,
+        )
     tmp = path.with_suffix(".onnx.tmp")
     tmp.write_bytes(buf.getvalue())
     os.replace(tmp, path)
@@ -526,16 +566,24 @@ def _fmt(v: float | None) -> str:
     return "" if v is None or not math.isfinite(v) else repr(float(v))
 
 
-def train(cfg: config_mod.TrainerConfig, run_dir: Path, *, demos: str | None = None,
-          resume: bool = False, max_steps: int | None = None, progress: bool = True,
-          stop_after_updates: int | None = None) -> Trainer:
+def train(
+    cfg: config_mod.TrainerConfig,
+    run_dir: Path,
+    *,
+    demos: str | None = None,
+    resume: bool = False,
+    max_steps: int | None = None,
+    progress: bool = True,
+    stop_after_updates: int | None = None,
+) -> Trainer:
     """Run (or resume) training; returns the trainer. ``stop_after_updates`` ends early without
     changing the schedules (for tests of resume)."""
     run_dir.mkdir(parents=True, exist_ok=True)
     total = int(max_steps if max_steps is not None else cfg.behavior.max_steps)
     config_mod.save(cfg, run_dir / "resolved_config.yaml")
-    (run_dir / "run.json").write_text(json.dumps(
-        {"max_steps": total, "demos": demos or cfg.demo_path}, indent=1))
+    (run_dir / "run.json").write_text(
+        json.dumps({"max_steps": total, "demos": demos or cfg.demo_path}, indent=1)
+    )
     tr = Trainer(cfg, run_dir, demos, total)
     if resume:
         ck = latest_checkpoint(run_dir)
@@ -547,8 +595,14 @@ def train(cfg: config_mod.TrainerConfig, run_dir: Path, *, demos: str | None = N
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=total, initial=tr.step, unit="step", dynamic_ncols=True,
-                   file=sys.stderr, smoothing=0.1)
+        bar = tqdm(
+            total=total,
+            initial=tr.step,
+            unit="step",
+            dynamic_ncols=True,
+            file=sys.stderr,
+            smoothing=0.1,
+        )
     ck_every = max(cfg.behavior.checkpoint_interval, 1)
     next_ck = (tr.step // ck_every + 1) * ck_every
     updates = 0
@@ -569,8 +623,9 @@ def train(cfg: config_mod.TrainerConfig, run_dir: Path, *, demos: str | None = N
                 next_ck = (tr.step // ck_every + 1) * ck_every
             if bar is not None:
                 bar.update(tr.step - before)
-                bar.set_postfix(picked=f"{tr.recent_picked:.0%}",
-                                installed=f"{tr.recent_installed:.0%}")
+                bar.set_postfix(
+                    picked=f"{tr.recent_picked:.0%}", installed=f"{tr.recent_installed:.0%}"
+                )
             if stop_after_updates is not None and updates >= stop_after_updates:
                 break
     finally:
@@ -578,8 +633,15 @@ def train(cfg: config_mod.TrainerConfig, run_dir: Path, *, demos: str | None = N
             bar.close()
         log.close()
     export_onnx(tr.actor, tr.obs_dim, run_dir / "policy.onnx")
-    torch.save({"actor": tr.actor.state_dict(), "obs_dim": tr.obs_dim, "step": tr.step,
-                "config": cfg.to_dict()}, run_dir / "policy.pt")
+    torch.save(
+        {
+            "actor": tr.actor.state_dict(),
+            "obs_dim": tr.obs_dim,
+            "step": tr.step,
+            "config": cfg.to_dict(),
+        },
+        run_dir / "policy.pt",
+    )
     return tr
 
 
@@ -601,20 +663,35 @@ def find_config_dir() -> Path:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", help=f"ML-Agents-shaped YAML (default configs/{DEFAULT_GROUP}"
-                        f" with --max-steps {DEFAULT_MAX_STEPS})")
-    parser.add_argument("--demos", help="demo dir/file; overrides the config's demo_path "
-                        f"(default: the config's, i.e. {DEFAULT_DEMOS})")
+    parser.add_argument(
+        "--config",
+        help=f"ML-Agents-shaped YAML (default configs/{DEFAULT_GROUP}"
+        f" with --max-steps {DEFAULT_MAX_STEPS})",
+    )
+    parser.add_argument(
+        "--demos",
+        help="demo dir/file; overrides the config's demo_path "
+        f"(default: the config's, i.e. {DEFAULT_DEMOS})",
+    )
     parser.add_argument("--run-dir", help="default runs/<config name>-seed<seed>")
     parser.add_argument("--resume", action="store_true", help="continue from the latest checkpoint")
     parser.add_argument("--seed", type=int, help="override env_settings.seed")
     parser.add_argument("--max-steps", type=int, help="override max_steps (schedules follow it)")
     parser.add_argument("--num-envs", type=int, help="override env_settings.num_envs")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="override any config key, e.g. behavior.reward_signals.gail."
-                        "survivor_bias=none (repeatable)")
-    parser.add_argument("--eval-episodes", type=int, default=100,
-                        help="evaluate the final policy on this many episodes (0: skip)")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override any config key, e.g. behavior.reward_signals.gail."
+        "survivor_bias=none (repeatable)",
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=100,
+        help="evaluate the final policy on this many episodes (0: skip)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 

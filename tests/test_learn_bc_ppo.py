@@ -1,0 +1,92 @@
+"""BC anneal schedule and learning, PPO schedules and loss pieces."""
+
+import numpy as np
+import pytest
+import torch
+
+from mimicrete.learn import toyenv
+from mimicrete.learn.bc import MIN_LR, BehavioralCloning, bc_learning_rate
+from mimicrete.learn.evaluate import run_episodes
+from mimicrete.learn.networks import Actor, ee_value_to_index
+from mimicrete.learn.ppo import combine_advantages, linear_decay, ppo_loss, scheduled
+
+
+def test_bc_learning_rate_anneals_to_zero_over_its_steps():
+    lr0 = 0.5 * 5e-4  # the paper: strength 0.5 x PPO's 5e-4
+    assert bc_learning_rate(lr0, 100_000, 0) == pytest.approx(2.5e-4)
+    assert bc_learning_rate(lr0, 100_000, 50_000) == pytest.approx(1.25e-4, rel=1e-6)
+    assert bc_learning_rate(lr0, 100_000, 100_000) == pytest.approx(MIN_LR)
+    assert bc_learning_rate(lr0, 100_000, 10**7) == pytest.approx(MIN_LR)
+    assert bc_learning_rate(lr0, 0, 10**7) == lr0  # steps 0: constant (ML-Agents)
+
+
+def test_bc_stops_after_its_steps_and_learns_the_expert():
+    torch.manual_seed(0)
+    d = toyenv.expert_demos(30, seed=3)
+    actor = Actor(toyenv.OBS_DIM, 6, 64, 2, normalize=True)
+    actor.norm.update(torch.from_numpy(d["obs"]))
+    bc = BehavioralCloning(
+        actor,
+        d["obs"],
+        d["actions"],
+        1e-3,
+        steps=1000,
+        batch_size=128,
+        num_epoch=3,
+        samples_per_update=0,
+    )
+    rng = np.random.default_rng(0)
+    assert bc.update(1000, rng) is None  # annealed out: no update
+    before = [p.clone() for p in actor.parameters()]
+    assert all(torch.equal(a, b) for a, b in zip(before, actor.parameters(), strict=True))
+    bc.steps = 0  # constant lr from here on
+    first = bc.update(0, rng)[0]
+    for _ in range(50):
+        last = bc.update(0, rng)[0]
+    assert last < 0.5 * first
+    res = run_episodes(actor, "Toy-v0", 16, seed=11)
+    assert res["installed_rate"] >= 0.9
+
+
+def test_ee_command_mapping():
+    v = torch.tensor([-1.0, -0.5, -0.2, 0.0, 0.49, 0.5, 1.0])
+    assert ee_value_to_index(v).tolist() == [0, 0, 1, 1, 1, 2, 2]
+
+
+def test_linear_schedules_like_ml_agents():
+    assert linear_decay(5e-4, 1e-10, 0, 100) == 5e-4
+    assert linear_decay(5e-4, 1e-10, 100, 100) == pytest.approx(1e-10)
+    assert linear_decay(0.2, 0.1, 50, 100) == pytest.approx(0.15)
+    assert linear_decay(0.01, 1e-5, 200, 100) == pytest.approx(1e-5)
+    assert scheduled("constant", "linear", 0.2, 0.1, 50, 100) == 0.2
+    assert scheduled(None, "linear", 0.2, 0.1, 50, 100) == pytest.approx(0.15)
+
+
+def test_combine_advantages_is_mean_then_z_normalised():
+    a = np.array([1.0, 2.0, 3.0, 6.0])
+    b = np.array([3.0, 2.0, 1.0, 2.0])
+    c = combine_advantages([a, b])
+    m = (a + b) / 2
+    np.testing.assert_allclose(c, (m - m.mean()) / m.std(), atol=1e-8)
+
+
+def test_ppo_loss_ratio_one_and_clipping():
+    torch.manual_seed(0)
+    actor = Actor(5, 6, 16, 2, normalize=False)
+    from mimicrete.learn.networks import Critic
+
+    critic = Critic(5, 2, 16, 2, normalize=False)
+    obs = torch.randn(32, 5)
+    u, k, logp = actor.sample(obs)
+    adv = torch.randn(32)
+    with torch.no_grad():
+        vals = critic(obs)
+    _, (pl, vl, ent) = ppo_loss(actor, critic, obs, u, k, logp, adv, vals, vals + 1.0, 0.2, 0.01)
+    assert pl == pytest.approx(-adv.mean().item(), abs=1e-6)  # ratio 1 -> -mean(A)
+    assert vl == pytest.approx(1.0, abs=1e-6)  # (returns - values)^2 = 1 per head
+    # entropy: 6 unit Gaussians + a 3-way categorical
+    assert ent > 6 * 1.41 and ent < 6 * 1.42 + np.log(3) + 1e-6
+    # a big positive advantage with old logp far below: ratio clipped at 1 + eps
+    lp_old = logp - 5.0
+    _, (pl2, _, _) = ppo_loss(actor, critic, obs, u, k, lp_old, torch.ones(32), vals, vals, 0.2, 0)
+    assert pl2 == pytest.approx(-1.2, abs=1e-6)
