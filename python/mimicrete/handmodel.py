@@ -295,21 +295,6 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _finger_chain(mcp: np.ndarray, lengths: np.ndarray, rest_dir: np.ndarray, flex: np.ndarray):
-    """Positions of the joints after the MCP (PIP, DIP, tip) for flexion angles ``flex`` (3,)
-    toward the palm (−Z), starting from the unit rest direction in the XY plane."""
-    out = []
-    p = mcp
-    theta = 0.0
-    down = np.array([0.0, 0.0, -1.0])
-    for k in range(3):
-        theta += flex[k]
-        d = np.cos(theta) * rest_dir + np.sin(theta) * down
-        p = p + lengths[k] * d
-        out.append(p)
-    return out
-
-
 def hand_joints_local(
     shape: HandShape, scale: float = 1.0, handedness: str = "right"
 ) -> np.ndarray:
@@ -320,42 +305,53 @@ def hand_joints_local(
         scale: hand size relative to an average adult hand (0.85 small … 1.15 large).
         handedness: ``"right"`` or ``"left"`` (the left hand is the mirror image, ``z → −z``).
     """
-    j = np.zeros((26, 3))
-    j[0] = _PALM_OFFSET
-    curl = np.clip(np.asarray(shape.curl, dtype=np.float64), 0.0, 1.0)
-    spread = float(np.clip(shape.spread, 0.0, 1.0))
+    return hand_joints_local_batch(shape.as_array()[None], scale, handedness)[0]
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def hand_joints_local_batch(
+    params: np.ndarray, scale: float = 1.0, handedness: str = "right"
+) -> np.ndarray:
+    """:func:`hand_joints_local` for a batch of shapes ``(B, 7)`` (:meth:`HandShape.as_array`
+    rows) → ``(B, 26, 3)``."""
+    if handedness not in ("left", "right"):
+        raise ValueError(f"handedness must be 'left' or 'right', got {handedness!r}")
+    p = np.clip(np.asarray(params, dtype=np.float64).reshape(-1, 7), 0.0, 1.0)
+    b = p.shape[0]
+    j = np.zeros((b, 26, 3))
+    j[:, 0] = _PALM_OFFSET
+    curl, tc, o, spread = p[:, :4], p[:, 4], p[:, 5], p[:, 6]
+    down = np.array([0.0, 0.0, -1.0])
     for f in range(4):
         base = 6 + 5 * f
-        j[base] = _META_BASE[f]
-        j[base + 1] = _MCP[f]
-        ang = _REST_ANGLE[f] + spread * _SPREAD_ANGLE[f] * (1.0 - 0.7 * curl[f])
-        rest = np.array([np.sin(ang), np.cos(ang), 0.0])
-        flex = curl[f] * _FULL_FLEX
-        # Slight natural flexion even when "straight" and a little hyperextension never.
-        flex = flex + np.radians([4.0, 5.0, 3.0])
-        for k, p in enumerate(_finger_chain(_MCP[f], _PHALANX[f], rest, flex)):
-            j[base + 2 + k] = p
+        j[:, base] = _META_BASE[f]
+        j[:, base + 1] = _MCP[f]
+        ang = _REST_ANGLE[f] + spread * _SPREAD_ANGLE[f] * (1.0 - 0.7 * curl[:, f])
+        rest = np.stack([np.sin(ang), np.cos(ang), np.zeros(b)], axis=-1)  # (B, 3)
+        # Full-curl flexion per joint plus a slight natural flexion even when "straight".
+        flex = curl[:, f, None] * _FULL_FLEX + np.radians([4.0, 5.0, 3.0])
+        theta = np.cumsum(flex, axis=1)  # (B, 3)
+        d = np.cos(theta)[..., None] * rest[:, None] + np.sin(theta)[..., None] * down
+        j[:, base + 2 : base + 5] = _MCP[f] + np.cumsum(_PHALANX[f][:, None] * d, axis=1)
     # Thumb: metacarpal direction swings from out-to-the-side (opposition 0) to across the palm.
-    o = float(np.clip(shape.thumb_opposition, 0.0, 1.0))
-    tc = float(np.clip(shape.thumb_curl, 0.0, 1.0))
     side = _unit(np.array([-0.78, 0.55, -0.30]))
     across = _unit(np.array([-0.05, 0.62, -0.78]))
-    meta_dir = _unit((1.0 - o) * side + o * across)
+    meta_dir = _unit_rows((1.0 - o)[:, None] * side + o[:, None] * across)
     # The thumb bends toward the little finger and the palm.
     bend_goal = _unit(np.array([0.75, 0.15, -0.65]))
-    bend = _unit(bend_goal - np.dot(bend_goal, meta_dir) * meta_dir)
-    j[2] = _THUMB_CMC
-    j[3] = j[2] + _THUMB_LEN[0] * meta_dir
-    theta = 0.0
-    for k, ang in enumerate(np.radians([10.0 + 50.0 * tc, 5.0 + 75.0 * tc])):
-        theta += ang
-        d = np.cos(theta) * meta_dir + np.sin(theta) * bend
-        j[4 + k] = j[3 + k] + _THUMB_LEN[1 + k] * d
+    bend = _unit_rows(bend_goal - (meta_dir @ bend_goal)[:, None] * meta_dir)
+    j[:, 2] = _THUMB_CMC
+    j[:, 3] = _THUMB_CMC + _THUMB_LEN[0] * meta_dir
+    theta = np.cumsum(np.radians(np.stack([10.0 + 50.0 * tc, 5.0 + 75.0 * tc], axis=1)), axis=1)
+    for k in range(2):
+        d = np.cos(theta[:, k, None]) * meta_dir + np.sin(theta[:, k, None]) * bend
+        j[:, 4 + k] = j[:, 3 + k] + _THUMB_LEN[1 + k] * d
     j *= scale
     if handedness == "left":
-        j[:, 2] *= -1.0
-    elif handedness != "right":
-        raise ValueError(f"handedness must be 'left' or 'right', got {handedness!r}")
+        j[..., 2] *= -1.0
     return j
 
 
@@ -444,6 +440,25 @@ def tracking_noise(
     return out
 
 
+def tracking_noise_batch(
+    joints: np.ndarray, rng: np.random.Generator, sigma: float = 0.003, occluded_sigma: float = 0.0
+) -> np.ndarray:
+    """:func:`tracking_noise` for a batch of OpenXR hands ``(B, 26, 3)``."""
+    j = np.asarray(joints, dtype=np.float64)
+    out = j + rng.normal(scale=sigma, size=j.shape)
+    if occluded_sigma > 0.0:
+        span = np.linalg.norm(j[:, 12] - j[:, 1], axis=-1)
+        tips = np.array([5, 10, 15, 20, 25])
+        dist = np.linalg.norm(j[:, tips] - j[:, 1:2], axis=-1)  # (B, 5)
+        closeness = np.clip(1.0 - dist / (2.2 * span[:, None]), 0.0, 1.0)
+        for k, tip in enumerate(tips):
+            for idx in (tip - 1, tip):
+                out[:, idx] += rng.normal(size=(len(j), 3)) * (
+                    occluded_sigma * closeness[:, k, None]
+                )
+    return out
+
+
 def jitter_shape(shape: HandShape, rng: np.random.Generator, sd: float = 0.06) -> HandShape:
     """A person's version of a gesture: every parameter moved by ``N(0, sd)`` (clipped)."""
     return HandShape.from_array(shape.as_array() + rng.normal(scale=sd, size=7))
@@ -461,9 +476,11 @@ __all__ = [
     "hand_frame",
     "hand_joints",
     "hand_joints_local",
+    "hand_joints_local_batch",
     "jitter_shape",
     "random_rotation",
     "rotation_matrix",
     "to_layout",
     "tracking_noise",
+    "tracking_noise_batch",
 ]

@@ -1,0 +1,629 @@
+"""A scripted human demonstrator: hand logs of a person doing a task in headset space.
+
+``mimicrete synth-hands --task suction --episodes 60 --seed 0 --out DIR`` writes one hand log
+(JSON Lines, format ``mimicrete.handlog`` v1) per episode. The demonstrator sees what a person in
+the VR scene sees: where the robot's end effector, the object and the target are at the start of
+the episode (:func:`scene_from_env`, the one place scene positions come from). It never reads the
+simulator afterwards: every motion is planned once, open loop, like a person acting on what they
+see, with generous pauses for the robot to catch up.
+
+How a motion is made:
+
+1. Waypoints for the robot's TCP (cup centre / point between the fingers) in the robot Base frame,
+   tool pointing straight down, with the gesture to show at each (paper §3.2, Table 1).
+2. A person's trajectory through them: minimum-jerk reaches at a per-episode speed, varied per
+   reach; hesitations (a pause part-way); small overshoots past the goal and a correction back;
+   physiological tremor (8-12 Hz, sub-millimetre) and slow sway; a slight wobble of the hand's
+   orientation.
+3. Gestures change through in-between finger shapes (a minimum-jerk blend of the two shapes over
+   0.2-0.5 s), with the occasional single-frame tracking glitch and short tracking dropouts.
+4. TCP → tool0 (the flange, ``tcp_z`` above the TCP along the tool axis) → the hand: tool0's pose
+   is what ``hand_to_target`` makes of the wrist / index-proximal / middle-proximal joints through
+   the calibration (``ur3_kin::hand``: tool0.x = hand.y, tool0.y = hand.x, tool0.z = −hand.z,
+   origin at the wrist; headset OpenXR space → Base by :class:`Calibration`), so the hand pose is
+   that map inverted, and the parametric hand (:mod:`mimicrete.handmodel`) adds the fingers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete import handmodel as hm
+
+TASKS: tuple[str, ...] = ("suction", "grip", "screw")
+#: Simulator task names (``tile-sim`` ``Task``).
+SIM_TASK: dict[str, str] = {"suction": "TileSuction", "grip": "BlockGrip", "screw": "Screw"}
+HAND_RATE_HZ = 90.0
+
+#: Gesture class (paper Table 1) → finger shape shown.
+SHAPE_OF: dict[str, str] = {
+    "closing": "closing",
+    "opening": "opening",
+    "fixed": "fixed",
+    "closing_fixed": "closing",
+    "closing_tightening": "tightening",
+    "closing_loosening": "loosening",
+    "opening_stopped": "opening",
+    "fixed_stopped": "fixed",
+}
+
+#: OpenXR (+Y up, −Z forward, +X right) → forward-left-up (ur3_kin ``Space::to_flu``).
+AXES_TO_FLU: dict[str, np.ndarray] = {
+    "openxr": np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+    "webxr": np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+    "robot_base": np.eye(3),
+}
+#: Columns are tool0's axes in hand-frame coordinates (ur3_kin ``tool_from_hand_rotation``).
+TOOL_FROM_HAND = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: tool0 pointing straight down, tool X along Base X (tile-sim ``expert::tool_down``).
+TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
+
+
+# ----------------------------------------------------------------------------------------------
+# Calibration (mirrors ur3_kin::hand::Calibration)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Calibration:
+    """Headset space → robot Base: ``p_base = R · (scale · to_flu(p)) + t``.
+
+    The default is ur3-kin's ``Calibration::default()``: OpenXR LOCAL space, operator behind the
+    robot facing Base +X, ``t = (−0.1, 0, 0.6)``, no rotation, scale 1.
+    """
+
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    translation: np.ndarray = field(default_factory=lambda: np.array([-0.1, 0.0, 0.6]))
+    scale: float = 1.0
+    space: str = "openxr"
+
+    def __post_init__(self) -> None:
+        if self.space not in AXES_TO_FLU:
+            raise ValueError(f"space must be one of {sorted(AXES_TO_FLU)}, got {self.space!r}")
+        self.rotation = np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
+        self.translation = np.asarray(self.translation, dtype=np.float64).reshape(3)
+
+    def _lin(self) -> np.ndarray:
+        return self.rotation @ AXES_TO_FLU[self.space]
+
+    def point_to_base(self, p: np.ndarray) -> np.ndarray:
+        """Headset-space points ``(..., 3)`` → Base."""
+        return self.scale * np.asarray(p) @ self._lin().T + self.translation
+
+    def point_from_base(self, p: np.ndarray) -> np.ndarray:
+        """Base points ``(..., 3)`` → headset space."""
+        return (np.asarray(p) - self.translation) @ self._lin() / self.scale
+
+    def rotation_from_base(self, r: np.ndarray) -> np.ndarray:
+        """A frame's rotation ``(…, 3, 3)`` in Base → the same frame in headset space."""
+        return self._lin().T @ r
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (stored in hand-log headers under ``extra.calibration``)."""
+        return {
+            "rotation": self.rotation.tolist(),
+            "translation": self.translation.tolist(),
+            "scale": self.scale,
+            "space": self.space,
+        }
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> Calibration:
+        """Inverse of :meth:`to_dict`."""
+        return Calibration(
+            np.array(d["rotation"]), np.array(d["translation"]), float(d["scale"]), d["space"]
+        )
+
+
+def tool0_from_hand(
+    wrist: np.ndarray,
+    index_proximal: np.ndarray,
+    middle_proximal: np.ndarray,
+    handedness: str,
+    calib: Calibration,
+) -> np.ndarray:
+    """Numpy statement of ur3-kin's ``hand_to_target`` (tool0 pose ``(4, 4)`` in Base), used to
+    plan and to cross-check the Rust one."""
+    w, i, m = (
+        calib.point_to_base(np.asarray(p, dtype=np.float64))
+        for p in (wrist, index_proximal, middle_proximal)
+    )
+    yp = m - w
+    xp = m - i
+    if handedness == "left":
+        xp = -xp
+    y = yp / np.linalg.norm(yp)
+    z = np.cross(xp, yp)
+    z /= np.linalg.norm(z)
+    x = np.cross(y, z)
+    t = np.eye(4)
+    t[:3, :3] = np.column_stack([x, y, z]) @ TOOL_FROM_HAND
+    t[:3, 3] = w
+    return t
+
+
+def hand_pose_for_tool0(
+    tool0: np.ndarray, handedness: str, calib: Calibration
+) -> tuple[np.ndarray, np.ndarray]:
+    """Invert :func:`tool0_from_hand`: the hand-model wrist rotation (columns: the hand frame of
+    :mod:`mimicrete.handmodel` in headset space) and wrist position that give ``tool0``
+    (``(4, 4)`` or a batch ``(n, 4, 4)`` → ``(…, 3, 3)``, ``(…, 3)``)."""
+    tool0 = np.asarray(tool0, dtype=np.float64)
+    r_hand_base = tool0[..., :3, :3] @ TOOL_FROM_HAND.T
+    # ur3-kin negates x' for a left hand: its frame is ours · diag(-1, 1, -1)
+    if handedness == "left":
+        r_hand_base = r_hand_base @ np.diag([-1.0, 1.0, -1.0])
+    return calib.rotation_from_base(r_hand_base), calib.point_from_base(tool0[..., :3, 3])
+
+
+def _rot_batch(axis: int, angle: np.ndarray) -> np.ndarray:
+    """Rotations ``(n, 3, 3)`` about coordinate axis ``axis`` (0 x, 1 y, 2 z)."""
+    c, s = np.cos(angle), np.sin(angle)
+    r = np.zeros((len(angle), 3, 3))
+    i, k = [(1, 2), (2, 0), (0, 1)][axis]
+    r[:, axis, axis] = 1.0
+    r[:, i, i] = c
+    r[:, k, k] = c
+    r[:, i, k] = -s
+    r[:, k, i] = s
+    return r
+
+
+# ----------------------------------------------------------------------------------------------
+# Scene: the one place positions come from
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Scene:
+    """What the demonstrator sees at the start of an episode (Base frame, metres).
+
+    Attributes:
+        task: ``suction``, ``grip`` or ``screw``.
+        episode_seed: the simulator seed of the episode.
+        tcp: the end effector's TCP (cup centre / between the fingertips).
+        tcp_z: distance from tool0 (flange) to the TCP along the tool axis.
+        object: centre of the tile / block / nut.
+        target: where the object's centre must end up.
+    """
+
+    task: str
+    episode_seed: int
+    tcp: np.ndarray
+    tcp_z: float
+    object: np.ndarray
+    target: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "task": self.task,
+            "episode_seed": self.episode_seed,
+            "tcp": np.round(self.tcp, 6).tolist(),
+            "tcp_z": round(self.tcp_z, 6),
+            "object": np.round(self.object, 6).tolist(),
+            "target": np.round(self.target, 6).tolist(),
+        }
+
+
+def obs_layout(task: str) -> dict[str, slice]:
+    """Fields of one observation frame (tile-sim ``Task::obs_frame_dim``)."""
+    if task == "screw":
+        return {
+            "q": slice(0, 6),
+            "tcp": slice(8, 11),
+            "target": slice(11, 14),
+            "object": slice(14, 17),
+        }
+    return {"q": slice(0, 6), "tcp": slice(7, 10), "target": slice(10, 13), "object": slice(13, 16)}
+
+
+def scene_from_obs(task: str, seed: int, obs: np.ndarray, frame_dim: int) -> Scene:
+    """Read a :class:`Scene` from a reset observation (newest frame last)."""
+    from mimicrete import kin
+
+    f = np.asarray(obs, dtype=np.float64).reshape(-1)[-frame_dim:]
+    lay = obs_layout(task)
+    tcp = f[lay["tcp"]]
+    tool0 = kin.fk(f[lay["q"]], model="ur3")
+    return Scene(
+        task,
+        int(seed),
+        tcp,
+        float(np.linalg.norm(tool0[:3, 3] - tcp)),
+        f[lay["object"]],
+        f[lay["target"]],
+    )
+
+
+def scene_from_env(task: str, seed: int) -> Scene:
+    """The scene of episode ``seed`` as the simulator resets it (the one switch for where the
+    demonstrator's knowledge comes from)."""
+    from mimicrete import envs
+
+    env = envs.make_env(SIM_TASK[task])
+    obs, _ = env.reset(seed=int(seed))
+    return scene_from_obs(task, seed, obs, envs.obs_frame_dim(SIM_TASK[task]))
+
+
+# ----------------------------------------------------------------------------------------------
+# Human motion
+# ----------------------------------------------------------------------------------------------
+
+
+def min_jerk(s: np.ndarray) -> np.ndarray:
+    """Minimum-jerk profile ``10s³ − 15s⁴ + 6s⁵`` on ``s ∈ [0, 1]``."""
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+@dataclass
+class Person:
+    """Per-episode traits of the demonstrator."""
+
+    speed: float  # typical hand speed during reaches, m/s
+    hand_scale: float
+    handedness: str
+    tremor_mm: float
+    sway_mm: float
+    hesitancy: float  # probability that a reach pauses part-way
+    overshoot: float  # typical overshoot as a share of the reach distance
+
+
+class Motion:
+    """Accumulates a TCP path (Base), a gesture-shape track and keyframes at 90 Hz."""
+
+    def __init__(
+        self, start: np.ndarray, shape: np.ndarray, rng: np.random.Generator, person: Person
+    ) -> None:
+        self.dt = 1.0 / HAND_RATE_HZ
+        self.rng = rng
+        self.person = person
+        self.pos: list[np.ndarray] = [np.asarray(start, dtype=np.float64)]
+        self.shape: list[np.ndarray] = [np.asarray(shape, dtype=np.float64)]
+        self.phase: list[str] = ["start"]
+        self.transport: list[bool] = [False]
+
+    @property
+    def here(self) -> np.ndarray:
+        return self.pos[-1]
+
+    def _append(self, pos: np.ndarray, shapes: np.ndarray, phase: str, transport: bool) -> None:
+        self.pos.extend(pos)
+        self.shape.extend(shapes)
+        self.phase.extend([phase] * len(pos))
+        self.transport.extend([transport] * len(pos))
+
+    def hold(self, seconds: float, phase: str = "hold") -> None:
+        n = max(1, int(round(seconds / self.dt)))
+        self._append(
+            np.repeat(self.here[None], n, 0), np.repeat(self.shape[-1][None], n, 0), phase, False
+        )
+
+    def gesture(self, target_shape: hm.HandShape, seconds: float, phase: str = "gesture") -> None:
+        """Change the finger shape through in-between shapes while the hand holds still."""
+        n = max(2, int(round(seconds / self.dt)))
+        a = self.shape[-1]
+        b = hm.jitter_shape(target_shape, self.rng, sd=0.03).as_array()
+        w = min_jerk(np.arange(1, n + 1) / n)[:, None]
+        self._append(np.repeat(self.here[None], n, 0), (1 - w) * a + w * b, phase, False)
+
+    def _leg(self, goal: np.ndarray, seconds: float, phase: str, transport: bool) -> None:
+        n = max(2, int(round(seconds / self.dt)))
+        s = min_jerk(np.arange(1, n + 1) / n)[:, None]
+        start = self.here
+        self._append(
+            start + s * (goal - start), np.repeat(self.shape[-1][None], n, 0), phase, transport
+        )
+
+    def reach(
+        self, goal: np.ndarray, phase: str, precise: bool = False, transport: bool = True
+    ) -> None:
+        """A human reach: min-jerk, maybe a hesitation part-way, maybe an overshoot + correction.
+        ``precise`` reaches (the last centimetres to a grasp) are slower and overshoot less."""
+        goal = np.asarray(goal, dtype=np.float64)
+        rng, p = self.rng, self.person
+        d = float(np.linalg.norm(goal - self.here))
+        if d < 1e-6:
+            return
+        speed = p.speed * rng.uniform(0.75, 1.25) * (0.4 if precise else 1.0)
+        seconds = max(0.35, 1.875 * d / speed)  # min-jerk peak speed = 1.875 · mean speed
+        if rng.random() < p.hesitancy and d > 0.05:
+            frac = rng.uniform(0.4, 0.7)
+            mid = self.here + frac * (goal - self.here) + rng.normal(scale=0.004, size=3)
+            self._leg(mid, seconds * frac, phase, transport)
+            self.hold(rng.uniform(0.1, 0.45), phase)
+            seconds *= 1.0 - frac
+        over = p.overshoot * (0.3 if precise else 1.0) * rng.uniform(0.3, 1.5)
+        if d > 0.03 and over > 0.0:
+            direction = (goal - self.here) / max(np.linalg.norm(goal - self.here), 1e-9)
+            past = goal + direction * min(over * d, 0.012) + rng.normal(scale=0.0015, size=3)
+            self._leg(past, seconds, phase, transport)
+            self._leg(goal, rng.uniform(0.2, 0.4), phase + "_correct", False)
+        else:
+            self._leg(goal, seconds, phase, transport)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, list[str], np.ndarray]:
+        return np.array(self.pos), np.array(self.shape), self.phase, np.array(self.transport)
+
+
+def _slow_noise(n: int, dt: float, rng: np.random.Generator, tau: float = 0.4) -> np.ndarray:
+    """Unit-variance low-pass noise ``(n, 3)`` (exponential kernel of time constant ``tau``)."""
+    m = int(5 * tau / dt)
+    white = rng.normal(size=(n + m - 1, 3))
+    k = np.exp(-np.arange(m) * dt / tau)
+    k /= np.sqrt(np.sum(k**2))
+    return np.stack([np.convolve(white[:, i], k, mode="valid") for i in range(3)], axis=1)
+
+
+def _tremor(n: int, dt: float, rng: np.random.Generator, person: Person) -> np.ndarray:
+    """Physiological tremor (8-12 Hz) plus slow sway, ``(n, 3)`` metres."""
+    t = np.arange(n) * dt
+    out = np.zeros((n, 3))
+    for _ in range(3):
+        f = rng.uniform(8.0, 12.0)
+        amp = person.tremor_mm * 1e-3 / 3.0
+        out += amp * np.sin(2 * np.pi * f * t[:, None] + rng.uniform(0, 2 * np.pi, size=3))
+    return out + person.sway_mm * 1e-3 * _slow_noise(n, dt, rng)
+
+
+def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
+    """The TCP path and gestures of one demonstration of ``scene.task``."""
+    task = scene.task
+    up = np.array([0.0, 0.0, 1.0])
+    cls_open = "opening_stopped" if task == "screw" else "opening"
+    cls_close = "closing_fixed" if task == "screw" else "closing"
+    shp = {c: hm.GESTURE_SHAPES[SHAPE_OF[c]] for c in SHAPE_OF}
+    m = Motion(scene.tcp, hm.jitter_shape(shp[cls_open], rng, 0.03).as_array(), rng, person)
+    m.hold(rng.uniform(0.3, 0.8), "start")
+    obj, tgt = scene.object, scene.target
+    if task == "suction":
+        grasp = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
+        clearance = rng.uniform(0.008, 0.016)
+        m.reach(grasp + up * rng.uniform(0.06, 0.10), "approach")
+        m.hold(rng.uniform(0.3, 0.7), "settle")
+        m.reach(grasp + up * clearance, "descend", precise=True)
+        m.hold(rng.uniform(0.5, 0.9), "settle")
+        m.gesture(shp[cls_close], rng.uniform(0.2, 0.5), "close")
+        m.hold(rng.uniform(0.5, 0.9), "grasp")
+        tile_below_tcp = clearance + obj[2]  # tile centre to cup centre while held
+        m.reach(m.here + up * rng.uniform(0.08, 0.12), "lift")
+        m.reach(tgt + up * (tile_below_tcp + rng.uniform(0.06, 0.10)), "carry")
+        m.hold(rng.uniform(0.3, 0.6), "settle")
+        m.reach(tgt + up * (tile_below_tcp + rng.uniform(0.0, 0.006)), "lower", precise=True)
+        m.hold(rng.uniform(0.5, 0.9), "place")
+        m.gesture(shp[cls_open], rng.uniform(0.2, 0.5), "release")
+        m.hold(rng.uniform(0.3, 0.6), "release")
+        m.reach(m.here + up * 0.08, "retreat")
+    elif task == "grip":
+        m.reach(obj + up * rng.uniform(0.08, 0.12), "approach")
+        m.hold(rng.uniform(0.3, 0.7), "settle")
+        m.reach(obj + up * rng.uniform(-0.003, 0.003), "descend", precise=True)
+        m.hold(rng.uniform(0.6, 1.0), "settle")
+        m.gesture(shp[cls_close], rng.uniform(0.2, 0.5), "close")
+        m.hold(rng.uniform(0.9, 1.3), "grasp")  # fingers close at 0.1 m/s
+        m.reach(m.here + up * rng.uniform(0.08, 0.12), "lift")
+        m.reach(tgt + up * rng.uniform(0.07, 0.10), "carry")
+        m.hold(rng.uniform(0.3, 0.6), "settle")
+        m.reach(tgt + up * rng.uniform(0.002, 0.006), "lower", precise=True)
+        m.hold(rng.uniform(0.5, 0.9), "place")
+        m.gesture(shp[cls_open], rng.uniform(0.2, 0.5), "release")
+        m.hold(rng.uniform(0.6, 1.0), "release")
+        m.reach(m.here + up * 0.08, "retreat")
+    elif task == "screw":
+        m.reach(obj + up * rng.uniform(0.07, 0.10), "approach")
+        m.hold(rng.uniform(0.4, 0.8), "settle")
+        m.reach(obj.copy(), "descend", precise=True)
+        m.hold(rng.uniform(0.7, 1.1), "settle")
+        m.gesture(shp[cls_close], rng.uniform(0.2, 0.5), "close")
+        m.hold(rng.uniform(0.9, 1.3), "grasp")
+        m.gesture(shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten")
+        # keep tightening, following the nut down, until it sits at the target (seen in VR)
+        seconds = rng.uniform(4.5, 5.5)
+        n = int(round(seconds * HAND_RATE_HZ))
+        follow = np.linspace(0.0, 1.0, n)[:, None] ** 1.0
+        start = m.here
+        path = start + np.clip(follow * 1.15, 0, 1) * (tgt - start)
+        m._append(path, np.repeat(m.shape[-1][None], n, 0), "tighten", False)
+        m.gesture(shp["closing_fixed"], rng.uniform(0.2, 0.4), "stop")
+        m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release")
+        m.hold(rng.uniform(0.4, 0.8), "release")
+        m.reach(m.here + up * 0.08, "retreat")
+    else:
+        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    m.hold(rng.uniform(0.3, 0.6), "end")
+    return m
+
+
+@dataclass
+class Episode:
+    """One synthesised demonstration: frames in headset space and what made them."""
+
+    header: dict[str, Any]
+    t: np.ndarray  # (T,)
+    tracked: np.ndarray  # (T,) bool
+    joints: np.ndarray  # (T, N, 3) in the header's layout and space
+    phases: list[str]
+    tool0: np.ndarray  # (T, 4, 4) the tool0 pose each frame is meant to command (Base)
+
+
+def synth_episode(
+    scene: Scene,
+    seed: int,
+    *,
+    layout: str = "openxr",
+    calib: Calibration | None = None,
+    handedness: str = "right",
+) -> Episode:
+    """Synthesise one demonstration of ``scene``; the same ``(scene, seed)`` gives the same
+    episode."""
+    layout = hm.check_layout(layout)
+    calib = calib or Calibration()
+    rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
+    person = Person(
+        speed=float(rng.uniform(0.15, 0.30)),
+        hand_scale=float(rng.uniform(0.82, 1.18)),
+        handedness=handedness,
+        tremor_mm=float(rng.uniform(0.2, 0.6)),
+        sway_mm=float(rng.uniform(0.2, 0.7)),
+        hesitancy=float(rng.uniform(0.1, 0.4)),
+        overshoot=float(rng.uniform(0.02, 0.08)),
+    )
+    motion = plan_task(scene, rng, person)
+    tcp, shapes, phases, transport = motion.arrays()
+    n = len(tcp)
+    dt = 1.0 / HAND_RATE_HZ
+    tcp = tcp + _tremor(n, dt, rng, person)
+    # tool orientation: straight down with a slight slow wobble (< ~1°) and a personal yaw bias
+    wob = np.radians(0.5) * _slow_noise(n, dt, rng, tau=0.6)
+    yaw0 = rng.uniform(-0.05, 0.05)
+    t = np.arange(n) * dt
+    rot = (
+        _rot_batch(2, yaw0 + wob[:, 2]) @ _rot_batch(0, wob[:, 0]) @ _rot_batch(1, wob[:, 1])
+    ) @ TOOL_DOWN
+    frames = np.zeros((n, 4, 4))
+    frames[:, :3, :3] = rot
+    frames[:, :3, 3] = tcp - rot[:, :, 2] * scene.tcp_z  # tool z points down, to the TCP
+    frames[:, 3, 3] = 1.0
+    hand_rot, wrist = hand_pose_for_tool0(frames, handedness, calib)
+    glitch = np.flatnonzero(rng.random(n) < 0.004)  # one-frame finger-tracking glitches
+    names = list(hm.GESTURE_SHAPES)
+    for k in glitch:
+        shapes[k] = hm.jitter_shape(
+            hm.GESTURE_SHAPES[names[rng.integers(len(names))]], rng
+        ).as_array()
+    local = hm.hand_joints_local_batch(shapes, person.hand_scale, handedness)
+    joints = np.einsum("nij,nkj->nki", hand_rot, local) + wrist[:, None, :]
+    joints = hm.tracking_noise_batch(joints, rng, sigma=0.0004, occluded_sigma=0.004)
+    tracked = np.ones(n, dtype=bool)
+    moving = np.flatnonzero(transport)
+    if len(moving) > 20 and rng.random() < 0.5:  # a short tracking dropout while moving
+        k0 = int(moving[rng.integers(len(moving) - 12)])
+        length = int(rng.integers(3, 12))
+        tracked[k0 : k0 + length] = False
+        joints[k0 : k0 + length] = joints[k0 - 1]  # the runtime repeats its last estimate
+    out = hm.to_layout(joints, layout)
+    header = {
+        "format": "mimicrete.handlog",
+        "version": 1,
+        "layout": layout,
+        "space": calib.space,
+        "handedness": handedness,
+        "units": "m",
+        "task": scene.task,
+        "episode_seed": int(scene.episode_seed),
+        "source": "mimicrete synth-hands (scripted demonstrator)",
+        "extra": {
+            "synth_seed": int(seed),
+            "calibration": calib.to_dict(),
+            "scene": scene.to_dict(),
+            "person": {
+                "speed_m_s": round(person.speed, 4),
+                "hand_scale": round(person.hand_scale, 4),
+                "tremor_mm": round(person.tremor_mm, 3),
+            },
+            "rate_hz": HAND_RATE_HZ,
+        },
+    }
+    return Episode(header, t, tracked, out, phases, frames)
+
+
+def write_handlog(path: str | Path, ep: Episode) -> Path:
+    """Write an :class:`Episode` as a hand log (JSON Lines, coordinates rounded to 10 µm)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w") as f:
+        f.write(json.dumps(ep.header, separators=(",", ":")) + "\n")
+        rounded = np.round(ep.joints, 5)
+        for t, tr, j in zip(ep.t, ep.tracked, rounded, strict=True):
+            f.write(
+                json.dumps(
+                    {"t": round(float(t), 6), "tracked": bool(tr), "joints": j.tolist()},
+                    separators=(",", ":"),
+                )
+                + "\n"
+            )
+    return path
+
+
+def episode_seeds(seed: int, episodes: int) -> list[int]:
+    """The simulator seeds of ``episodes`` demonstrations drawn from ``seed`` (u64 each)."""
+    rng = np.random.default_rng([seed, 0xE915])
+    return [int(s) for s in rng.integers(0, 2**63 - 1, size=episodes, dtype=np.int64)]
+
+
+def synth_hands(
+    task: str,
+    episodes: int,
+    seed: int,
+    out: str | Path,
+    *,
+    layout: str = "openxr",
+    handedness: str = "right",
+    scene_fn: Any = None,
+    progress: bool = False,
+) -> list[Path]:
+    """Write ``episodes`` hand logs for ``task`` into ``out``; returns their paths.
+
+    ``scene_fn(task, episode_seed) -> Scene`` defaults to :func:`scene_from_env`.
+    """
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    scene_fn = scene_fn or scene_from_env
+    out = Path(out)
+    paths = []
+    seeds = episode_seeds(seed, episodes)
+    it: Any = enumerate(seeds)
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(it, total=episodes, desc=f"synth {task}", unit="ep")
+    for i, ep_seed in it:
+        scene = scene_fn(task, ep_seed)
+        ep = synth_episode(scene, seed * 1_000_003 + i, layout=layout, handedness=handedness)
+        paths.append(write_handlog(out / f"{task}_{i:04d}.handlog.jsonl", ep))
+    return paths
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Flags of ``mimicrete synth-hands``."""
+    parser.add_argument("--task", choices=TASKS, default="suction", help="task to demonstrate")
+    parser.add_argument("--episodes", type=int, default=60, help="hand logs to write (60)")
+    parser.add_argument("--seed", type=int, default=0, help="seed: same seed, same files (0)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    parser.add_argument(
+        "--layout",
+        choices=sorted(hm.LAYOUT_JOINTS),
+        default="openxr",
+        help="joint layout written (openxr)",
+    )
+    parser.add_argument(
+        "--handedness",
+        choices=["right", "left"],
+        default="right",
+        help="the demonstrating hand (right)",
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run ``mimicrete synth-hands``."""
+    if args.episodes < 1:
+        print("error: --episodes must be >= 1", file=sys.stderr)
+        return 2
+    paths = synth_hands(
+        args.task,
+        args.episodes,
+        args.seed,
+        args.out,
+        layout=args.layout,
+        handedness=args.handedness,
+        progress=True,
+    )
+    print(f"wrote {len(paths)} hand logs to {args.out}")
+    return 0
