@@ -1,1 +1,163 @@
-//! tile-sim (under construction).
+//! tile-sim: Rapier worlds for the UR3 construction tasks of Duan & Zou (suction tile
+//! installation, block gripping, nut screwing), frame-stacked observations, sparse rewards, a
+//! batched multi-threaded [`VecEnv`] and a scripted joint-space [`expert`].
+//!
+//! # Frames and units
+//! World frame = the UR "Base" frame (DH frame 0): Z up, metres, radians, seconds. The UR3 base
+//! stands on the table top, which is the plane `z = 0`. Quaternions are `[x, y, z, w]`.
+//!
+//! # Control rate, joint step, physics substeps (chosen, measured)
+//! * One env step = [`CONTROL_DT`] = 0.04 s of simulated time (25 Hz control), simulated by one
+//!   Rapier step with `dt = CONTROL_DT` and [`PHYSICS_SUBSTEPS`] = 4 solver substeps (10 ms each).
+//! * At `|a_i| = 1` a joint moves [`MAX_JOINT_STEP`] = 0.04 rad per step, i.e. 1 rad/s (the UR3's
+//!   rated joint speed is 3.14 rad/s; 1 rad/s keeps the flange under ~0.5 m/s, a safe teaching speed).
+//!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
+//! * The arm links are `kinematic_position_based` bodies placed by `ur3_kin::fk_all` each step, so
+//!   the arm cannot be pushed, but it pushes (and can knock over, sweep off, or crush) the object.
+//! * Measured (this 2-core VM, `cargo bench -p tile-sim --bench vecenv`): see the bench output and
+//!   the lead's closing note; one env step costs a few µs per core including observation stacking.
+//!
+//! # Action (f32, length [`Task::act_dim`])
+//! `a[0..6]` ∈ [-1, 1]: joint motion, `q_next = clamp(q + clip(a, -1, 1)·MAX_JOINT_STEP, -π, π)`
+//! (clamped, not wrapped: the arm never jumps across ±π). `a[6]`: end-effector command,
+//! `≥ 0.5` → suction on / gripper close, `≤ -0.5` → drop / open, otherwise fixed (hold the state).
+//! Screw has `a[7]` = spin: `≥ 0.5` tighten, `≤ -0.5` loosen, otherwise stopped.
+//! A recorded human demonstration produces exactly this: joint part
+//! `clip((q_ik − q)/MAX_JOINT_STEP, −1, 1)`, command ∈ {−1, 0, +1}. Values out of range are
+//! clipped; NaN/∞ is a [`SimError`].
+//!
+//! # Observation
+//! [`FRAME_STACK`] frames of [`Task::obs_frame_dim`] floats, **oldest first, newest last**; at the
+//! start of an episode the missing older frames are zeros. Frame layouts are documented on
+//! [`Task::obs_frame_dim`].
+//!
+//! # Rewards (sparse, paper §5.1 for TileSuction)
+//! See [`Task`] for each task's rewards and termination rules.
+
+mod env;
+pub mod expert;
+mod vecenv;
+mod world;
+
+pub use env::{Env, PoseRec, Snapshot, StepOutcome};
+pub use vecenv::{StepBuffers, StepOut, VecEnv};
+pub use world::{Scene, SceneFrame, SceneItem, Shape};
+
+/// Frames stacked into one observation (paper §5.1: five, zero-padded at episode start).
+pub const FRAME_STACK: usize = 5;
+/// Episodes are truncated (not terminated) after this many env steps (paper §5.1).
+pub const MAX_EPISODE_STEPS: u32 = 750;
+/// Simulated seconds per env step (25 Hz control). One Rapier step of this `dt` per env step.
+pub const CONTROL_DT: f32 = 0.04;
+/// Rapier solver substeps inside one env step (`IntegrationParameters::num_solver_iterations`).
+pub const PHYSICS_SUBSTEPS: usize = 4;
+/// Joint motion in radians per env step at `|a| = 1` (1 rad/s at [`CONTROL_DT`]).
+pub const MAX_JOINT_STEP: f64 = 0.04;
+
+/// Errors of the simulator (bad inputs; the state is left unchanged when one is returned).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// The action slice has the wrong length.
+    #[error("action has length {got}, expected {expected} (act_dim of {task})")]
+    ActionShape { expected: usize, got: usize, task: &'static str },
+    /// An action component is NaN or infinite.
+    #[error("action component {index} is not finite ({value})")]
+    NonFiniteAction { index: usize, value: f32 },
+    /// An output buffer has the wrong length.
+    #[error("{what} buffer has length {got}, expected {expected}")]
+    BufferShape { what: &'static str, expected: usize, got: usize },
+    /// `step` was called on an episode that has already terminated or been truncated.
+    #[error("the episode has ended (terminated or truncated): call reset before step")]
+    EpisodeOver,
+    /// An unknown task name.
+    #[error("unknown task {0:?}: expected TileSuction, BlockGrip or Screw (or suction, grip, screw)")]
+    UnknownTask(String),
+    /// A state set through `set_*` is invalid (non-finite numbers, bad sizes).
+    #[error("invalid state: {0}")]
+    InvalidState(String),
+    /// A `VecEnv` argument is invalid (zero envs, mask length, ...).
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+}
+
+/// The three tasks of the paper's three end effectors.
+///
+/// * `TileSuction` (paper §5.1, exact): UR3 with a four-cup suction head. Pick: the cup centre is
+///   within 0.04 m of the tile's grasp point (centre of its top face) while the suction state is on
+///   → the tile is held (rigidly, at its current offset) and +1 is paid once per episode.
+///   Install: the tile's centre is within 0.03 m of the target (the centre of a tile lying on the
+///   install pad) → +1, terminated. Install is measured whether or not the tile is still held
+///   (paper: "the robot needs to carry the tile to the target position, and if the distance … is
+///   less than 0.03 m, the task is finished"). Fall → −0.5, terminated: the tile leaves the table
+///   (centre below `z = -0.02`), tilts more than 45°, or falls faster than 1 m/s (dropped from
+///   more than ~5 cm). Nothing else is rewarded.
+/// * `BlockGrip`: parallel gripper picks a 4 cm wooden cube and places it on the pad. Grasp
+///   (closing fingers stop on the block) → +1 once; place: block released (not held) with its
+///   centre within 0.02 m of the target → +1, terminated; block leaves the table → −0.5, terminated.
+/// * `Screw`: grip the nut threaded on a fixed M12 bolt and spin it down [`SCREW_TURNS`] turns.
+///   Grip the nut → +1 once; turns ≥ [`SCREW_TURNS`] → +1, terminated; loosened more than one turn
+///   (the nut leaves the bolt and drops) → −0.5, terminated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Task {
+    TileSuction,
+    BlockGrip,
+    Screw,
+}
+
+/// Turns of the nut needed to complete the Screw task.
+pub const SCREW_TURNS: f64 = 3.0;
+
+impl Task {
+    /// All tasks, in a fixed order.
+    pub const ALL: [Task; 3] = [Task::TileSuction, Task::BlockGrip, Task::Screw];
+
+    /// Parse "TileSuction"/"BlockGrip"/"Screw" or "suction"/"grip"/"screw" (case-insensitive).
+    pub fn from_name(name: &str) -> Result<Task, SimError> {
+        match name.to_ascii_lowercase().as_str() {
+            "tilesuction" | "suction" | "tile_suction" => Ok(Task::TileSuction),
+            "blockgrip" | "grip" | "gripping" | "block_grip" => Ok(Task::BlockGrip),
+            "screw" | "screwing" => Ok(Task::Screw),
+            _ => Err(SimError::UnknownTask(name.to_string())),
+        }
+    }
+
+    /// Canonical name ("TileSuction", "BlockGrip", "Screw").
+    pub fn name(self) -> &'static str {
+        match self {
+            Task::TileSuction => "TileSuction",
+            Task::BlockGrip => "BlockGrip",
+            Task::Screw => "Screw",
+        }
+    }
+
+    /// Floats per observation frame.
+    ///
+    /// * TileSuction (16): `q[6]` rad, `suction` (+1 on / −1 off), `cup_centre[3]` m,
+    ///   `target[3]` m (tile-centre target), `tile_centre[3]` m.
+    /// * BlockGrip (16): `q[6]`, `gripper_width` (m, 0 … 0.085, finger gap), `tcp[3]` (point
+    ///   between the fingertips), `target[3]` (block-centre target), `block_centre[3]`.
+    /// * Screw (18): `q[6]`, `gripper_width` (m), `spin` (+1 tighten / 0 stopped / −1 loosen),
+    ///   `tcp[3]`, `target[3]` (the nut's fully tightened centre), `nut_centre[3]`, `turns`
+    ///   (turns screwed so far, ≥ 0 down the bolt).
+    ///
+    /// All positions in the Base frame.
+    pub fn obs_frame_dim(self) -> usize {
+        match self {
+            Task::TileSuction | Task::BlockGrip => 16,
+            Task::Screw => 18,
+        }
+    }
+
+    /// `FRAME_STACK × obs_frame_dim`.
+    pub fn obs_dim(self) -> usize {
+        FRAME_STACK * self.obs_frame_dim()
+    }
+
+    /// 7 (6 joints + EE command) or 8 for Screw (+ spin).
+    pub fn act_dim(self) -> usize {
+        match self {
+            Task::TileSuction | Task::BlockGrip => 7,
+            Task::Screw => 8,
+        }
+    }
+}

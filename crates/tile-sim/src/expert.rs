@@ -1,0 +1,235 @@
+//! Scripted joint-space experts (a reference policy and a test oracle).
+//!
+//! The expert reads a [`Snapshot`] and returns the action a human demonstration would record:
+//! joint part `clip((q_goal − q)/MAX_JOINT_STEP, −1, 1)` towards the current waypoint's joint
+//! solution, end-effector command ∈ {−1, 0, +1}. Waypoints are Cartesian TCP poses (flange pointing
+//! straight down) solved to joint angles by a damped-least-squares IK on `ur3_kin::fk`, seeded
+//! with the current joints so consecutive solutions stay on one branch.
+//!
+//! TileSuction: above the tile's grasp point (+8 cm) → down to 1.2 cm above it → suction →
+//! lift 10 cm → carry the tile 8 cm above the target → lower it onto the target (install ends
+//! the episode). BlockGrip: above the block (open) → fingers around it → close → lift → above the
+//! pad → lower → open (place ends the episode). Screw: above the nut (open) → fingers around it →
+//! close → spin (tighten) until done.
+
+use crate::env::Snapshot;
+use crate::world;
+use crate::{MAX_JOINT_STEP, Task};
+use nalgebra::{Isometry3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+use std::f64::consts::PI;
+
+/// Damped-least-squares IK to a tool0 pose (position + orientation) on the UR3, from `seed`.
+/// Returns `None` when the residual stays above 1e-6 (position m / orientation rad).
+pub fn ik_dls(target: &Isometry3<f64>, seed: &[f64; 6]) -> Option<[f64; 6]> {
+    let mut q = *seed;
+    let mut e = pose_error(target, &ur3_kin::fk(&ur3_kin::UR3, &q));
+    let mut lambda2 = 1e-3;
+    for _ in 0..300 {
+        if e.norm() < 1e-10 {
+            return Some(q);
+        }
+        let mut jac = Matrix6::zeros();
+        let h = 1e-7;
+        for j in 0..6 {
+            let mut qp = q;
+            qp[j] += h;
+            let ep = pose_error(target, &ur3_kin::fk(&ur3_kin::UR3, &qp));
+            // e(q) = target ⊖ fk(q): d e/dq = −J.
+            jac.set_column(j, &((e - ep) / h));
+        }
+        let jjt = jac * jac.transpose() + Matrix6::identity() * lambda2;
+        let dq = jac.transpose() * jjt.lu().solve(&e)?;
+        let step = dq.amax();
+        let scale = if step > 0.5 { 0.5 / step } else { 1.0 };
+        let mut qn = q;
+        for j in 0..6 {
+            qn[j] = (q[j] + scale * dq[j]).clamp(-PI, PI);
+        }
+        let en = pose_error(target, &ur3_kin::fk(&ur3_kin::UR3, &qn));
+        if en.norm() < e.norm() {
+            q = qn;
+            e = en;
+            lambda2 = (lambda2 * 0.3).max(1e-12);
+        } else {
+            lambda2 = (lambda2 * 10.0).min(1e2);
+        }
+    }
+    (e.norm() < 1e-6).then_some(q)
+}
+
+fn pose_error(target: &Isometry3<f64>, cur: &Isometry3<f64>) -> Vector6<f64> {
+    let dp = target.translation.vector - cur.translation.vector;
+    let dr = (target.rotation * cur.rotation.inverse()).scaled_axis();
+    Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+}
+
+/// Flange orientation used by the experts: tool Z straight down, tool X along Base X.
+pub fn tool_down() -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI)
+}
+
+fn tool0_for_tcp(tcp: Vector3<f64>, tcp_z: f64) -> Isometry3<f64> {
+    // Tool Z points down, so tool0 sits tcp_z above the TCP.
+    Isometry3::from_parts(Translation3::from(tcp + Vector3::new(0.0, 0.0, tcp_z)), tool_down())
+}
+
+fn iso(p: &crate::PoseRec) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(p.t[0], p.t[1], p.t[2]),
+        UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(p.q[3], p.q[0], p.q[1], p.q[2])),
+    )
+}
+
+fn v3(a: [f64; 3]) -> Vector3<f64> {
+    Vector3::new(a[0], a[1], a[2])
+}
+
+/// A scripted expert for one task. Call [`Expert::reset`] at every episode start.
+#[derive(Debug, Clone)]
+pub struct Expert {
+    task: Task,
+    phase: u8,
+    goal: Option<[f64; 6]>,
+    /// Steps spent in the current phase.
+    ticks: u32,
+}
+
+impl Expert {
+    pub fn new(task: Task) -> Expert {
+        Expert { task, phase: 0, goal: None, ticks: 0 }
+    }
+
+    /// Forget the episode's progress.
+    pub fn reset(&mut self) {
+        self.phase = 0;
+        self.goal = None;
+        self.ticks = 0;
+    }
+
+    /// The current phase index (for diagnostics).
+    pub fn phase(&self) -> u8 {
+        self.phase
+    }
+
+    /// Write the action for state `s` into `out` (length `task.act_dim()`).
+    pub fn act(&mut self, s: &Snapshot, out: &mut [f32]) {
+        out.iter_mut().for_each(|v| *v = 0.0);
+        // Advance phases whose goal has been reached (at most a few per call).
+        for _ in 0..4 {
+            if self.goal.is_none() {
+                self.goal = self.plan(s);
+                self.ticks = 0;
+            }
+            match self.goal {
+                Some(g) if reached(&g, &s.q) && self.motion_phase() => {
+                    self.next();
+                }
+                _ => break,
+            }
+        }
+        self.ticks += 1;
+        if let Some(g) = self.goal {
+            for i in 0..6 {
+                out[i] = ((g[i] - s.q[i]) / MAX_JOINT_STEP).clamp(-1.0, 1.0) as f32;
+            }
+        }
+        self.command(s, out);
+    }
+
+    fn next(&mut self) {
+        self.phase += 1;
+        self.goal = None;
+        self.ticks = 0;
+    }
+
+    /// Phases that end when the joint goal is reached (others end on an event).
+    fn motion_phase(&self) -> bool {
+        match self.task {
+            Task::TileSuction => !matches!(self.phase, 2 | 5),
+            Task::BlockGrip => !matches!(self.phase, 2 | 6),
+            Task::Screw => !matches!(self.phase, 2 | 3),
+        }
+    }
+
+    fn command(&mut self, s: &Snapshot, out: &mut [f32]) {
+        match (self.task, self.phase) {
+            (Task::TileSuction, 2) => {
+                out[6] = 1.0;
+                if s.held {
+                    self.next();
+                    self.goal = self.plan(s);
+                }
+            }
+            (Task::BlockGrip | Task::Screw, 0 | 1) => out[6] = -1.0,
+            (Task::BlockGrip | Task::Screw, 2) => {
+                out[6] = 1.0;
+                if s.held {
+                    self.next();
+                    self.goal = self.plan(s);
+                }
+            }
+            (Task::BlockGrip, 6) => out[6] = -1.0,
+            (Task::Screw, 3) => {
+                out[6] = 1.0;
+                out[7] = 1.0;
+            }
+            _ => {}
+        }
+    }
+
+    fn plan(&self, s: &Snapshot) -> Option<[f64; 6]> {
+        let obj = v3(s.object.t);
+        let tgt = v3(s.target.t);
+        let up = Vector3::z();
+        match self.task {
+            Task::TileSuction => {
+                let grasp = obj + up * world::TILE_HALF[2] as f64;
+                let tz = world::CUP_TCP_Z as f64;
+                match self.phase {
+                    0 => ik_dls(&tool0_for_tcp(grasp + up * 0.08, tz), &s.q),
+                    1 => ik_dls(&tool0_for_tcp(grasp + up * 0.012, tz), &s.q),
+                    2 => Some(s.q),
+                    3 => ik_dls(&tool0_for_tcp(v3(s.tcp.t) + up * 0.10, tz), &s.q),
+                    4 | 5 => {
+                        let lift = if self.phase == 4 { 0.08 } else { 0.0 };
+                        let tile_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
+                        let tile_goal = Isometry3::from_parts(
+                            Translation3::from(tgt + up * lift),
+                            iso(&s.object).rotation,
+                        );
+                        ik_dls(&(tile_goal * tile_in_tool.inverse()), &s.q)
+                    }
+                    _ => Some(s.q),
+                }
+            }
+            Task::BlockGrip => {
+                let tz = world::GRIP_TCP_Z as f64;
+                match self.phase {
+                    0 => ik_dls(&tool0_for_tcp(obj + up * 0.10, tz), &s.q),
+                    1 => ik_dls(&tool0_for_tcp(obj, tz), &s.q),
+                    2 => Some(s.q),
+                    3 => ik_dls(&tool0_for_tcp(v3(s.tcp.t) + up * 0.10, tz), &s.q),
+                    4 | 5 => {
+                        let lift = if self.phase == 4 { 0.08 } else { 0.004 };
+                        let obj_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
+                        let goal = Isometry3::from_parts(Translation3::from(tgt + up * lift), iso(&s.object).rotation);
+                        ik_dls(&(goal * obj_in_tool.inverse()), &s.q)
+                    }
+                    _ => Some(s.q),
+                }
+            }
+            Task::Screw => {
+                let tz = world::GRIP_TCP_Z as f64;
+                match self.phase {
+                    0 => ik_dls(&tool0_for_tcp(obj + up * 0.08, tz), &s.q),
+                    1 => ik_dls(&tool0_for_tcp(obj, tz), &s.q),
+                    _ => Some(s.q),
+                }
+            }
+        }
+    }
+}
+
+fn reached(goal: &[f64; 6], q: &[f64; 6]) -> bool {
+    goal.iter().zip(q).all(|(g, v)| (g - v).abs() < 1e-5)
+}

@@ -1,0 +1,384 @@
+//! World geometry: table, arm link shapes, end effectors, task objects, and the static scene
+//! description for visualisation. All lengths in metres, Base frame, Z up.
+
+use crate::{CONTROL_DT, PHYSICS_SUBSTEPS, Task};
+use rapier3d::prelude::*;
+use std::f32::consts::FRAC_PI_2;
+
+// ---- table and layout (Base frame) ----
+/// Table top plane height (the UR3 base stands on it).
+pub const TABLE_TOP: f32 = 0.0;
+/// Table half extents (x, y, z): 1.4 m × 1.4 m, 4 cm thick, centred under the base.
+pub const TABLE_HALF: [f32; 3] = [0.7, 0.7, 0.02];
+/// Object y coordinate (in front of the base) and x range of the randomised object position.
+pub const OBJECT_Y: f32 = 0.32;
+/// Object x is uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` (paper: x randomised in [0, 0.15] m).
+pub const OBJECT_X_MIN: f32 = 0.0;
+pub const OBJECT_X_MAX: f32 = 0.15;
+/// Install pad: a fixed box the tile/block is placed on; centre (x, y) and half extents.
+pub const PAD_XY: [f32; 2] = [-0.22, 0.28];
+pub const PAD_HALF: [f32; 3] = [0.1, 0.1, 0.02];
+
+// ---- tile (ceramic floor tile) ----
+/// Tile half extents: 0.15 × 0.15 × 0.01 m (glazed ceramic).
+pub const TILE_HALF: [f32; 3] = [0.075, 0.075, 0.005];
+/// Tile mass, kg (ceramic ≈ 2,200 kg/m³ × 0.000225 m³ ≈ 0.5 kg).
+pub const TILE_MASS: f32 = 0.5;
+/// Friction coefficient of tile, table, pad (glazed ceramic on wood/laminate).
+pub const FRICTION: f32 = 0.6;
+
+// ---- block (BlockGrip) ----
+/// Block half extent (a 4 cm wooden cube, 0.045 kg).
+pub const BLOCK_HALF: f32 = 0.02;
+pub const BLOCK_MASS: f32 = 0.045;
+
+// ---- screw task ----
+/// Bolt: M12, radius 6 mm, standing on a 1 cm steel plate; its top is at `BOLT_TOP` above the table.
+pub const BOLT_RADIUS: f32 = 0.006;
+pub const BOLT_TOP: f32 = 0.08;
+/// Nut: hex M12 approximated by a cylinder of 19 mm across flats (radius 9.5 mm), 10 mm high.
+pub const NUT_RADIUS: f32 = 0.0095;
+pub const NUT_HALF_HEIGHT: f32 = 0.005;
+/// Thread pitch of M12 coarse, m per turn.
+pub const THREAD_PITCH: f32 = 0.00175;
+/// Nut centre height when it has just caught the thread (turns = 0).
+pub const NUT_START_Z: f32 = BOLT_TOP - NUT_HALF_HEIGHT - 0.002;
+
+// ---- suction head (on tool0; tool0 Z points out of the flange) ----
+/// Suction plate: half extents, centre at z = 0.01 in tool0.
+pub const PLATE_HALF: [f32; 3] = [0.05, 0.05, 0.01];
+/// Four cups at (±CUP_OFFSET, ±CUP_OFFSET) in tool0, radius CUP_RADIUS, spanning z 0.02 … 0.05.
+pub const CUP_OFFSET: f32 = 0.045;
+pub const CUP_RADIUS: f32 = 0.015;
+/// The cup centre (TCP of the suction head): centre of the four cup lips, tool0 z = 0.05.
+pub const CUP_TCP_Z: f32 = 0.05;
+
+// ---- parallel gripper (on tool0) ----
+/// Gripper body half extents, centre at tool0 z = 0.03.
+pub const GRIPPER_BODY_HALF: [f32; 3] = [0.03, 0.055, 0.03];
+/// Finger half extents (x, y, z); fingers slide along tool0 Y, centre at z = 0.085.
+pub const FINGER_HALF: [f32; 3] = [0.01, 0.006, 0.025];
+pub const FINGER_Z: f32 = 0.085;
+/// Gripper TCP: centre between the fingers, tool0 z = 0.085.
+pub const GRIP_TCP_Z: f32 = FINGER_Z;
+/// Finger gap limits (m) and closing/opening speed (m/s, constant).
+pub const GRIP_MAX_WIDTH: f32 = 0.085;
+pub const GRIP_SPEED: f32 = 0.1;
+/// Spin rate of the screwing end effector, turns per second.
+pub const SPIN_RATE: f32 = 1.0;
+
+/// Shape of a scene item. Cylinders and capsules are along the item's local **Z** axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// Box with half extents (x, y, z).
+    Box { half: [f32; 3] },
+    /// Cylinder along local Z.
+    Cylinder { radius: f32, half_height: f32 },
+    /// Capsule between two points (in the item's frame), with radius.
+    Capsule { a: [f32; 3], b: [f32; 3], radius: f32 },
+}
+
+/// The frame a scene item's pose is expressed in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneFrame {
+    /// Base/world frame (static item).
+    World,
+    /// DH frame `i` (1..=6) of the arm as given by `ur3_kin::fk_all`; 6 = tool0.
+    Link(u8),
+    /// Attached to the task object (tile/block/nut); pose relative to the object's centre.
+    Object,
+}
+
+/// One visual/collision item of the scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneItem {
+    pub name: &'static str,
+    pub frame: SceneFrame,
+    pub shape: Shape,
+    /// Translation (m) of the item in `frame`.
+    pub translation: [f32; 3],
+    /// Rotation quaternion `[x, y, z, w]` of the item in `frame`.
+    pub rotation: [f32; 4],
+    /// Colour, RGBA in [0, 1].
+    pub rgba: [f32; 4],
+}
+
+/// Static description of a task's scene (for visualisation and demo files).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub task: Task,
+    pub items: Vec<SceneItem>,
+}
+
+const ID: [f32; 4] = [0.0, 0.0, 0.0, 1.0];
+
+fn item(name: &'static str, frame: SceneFrame, shape: Shape, t: [f32; 3], rgba: [f32; 4]) -> SceneItem {
+    SceneItem { name, frame, shape, translation: t, rotation: ID, rgba }
+}
+
+/// Arm link capsules in DH frame i (standard DH, UR3 numbers; radii from the UR3 housings).
+/// (frame index, a, b, radius).
+pub fn arm_capsules() -> Vec<(u8, [f32; 3], [f32; 3], f32)> {
+    let m = ur3_kin::UR3;
+    let (a2, a3, d4, d5, d6) = (-m.a2 as f32, -m.a3 as f32, m.d4 as f32, m.d5 as f32, m.d6 as f32);
+    // Lateral offsets of the real links along the joint-2/3/4 axes: the upper arm sits 0.12 m
+    // out from the shoulder, the forearm 0.027 m; wrist 1 ends at d4.
+    let up = 0.12;
+    let fo = 0.027;
+    vec![
+        // frame 1 (shoulder): column down to the base (−y1 is down) and the shoulder housing along z1.
+        (1, [0.0, -0.06, 0.0], [0.0, 0.0, 0.0], 0.06),
+        (1, [0.0, 0.0, 0.0], [0.0, 0.0, up], 0.055),
+        // frame 2 (elbow at origin): upper arm from the shoulder (at +a2 along x2) to the elbow.
+        (2, [a2, 0.0, up], [0.0, 0.0, up], 0.045),
+        (2, [0.0, 0.0, up], [0.0, 0.0, fo], 0.045),
+        // frame 3 (wrist 1): forearm from the elbow, then the wrist-1 housing up to d4.
+        (3, [a3, 0.0, fo], [0.0, 0.0, fo], 0.035),
+        (3, [0.0, 0.0, fo], [0.0, 0.0, d4], 0.035),
+        // frame 4: wrist-2 housing along z4 up to d5.
+        (4, [0.0, 0.0, 0.0], [0.0, 0.0, d5], 0.035),
+        // frame 5: wrist-3 housing along z5 up to the flange (cap ends at d6).
+        (5, [0.0, 0.0, 0.0], [0.0, 0.0, d6 - 0.032], 0.032),
+    ]
+}
+
+/// Handles of one built world.
+#[derive(Debug, Clone, Copy)]
+pub struct Handles {
+    /// Link bodies for DH frames 1..=6 (index 0 = frame 1, index 5 = tool0 with the EE).
+    pub links: [RigidBodyHandle; 6],
+    /// Gripper fingers (left +Y, right −Y), only for BlockGrip/Screw.
+    pub fingers: Option<[RigidBodyHandle; 2]>,
+    /// The task object: tile, block or nut.
+    pub object: RigidBodyHandle,
+}
+
+/// Build a fresh world for `task` with the object centre at `object_pos` (Base frame).
+pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
+    let mut w = PhysicsWorld::new();
+    w.gravity = Vector::new(0.0, 0.0, -9.81);
+    w.integration_parameters.dt = CONTROL_DT;
+    w.integration_parameters.num_solver_iterations = PHYSICS_SUBSTEPS;
+    // Scene scale ~0.2 m: allowed penetration 1 mm, prediction distance 4 mm.
+    w.integration_parameters.length_unit = 0.2;
+
+    // Table (fixed).
+    let table = w.insert_body(RigidBodyBuilder::fixed());
+    w.insert_collider(
+        ColliderBuilder::cuboid(TABLE_HALF[0], TABLE_HALF[1], TABLE_HALF[2])
+            .translation(Vector::new(0.0, 0.0, TABLE_TOP - TABLE_HALF[2]))
+            .friction(FRICTION),
+        Some(table),
+    );
+    // UR3 base housing (fixed cylinder, axis Z).
+    w.insert_collider(
+        ColliderBuilder::cylinder(0.045, 0.064)
+            .position(Pose::from_parts(Vector::new(0.0, 0.0, 0.045), Rotation::from_rotation_x(FRAC_PI_2))),
+        Some(table),
+    );
+    match task {
+        Task::TileSuction | Task::BlockGrip => {
+            w.insert_collider(
+                ColliderBuilder::cuboid(PAD_HALF[0], PAD_HALF[1], PAD_HALF[2])
+                    .translation(Vector::new(PAD_XY[0], PAD_XY[1], TABLE_TOP + PAD_HALF[2]))
+                    .friction(FRICTION),
+                Some(table),
+            );
+        }
+        Task::Screw => {
+            // Steel plate with the bolt (the nut is kinematic along the bolt, no contact needed).
+            w.insert_collider(
+                ColliderBuilder::cuboid(0.04, 0.04, 0.005).translation(Vector::new(object_pos.x, object_pos.y, 0.005)),
+                Some(table),
+            );
+            w.insert_collider(
+                ColliderBuilder::capsule_from_endpoints(
+                    Vector::new(object_pos.x, object_pos.y, 0.01),
+                    Vector::new(object_pos.x, object_pos.y, BOLT_TOP - BOLT_RADIUS),
+                    BOLT_RADIUS,
+                ),
+                Some(table),
+            );
+        }
+    }
+
+    // Arm links: kinematic, placed each step from FK.
+    let mut links = [RigidBodyHandle::invalid(); 6];
+    for (i, l) in links.iter_mut().enumerate() {
+        *l = w.insert_body(RigidBodyBuilder::kinematic_position_based());
+        let _ = i;
+    }
+    for (frame, a, b, r) in arm_capsules() {
+        w.insert_collider(
+            ColliderBuilder::capsule_from_endpoints(Vector::from(a), Vector::from(b), r).density(1.0),
+            Some(links[frame as usize - 1]),
+        );
+    }
+    let tool = links[5];
+    let mut fingers = None;
+    match task {
+        Task::TileSuction => {
+            w.insert_collider(
+                ColliderBuilder::cuboid(PLATE_HALF[0], PLATE_HALF[1], PLATE_HALF[2])
+                    .translation(Vector::new(0.0, 0.0, PLATE_HALF[2])),
+                Some(tool),
+            );
+            for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
+                w.insert_collider(
+                    ColliderBuilder::cylinder(hh, CUP_RADIUS).position(Pose::from_parts(
+                        Vector::new(sx * CUP_OFFSET, sy * CUP_OFFSET, 2.0 * PLATE_HALF[2] + hh),
+                        Rotation::from_rotation_x(FRAC_PI_2),
+                    )),
+                    Some(tool),
+                );
+            }
+        }
+        Task::BlockGrip | Task::Screw => {
+            w.insert_collider(
+                ColliderBuilder::cuboid(GRIPPER_BODY_HALF[0], GRIPPER_BODY_HALF[1], GRIPPER_BODY_HALF[2])
+                    .translation(Vector::new(0.0, 0.0, GRIPPER_BODY_HALF[2])),
+                Some(tool),
+            );
+            let mut f = [RigidBodyHandle::invalid(); 2];
+            for fh in f.iter_mut() {
+                *fh = w.insert_body(RigidBodyBuilder::kinematic_position_based());
+                w.insert_collider(
+                    ColliderBuilder::cuboid(FINGER_HALF[0], FINGER_HALF[1], FINGER_HALF[2]).friction(1.0),
+                    Some(*fh),
+                );
+            }
+            fingers = Some(f);
+        }
+    }
+
+    // The object.
+    let object = match task {
+        Task::TileSuction => {
+            let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
+            w.insert_collider(
+                ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2]).mass(TILE_MASS).friction(FRICTION),
+                Some(b),
+            );
+            b
+        }
+        Task::BlockGrip => {
+            let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
+            w.insert_collider(
+                ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF).mass(BLOCK_MASS).friction(FRICTION),
+                Some(b),
+            );
+            b
+        }
+        Task::Screw => {
+            // The nut rides the thread: kinematic, placed from the turn count each step.
+            let b = w.insert_body(RigidBodyBuilder::kinematic_position_based().translation(object_pos));
+            w.insert_collider(
+                ColliderBuilder::cylinder(NUT_HALF_HEIGHT, NUT_RADIUS)
+                    .rotation(Vector::new(FRAC_PI_2, 0.0, 0.0)),
+                Some(b),
+            );
+            b
+        }
+    };
+    (w, Handles { links, fingers, object })
+}
+
+/// Target pose (centre of the object when the task is done) for TileSuction/BlockGrip.
+pub fn pad_target(task: Task) -> Vector {
+    let top = TABLE_TOP + 2.0 * PAD_HALF[2];
+    match task {
+        Task::TileSuction => Vector::new(PAD_XY[0], PAD_XY[1], top + TILE_HALF[2]),
+        Task::BlockGrip => Vector::new(PAD_XY[0], PAD_XY[1], top + BLOCK_HALF),
+        Task::Screw => Vector::ZERO,
+    }
+}
+
+/// The static scene description of a task (object item placed at its centre via `SceneFrame::Object`).
+pub fn scene(task: Task, object_pos: Vector) -> Scene {
+    let mut items = vec![item(
+        "table",
+        SceneFrame::World,
+        Shape::Box { half: TABLE_HALF },
+        [0.0, 0.0, TABLE_TOP - TABLE_HALF[2]],
+        [0.72, 0.6, 0.45, 1.0],
+    )];
+    items.push(item(
+        "ur3_base",
+        SceneFrame::World,
+        Shape::Cylinder { radius: 0.064, half_height: 0.045 },
+        [0.0, 0.0, 0.045],
+        [0.6, 0.65, 0.7, 1.0],
+    ));
+    for (k, (frame, a, b, r)) in arm_capsules().into_iter().enumerate() {
+        const NAMES: [&str; 8] = [
+            "shoulder_column",
+            "shoulder",
+            "upper_arm",
+            "elbow",
+            "forearm",
+            "wrist1",
+            "wrist2",
+            "wrist3",
+        ];
+        items.push(item(
+            NAMES[k],
+            SceneFrame::Link(frame),
+            Shape::Capsule { a, b, radius: r },
+            [0.0; 3],
+            [0.6, 0.65, 0.7, 1.0],
+        ));
+    }
+    let tool = SceneFrame::Link(6);
+    match task {
+        Task::TileSuction => {
+            items.push(item("pad", SceneFrame::World, Shape::Box { half: PAD_HALF }, [PAD_XY[0], PAD_XY[1], PAD_HALF[2]], [0.5, 0.5, 0.5, 1.0]));
+            let t = pad_target(task);
+            items.push(item("target", SceneFrame::World, Shape::Box { half: [TILE_HALF[0], TILE_HALF[1], 0.0005] }, [t.x, t.y, t.z], [0.1, 0.8, 0.1, 0.4]));
+            items.push(item("suction_plate", tool, Shape::Box { half: PLATE_HALF }, [0.0, 0.0, PLATE_HALF[2]], [0.2, 0.2, 0.2, 1.0]));
+            let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
+            for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                items.push(item(
+                    "cup",
+                    tool,
+                    Shape::Cylinder { radius: CUP_RADIUS, half_height: hh },
+                    [sx * CUP_OFFSET, sy * CUP_OFFSET, 2.0 * PLATE_HALF[2] + hh],
+                    [0.1, 0.1, 0.1, 1.0],
+                ));
+            }
+            items.push(item("tile", SceneFrame::Object, Shape::Box { half: TILE_HALF }, [0.0; 3], [0.9, 0.9, 0.85, 1.0]));
+        }
+        Task::BlockGrip | Task::Screw => {
+            items.push(item(
+                "gripper_body",
+                tool,
+                Shape::Box { half: GRIPPER_BODY_HALF },
+                [0.0, 0.0, GRIPPER_BODY_HALF[2]],
+                [0.2, 0.2, 0.2, 1.0],
+            ));
+            if task == Task::BlockGrip {
+                items.push(item("pad", SceneFrame::World, Shape::Box { half: PAD_HALF }, [PAD_XY[0], PAD_XY[1], PAD_HALF[2]], [0.5, 0.5, 0.5, 1.0]));
+                let t = pad_target(task);
+                items.push(item("target", SceneFrame::World, Shape::Box { half: [BLOCK_HALF, BLOCK_HALF, 0.0005] }, [t.x, t.y, t.z - BLOCK_HALF], [0.1, 0.8, 0.1, 0.4]));
+                items.push(item("block", SceneFrame::Object, Shape::Box { half: [BLOCK_HALF; 3] }, [0.0; 3], [0.8, 0.55, 0.3, 1.0]));
+            } else {
+                items.push(item("plate", SceneFrame::World, Shape::Box { half: [0.04, 0.04, 0.005] }, [object_pos.x, object_pos.y, 0.005], [0.5, 0.5, 0.5, 1.0]));
+                items.push(item(
+                    "bolt",
+                    SceneFrame::World,
+                    Shape::Cylinder { radius: BOLT_RADIUS, half_height: (BOLT_TOP - 0.01) / 2.0 },
+                    [object_pos.x, object_pos.y, 0.01 + (BOLT_TOP - 0.01) / 2.0],
+                    [0.7, 0.7, 0.75, 1.0],
+                ));
+                items.push(item(
+                    "nut",
+                    SceneFrame::Object,
+                    Shape::Cylinder { radius: NUT_RADIUS, half_height: NUT_HALF_HEIGHT },
+                    [0.0; 3],
+                    [0.85, 0.75, 0.2, 1.0],
+                ));
+            }
+        }
+    }
+    Scene { task, items }
+}
