@@ -2,10 +2,10 @@
 
 A second Adam on the actor's parameters only, learning rate = strength x PPO's initial learning
 rate, decayed linearly to 1e-10 over ``steps`` env steps (``steps: 0`` = constant for the whole
-run); once it reaches 1e-10 BC stops. After every PPO update it makes ``num_epoch`` passes over the demo
-buffer in minibatches of ``batch_size`` (capped by ``samples_per_update``). Loss: MSE between the
-policy's *sampled* (reparameterised) continuous action and the demo's, plus cross-entropy of the
-end-effector branch. The observation normaliser is not touched by BC.
+run); once it reaches 1e-10 BC stops. After every PPO update it makes ``num_epoch`` passes over the
+demo buffer in minibatches of ``batch_size`` (capped by ``samples_per_update``). Loss: MSE between
+the policy's *sampled* (reparameterised) continuous action and the demo's, plus cross-entropy of
+the end-effector branch. The observation normaliser is not touched by BC.
 """
 
 from __future__ import annotations
