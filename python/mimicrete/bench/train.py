@@ -1,0 +1,137 @@
+"""Trainer benchmark: env steps per second of our PPO (rollout + update, the paper's 256 x 3 nets,
+buffer 10240, batch 512, 3 epochs) against Stable-Baselines3's PPO with the same sizes on the same
+env, in the same process; plus the cost of GAIL and BC on top, and the real env if it is built.
+
+``python -m mimicrete.bench train`` (part of ``make bench``). Prints, asserts nothing.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+BUFFER = 10240
+NUM_ENVS = 32
+UPDATES = 2
+
+
+def _our_steps_per_s(cfg, tmp: Path) -> tuple[float, float, float]:
+    """(total steps/s, rollout-only steps/s, seconds per update) over UPDATES updates."""
+    from mimicrete.learn.train import Trainer
+
+    tr = Trainer(cfg, tmp / "run", None, 5_000_000)
+    t_roll = t_upd = 0.0
+    for _ in range(UPDATES):
+        t0 = time.perf_counter()
+        tr.collect()
+        t1 = time.perf_counter()
+        tr.update(tr.process())
+        t2 = time.perf_counter()
+        t_roll += t1 - t0
+        t_upd += t2 - t1
+    steps = UPDATES * BUFFER
+    return steps / (t_roll + t_upd), steps / t_roll, t_upd / UPDATES
+
+
+def _toy_cfg(tmp: Path, gail: float, bc: float):
+    from mimicrete.learn import config
+    from mimicrete.learn.toyenv import toy_config
+
+    c = toy_config(tmp, buffer=BUFFER, batch=512, num_envs=NUM_ENVS, gail=gail, bc=bc)
+    return config.with_overrides(
+        c,
+        [
+            "behavior.network_settings.hidden_units=256",
+            "behavior.network_settings.num_layers=3",
+            "behavior.hyperparameters.num_epoch=3",
+            "behavior.reward_signals.gail.network_settings.hidden_units=256"
+            if gail
+            else "behavior.time_horizon=400",
+            "behavior.reward_signals.gail.network_settings.num_layers=3"
+            if gail
+            else "behavior.time_horizon=400",
+            "behavior.max_steps=5000000",
+            "behavior.checkpoint_interval=100000000",
+        ],
+    )
+
+
+def _sb3_steps_per_s() -> float | None:
+    try:
+        import gymnasium as gym
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.vec_env import DummyVecEnv
+    except ImportError:
+        return None
+    from mimicrete.learn import toyenv
+
+    class One(gym.Env):
+        """One toy env as a plain gymnasium Env (SB3 vectorises it itself)."""
+
+        def __init__(self, seed):
+            self.v = toyenv.ToyTileVecEnv(1, seed=seed)
+            self.observation_space = self.v.single_observation_space
+            self.action_space = self.v.single_action_space
+
+        def reset(self, *, seed=None, options=None):
+            o, _ = self.v.reset(seed=seed)
+            return o[0], {}
+
+        def step(self, a):
+            o, r, te, tr, info = self.v.step(np.asarray(a, np.float32)[None])
+            obs = info["final_obs"][0] if (te[0] or tr[0]) else o[0]
+            return obs, float(r[0]), bool(te[0]), bool(tr[0]), {}
+
+    venv = DummyVecEnv([lambda i=i: One(i) for i in range(NUM_ENVS)])
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        n_steps=BUFFER // NUM_ENVS,
+        batch_size=512,
+        n_epochs=3,
+        learning_rate=5e-4,
+        ent_coef=0.01,
+        gae_lambda=0.95,
+        policy_kwargs={"net_arch": [256, 256, 256]},
+        device="cpu",
+        seed=0,
+        verbose=0,
+    )
+    t0 = time.perf_counter()
+    model.learn(total_timesteps=UPDATES * BUFFER)
+    return UPDATES * BUFFER / (time.perf_counter() - t0)
+
+
+def run() -> None:
+    torch.set_num_threads(1)
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(d)
+        print(f"PPO, 256x3 nets, buffer {BUFFER}, batch 512, 3 epochs, {NUM_ENVS} envs, "
+              f"{UPDATES} updates, torch threads 1")
+        ours, roll, upd = _our_steps_per_s(_toy_cfg(tmp, 0.0, 0.0), tmp)
+        print(f"  toy env, ours (PPO only):     {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+              f"update {upd:.2f} s)")
+        sb3 = _sb3_steps_per_s()
+        if sb3 is not None:
+            torch.set_num_threads(1)
+            print(f"  toy env, SB3 PPO (peer):      {sb3:8.0f} steps/s  -> ours / SB3 = "
+                  f"{ours / sb3:.2f}x")
+        full, roll, upd = _our_steps_per_s(_toy_cfg(tmp, 0.01, 0.5), tmp)
+        print(f"  toy env, ours (BC+GAIL+PPO):  {full:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+              f"update {upd:.2f} s)")
+        try:
+            from mimicrete.learn import config
+            from mimicrete.learn.train import make_env
+
+            make_env("TileSuction-v0", 2, 0).close()
+        except Exception as e:  # the Rust env is not built yet
+            print(f"  TileSuction-v0: not available ({type(e).__name__}: {e})")
+            return
+        cfg = config.load(Path(__file__).resolve().parents[3] / "configs" / "group1.yaml")
+        ours, roll, upd = _our_steps_per_s(cfg, tmp)
+        print(f"  TileSuction-v0, group1 (PPO): {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+              f"update {upd:.2f} s) -> 1M steps in {1e6 / ours / 60:.1f} min")
