@@ -475,7 +475,7 @@ impl Env {
                 let (ex, ey, ez) = (ext(tool_x), ext(tool_y), ext(tool_z));
                 let inside = p.x.abs() < world::FINGER_HALF[0] + ex - 0.005
                     && p.z.abs() < world::FINGER_HALF[2] + ez - 0.005
-                    && p.y.abs() + ey <= self.width / 2.0 + 1e-4;
+                    && p.y.abs() < self.width / 2.0;
                 inside.then_some(2.0 * ey)
             }
             Task::Screw => {
@@ -484,7 +484,7 @@ impl Env {
                     && p.x.abs() < 0.006
                     && p.y.abs() < 0.006
                     && p.z.abs() < world::FINGER_HALF[2] - world::NUT_HALF_HEIGHT
-                    && p.y.abs() + world::NUT_RADIUS <= self.width / 2.0 + 1e-4;
+                    && world::NUT_RADIUS <= self.width / 2.0 + 1e-4;
                 inside.then_some(2.0 * world::NUT_RADIUS)
             }
             Task::TileSuction => None,

@@ -92,11 +92,13 @@ pub struct Expert {
     goal: Option<[f64; 6]>,
     /// Steps spent in the current phase.
     ticks: u32,
+    /// The current joint goal is the phase's final waypoint (not an intermediate leg).
+    final_leg: bool,
 }
 
 impl Expert {
     pub fn new(task: Task) -> Expert {
-        Expert { task, phase: 0, goal: None, ticks: 0 }
+        Expert { task, phase: 0, goal: None, ticks: 0, final_leg: true }
     }
 
     /// Forget the episode's progress.
@@ -122,7 +124,11 @@ impl Expert {
             }
             match self.goal {
                 Some(g) if reached(&g, &s.q) && self.motion_phase() => {
-                    self.next();
+                    if self.final_leg {
+                        self.next();
+                    } else {
+                        self.goal = None;
+                    }
                 }
                 _ => break,
             }
@@ -145,7 +151,7 @@ impl Expert {
     /// Phases that end when the joint goal is reached (others end on an event).
     fn motion_phase(&self) -> bool {
         match self.task {
-            Task::TileSuction => !matches!(self.phase, 2 | 5),
+            Task::TileSuction => self.phase != 2,
             Task::BlockGrip => !matches!(self.phase, 2 | 6),
             Task::Screw => !matches!(self.phase, 2 | 3),
         }
@@ -177,7 +183,25 @@ impl Expert {
         }
     }
 
-    fn plan(&self, s: &Snapshot) -> Option<[f64; 6]> {
+    /// Joint goal for a straight Cartesian move of tool0 towards `goal`, in legs of at most
+    /// `LEG` metres (joint-space interpolation over short legs stays close to the line).
+    fn linear(&mut self, s: &Snapshot, goal: Isometry3<f64>) -> Option<[f64; 6]> {
+        const LEG: f64 = 0.02;
+        let cur = iso(&s.tool0).translation.vector;
+        let d = goal.translation.vector - cur;
+        let len = d.norm();
+        if len > LEG {
+            self.final_leg = false;
+            let sub = Isometry3::from_parts(Translation3::from(cur + d * (LEG / len)), goal.rotation);
+            ik_dls(&sub, &s.q)
+        } else {
+            self.final_leg = true;
+            ik_dls(&goal, &s.q)
+        }
+    }
+
+    fn plan(&mut self, s: &Snapshot) -> Option<[f64; 6]> {
+        self.final_leg = true;
         let obj = v3(s.object.t);
         let tgt = v3(s.target.t);
         let up = Vector3::z();
@@ -187,9 +211,12 @@ impl Expert {
                 let tz = world::CUP_TCP_Z as f64;
                 match self.phase {
                     0 => ik_dls(&tool0_for_tcp(grasp + up * 0.08, tz), &s.q),
-                    1 => ik_dls(&tool0_for_tcp(grasp + up * 0.012, tz), &s.q),
+                    1 => self.linear(s, tool0_for_tcp(grasp + up * 0.012, tz)),
                     2 => Some(s.q),
-                    3 => ik_dls(&tool0_for_tcp(v3(s.tcp.t) + up * 0.10, tz), &s.q),
+                    3 => {
+                        let t = v3(s.tcp.t);
+                        self.linear(s, tool0_for_tcp(Vector3::new(t.x, t.y, 0.13), tz))
+                    }
                     4 | 5 => {
                         let lift = if self.phase == 4 { 0.08 } else { 0.0 };
                         let tile_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
@@ -197,7 +224,7 @@ impl Expert {
                             Translation3::from(tgt + up * lift),
                             iso(&s.object).rotation,
                         );
-                        ik_dls(&(tile_goal * tile_in_tool.inverse()), &s.q)
+                        self.linear(s, tile_goal * tile_in_tool.inverse())
                     }
                     _ => Some(s.q),
                 }
@@ -206,14 +233,17 @@ impl Expert {
                 let tz = world::GRIP_TCP_Z as f64;
                 match self.phase {
                     0 => ik_dls(&tool0_for_tcp(obj + up * 0.10, tz), &s.q),
-                    1 => ik_dls(&tool0_for_tcp(obj, tz), &s.q),
+                    1 => self.linear(s, tool0_for_tcp(obj, tz)),
                     2 => Some(s.q),
-                    3 => ik_dls(&tool0_for_tcp(v3(s.tcp.t) + up * 0.10, tz), &s.q),
+                    3 => {
+                        let t = v3(s.tcp.t);
+                        self.linear(s, tool0_for_tcp(Vector3::new(t.x, t.y, 0.14), tz))
+                    }
                     4 | 5 => {
                         let lift = if self.phase == 4 { 0.08 } else { 0.004 };
                         let obj_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
                         let goal = Isometry3::from_parts(Translation3::from(tgt + up * lift), iso(&s.object).rotation);
-                        ik_dls(&(goal * obj_in_tool.inverse()), &s.q)
+                        self.linear(s, goal * obj_in_tool.inverse())
                     }
                     _ => Some(s.q),
                 }
@@ -222,7 +252,7 @@ impl Expert {
                 let tz = world::GRIP_TCP_Z as f64;
                 match self.phase {
                     0 => ik_dls(&tool0_for_tcp(obj + up * 0.08, tz), &s.q),
-                    1 => ik_dls(&tool0_for_tcp(obj, tz), &s.q),
+                    1 => self.linear(s, tool0_for_tcp(obj, tz)),
                     _ => Some(s.q),
                 }
             }
