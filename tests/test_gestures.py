@@ -362,3 +362,18 @@ def test_smoother_property_isolated_errors_never_flip(truth, runs, errors, wrong
 def test_smoother_validates():
     with pytest.raises(ValueError):
         g.GestureSmoother(n=3, k=4)
+
+
+@pytest.mark.parametrize("task", ["grip", "screw"])
+def test_fast_single_sample_path_matches_sklearn(task):
+    model = g.load_default(task)
+    joints, _, hands = g.synthetic_dataset(task, seed=21, counts=(120,) * len(model.classes))
+    feats = g.features_3d(joints, "openxr", hands)
+    ref = model.pipeline.predict(feats)
+    fast = g.FastRbfSvc.from_pipeline(model.pipeline)
+    got = [fast.predict_one(f) for f in feats]
+    assert list(ref) == got
+    # and the per-frame entry point (single-sample features + fast SVC) agrees too
+    assert [model.predict_one(j, h) for j, h in zip(joints[:100], hands[:100], strict=True)] == (
+        list(ref[:100])
+    )
