@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import MimicreteError
 from mimicrete import gestures as gest
 from mimicrete import handmodel as hm
 
@@ -319,7 +320,7 @@ class Teleop:
             target = self.hand_to_target(
                 pts[:3], pts[3:6], pts[6:9], self.handedness, self.calibration
             )
-        except ValueError:
+        except (ValueError, MimicreteError):  # degenerate hand (collinear frame joints)
             c.degenerate += 1
             return FrameResult(gesture, self.target)
         self.target = np.asarray(target, dtype=np.float64)

@@ -139,14 +139,25 @@ def tool0_from_hand(
     xp = m - i
     if handedness == "left":
         xp = -xp
-    y = yp / np.linalg.norm(yp)
-    z = np.cross(xp, yp)
-    z /= np.linalg.norm(z)
-    x = np.cross(y, z)
+    ny = float(np.sqrt(yp @ yp))
+    z = _cross3(xp, yp)
+    nz = float(np.sqrt(z @ z))
+    if not (ny > 1e-9 and nz > 1e-12):
+        raise ValueError("degenerate hand: wrist, index and middle proximal are collinear")
+    y = yp / ny
+    z = z / nz
+    x = _cross3(y, z)
     t = np.eye(4)
-    t[:3, :3] = np.column_stack([x, y, z]) @ TOOL_FROM_HAND
+    t[:3, :3] = np.stack([x, y, z], axis=1) @ TOOL_FROM_HAND
     t[:3, 3] = w
     return t
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (cheaper than ``np.cross`` on single vectors)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
 
 
 def hand_pose_for_tool0(
