@@ -1,4 +1,9 @@
 //! The one error type of ur3-kin.
+//!
+//! House style is one error enum per crate, so the inverse-kinematics failures are variants of
+//! [`KinError`]; [`IkError`] is an alias for readers who want the IK-specific name. The IK
+//! functions return only [`KinError::Unreachable`], [`KinError::NotConverged`],
+//! [`KinError::NonFinite`] and [`KinError::InvalidPose`].
 
 /// Everything that can go wrong in ur3-kin.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -19,4 +24,33 @@ pub enum KinError {
     /// An input held a NaN or an infinity.
     #[error("non-finite input: {0}")]
     NonFinite(&'static str),
+    /// A pose input is not a rigid transform (rotation not orthonormal / det ≠ +1, bad last row,
+    /// zero quaternion).
+    #[error("invalid pose: {0}")]
+    InvalidPose(&'static str),
+    /// No joint configuration of the arm reaches the target pose.
+    #[error("target unreachable: {reason}")]
+    Unreachable {
+        /// Which geometric condition failed.
+        reason: &'static str,
+    },
+    /// The numerical solver did not get the pose error below the tolerance.
+    #[error(
+        "IK did not converge after {iters} iterations (position residual {pos_residual_m:.3e} m, \
+         rotation residual {rot_residual_rad:.3e} rad)"
+    )]
+    NotConverged {
+        /// Gauss-Newton iterations spent in total.
+        iters: usize,
+        /// Best position error reached, metres.
+        pos_residual_m: f64,
+        /// Best rotation error reached (angle of the residual rotation), radians.
+        rot_residual_rad: f64,
+    },
+    /// Hand joints that do not span a frame (coincident or collinear joints).
+    #[error("degenerate hand: {0}")]
+    DegenerateHand(&'static str),
 }
+
+/// The inverse-kinematics error: the same enum as [`KinError`] (one error type per crate).
+pub type IkError = KinError;

@@ -3,16 +3,35 @@
 //! Frames: everything is expressed in the UR controller's "Base" frame (DH frame 0, Z up, metres,
 //! radians). The end effector is `tool0`: the flange with a zero TCP, i.e. what the pendant and
 //! RTDE report. Standard DH convention: `T_i = Rz(θ_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)`.
+//!
+//! - [`fk`], [`fk_all`], [`jacobian`]: forward kinematics and the geometric Jacobian;
+//! - [`ik`] (nearest solution to a seed), [`ik_gn`] (the paper's Gauss-Newton alone),
+//!   [`ik_all`] (closed form, up to 8 solutions), [`ik_batch`] (threads);
+//! - [`urdf::to_urdf_string`]: a URDF of any model;
+//! - [`hand_to_target`] with [`Calibration`]: tracked hand joints → tool0 target (paper §3.2).
+//!
+//! Errors: one enum, [`KinError`]; [`IkError`] is an alias of it.
 
 mod error;
 mod fk;
 mod hand;
+mod ik;
+mod jacobian;
 mod model;
+pub mod urdf;
 
-pub use error::KinError;
-pub use fk::{fk, fk_all};
-pub use hand::{HandLayout, Handedness, Space};
-pub use model::{MODELS, UR3, UR3E, UR5, UR5E, UR10, UR10E, UrModel};
+pub use error::{IkError, KinError};
+pub use fk::{fk, fk_all, fk_matrix};
+pub use hand::{
+    Calibration, HandLayout, Handedness, Space, hand_frame, hand_to_target, hand_to_target_layout,
+    tool_from_hand_rotation,
+};
+pub use ik::{
+    IkOptions, ik, ik_all, ik_all_with_q6, ik_batch, ik_gn, joint_distance, pose_distance, pose_from_matrix,
+    pose_residual, wrap_angle, wrap_joints,
+};
+pub use jacobian::jacobian;
+pub use model::{ALPHA, MODELS, UR3, UR3E, UR5, UR5E, UR10, UR10E, UrModel};
 pub use nalgebra;
 
 /// Joint angles of a 6-axis UR arm, radians, base to wrist 3.

@@ -1,0 +1,189 @@
+//! Hand → tool0 target from synthetic hands in known poses.
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use ur3_kin::{
+    Calibration, HandLayout, Handedness, KinError, Pose, Space, hand_frame, hand_to_target,
+    hand_to_target_layout, pose_distance,
+};
+
+/// Canonical right hand in its own frame (x: little-finger side, y: fingers, z: back of hand):
+/// wrist at 0, middle knuckle 9 cm along y, index knuckle 2.2 cm to the thumb side.
+const WRIST: [f64; 3] = [0.0, 0.0, 0.0];
+const MIDDLE: [f64; 3] = [0.0, 0.09, 0.0];
+const INDEX_RIGHT: [f64; 3] = [-0.022, 0.085, 0.0];
+/// The left hand is the mirror image (x → −x).
+const INDEX_LEFT: [f64; 3] = [0.022, 0.085, 0.0];
+
+fn place(frame: &Pose, p: [f64; 3]) -> Vector3<f64> {
+    frame.transform_point(&Vector3::from(p).into()).coords
+}
+
+fn base_calib() -> Calibration {
+    Calibration::identity()
+}
+
+fn rot_strategy() -> impl Strategy<Value = UnitQuaternion<f64>> {
+    prop::array::uniform3(-3.0..3.0f64).prop_map(|v| UnitQuaternion::from_scaled_axis(Vector3::from(v)))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// A hand placed with a known frame gives back exactly that frame, for both hands.
+    #[test]
+    fn known_frame_recovered(rot in rot_strategy(), t in prop::array::uniform3(-1.0..1.0f64)) {
+        let h = Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rot);
+        for (hd, idx) in [(Handedness::Right, INDEX_RIGHT), (Handedness::Left, INDEX_LEFT)] {
+            let f = hand_frame(&place(&h, WRIST), &place(&h, idx), &place(&h, MIDDLE), hd, &base_calib()).unwrap();
+            let (dp, da) = pose_distance(&f, &h);
+            prop_assert!(dp < 1e-12 && da < 1e-9, "{hd:?}: {dp} {da}");
+            // tool0: x along the fingers, z out of the palm, origin at the wrist.
+            let tt = hand_to_target(&place(&h, WRIST), &place(&h, idx), &place(&h, MIDDLE), hd, &base_calib()).unwrap();
+            prop_assert!((tt.rotation * Vector3::x() - h.rotation * Vector3::y()).norm() < 1e-9);
+            prop_assert!((tt.rotation * Vector3::z() + h.rotation * Vector3::z()).norm() < 1e-9);
+            prop_assert!((tt.translation.vector - h.translation.vector).norm() < 1e-12);
+        }
+    }
+
+    /// Any input: a proper rotation, or a typed error.
+    #[test]
+    fn any_hand_is_frame_or_typed_error(
+        w in prop::array::uniform3(prop_oneof![-1.0..1.0f64, prop::num::f64::ANY]),
+        i in prop::array::uniform3(-1.0..1.0f64),
+        m in prop::array::uniform3(-1.0..1.0f64),
+        left in any::<bool>(),
+    ) {
+        let hd = if left { Handedness::Left } else { Handedness::Right };
+        match hand_to_target(&Vector3::from(w), &Vector3::from(i), &Vector3::from(m), hd, &Calibration::default()) {
+            Ok(p) => {
+                let r = p.rotation.to_rotation_matrix().into_inner();
+                prop_assert!((r.transpose() * r - nalgebra::Matrix3::identity()).abs().max() < 1e-9);
+                prop_assert!((r.determinant() - 1.0).abs() < 1e-9);
+                prop_assert!(p.translation.vector.iter().all(|x| x.is_finite()));
+            }
+            Err(KinError::NonFinite(_) | KinError::DegenerateHand(_)) => {}
+            Err(e) => prop_assert!(false, "{e}"),
+        }
+    }
+}
+
+#[test]
+fn palm_down_forward_gives_tool_pointing_down() {
+    // Robot Base coordinates: fingers along +X, palm down (back of hand up). Right hand: thumb and
+    // index on the left (+Y); left hand: on the right (−Y).
+    let w = Vector3::new(0.3, 0.0, 0.2);
+    let m = w + Vector3::new(0.09, 0.0, 0.0);
+    for (hd, side) in [(Handedness::Right, 1.0), (Handedness::Left, -1.0)] {
+        let i = w + Vector3::new(0.085, 0.022 * side, 0.0);
+        let t = hand_to_target(&w, &i, &m, hd, &base_calib()).unwrap();
+        assert!((t.rotation * Vector3::z() - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12, "{hd:?}");
+        assert!((t.rotation * Vector3::x() - Vector3::new(1.0, 0.0, 0.0)).norm() < 1e-12, "{hd:?}");
+        assert!((t.translation.vector - w).norm() < 1e-15);
+    }
+    // Wrong handedness label on the same hand flips the approach axis up: handedness matters.
+    let i = w + Vector3::new(0.085, 0.022, 0.0);
+    let t = hand_to_target(&w, &i, &m, Handedness::Left, &base_calib()).unwrap();
+    assert!((t.rotation * Vector3::z() - Vector3::z()).norm() < 1e-12);
+}
+
+#[test]
+fn openxr_and_unity_spaces_map_to_base() {
+    // The same physical right hand, palm down, 0.4 m in front of and below the head, fingers
+    // forward. OpenXR: +Y up, −Z forward, +X right. Unity: +Y up, +Z forward, +X right.
+    let xr = |p: [f64; 3]| Vector3::new(p[0], p[1], p[2]);
+    let (w, m, i) = (xr([0.0, -0.4, -0.4]), xr([0.0, -0.4, -0.49]), xr([-0.022, -0.4, -0.485]));
+    let cal = Calibration::default();
+    let t = hand_to_target(&w, &i, &m, Handedness::Right, &cal).unwrap();
+    assert!((t.translation.vector - Vector3::new(0.3, 0.0, 0.2)).norm() < 1e-12, "{}", t.translation.vector);
+    assert!((t.rotation * Vector3::z() + Vector3::z()).norm() < 1e-12);
+    assert!((t.rotation * Vector3::x() - Vector3::x()).norm() < 1e-12);
+    let unity = |p: Vector3<f64>| Vector3::new(p.x, p.y, -p.z);
+    let cal_u = Calibration { space: Space::Unity, ..Calibration::default() };
+    let tu = hand_to_target(&unity(w), &unity(i), &unity(m), Handedness::Right, &cal_u).unwrap();
+    let (dp, da) = pose_distance(&t, &tu);
+    assert!(dp < 1e-12 && da < 1e-12);
+    // point_to_base and scale.
+    let cal2 = Calibration { scale: 2.0, ..Calibration::default() };
+    let p = cal2.point_to_base(&xr([0.1, 0.2, -0.3]));
+    assert!((p - Vector3::new(-0.1 + 0.6, -0.2, 0.6 + 0.4)).norm() < 1e-12, "{p}");
+    // A rotated calibration (robot base turned 90° about Z) turns the target with it.
+    let turned = Calibration {
+        base_from_space: Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2),
+        ),
+        scale: 1.0,
+        space: Space::OpenXr,
+    };
+    let tt = hand_to_target(&w, &i, &m, Handedness::Right, &turned).unwrap();
+    assert!((tt.rotation * Vector3::x() - Vector3::y()).norm() < 1e-12);
+    assert!((tt.translation.vector - Vector3::new(0.0, 0.4, -0.4)).norm() < 1e-12);
+}
+
+#[test]
+fn degenerate_hands_are_errors() {
+    let c = base_calib();
+    let w = Vector3::new(0.1, 0.2, 0.3);
+    let m = w + Vector3::new(0.0, 0.09, 0.0);
+    let cases = [
+        (w, w + Vector3::new(0.02, 0.0, 0.0), w), // middle on the wrist
+        (w, m, m),                                // index on the middle
+        (w, w + Vector3::new(0.0, 0.05, 0.0), m), // collinear
+        (w, w + Vector3::new(0.0, 0.2, 1e-7), m), // nearly collinear
+    ];
+    for (a, b, cc) in cases {
+        for hd in [Handedness::Left, Handedness::Right] {
+            assert!(
+                matches!(hand_to_target(&a, &b, &cc, hd, &c), Err(KinError::DegenerateHand(_))),
+                "{a} {b} {cc}"
+            );
+        }
+    }
+    let nan = Vector3::new(f64::NAN, 0.0, 0.0);
+    assert!(matches!(hand_to_target(&nan, &w, &m, Handedness::Right, &c), Err(KinError::NonFinite(_))));
+    let bad_scale = Calibration { scale: 0.0, ..c };
+    assert!(
+        hand_to_target(&w, &(w + Vector3::new(0.02, 0.08, 0.0)), &m, Handedness::Right, &bad_scale).is_err()
+    );
+}
+
+#[test]
+fn layout_indices_feed_the_right_joints() {
+    // Published indices (OpenXR XrHandJointEXT, WebXR XRHandJoint, Meta OVR legacy BoneId,
+    // MediaPipe HandLandmark).
+    let expect = [
+        (HandLayout::OpenXr, 26, 1, 7, 12),
+        (HandLayout::WebXr, 25, 0, 6, 11),
+        (HandLayout::MetaOvr, 24, 0, 6, 9),
+        (HandLayout::MediaPipe, 21, 0, 5, 9),
+    ];
+    let h = Isometry3::from_parts(
+        Translation3::new(0.2, -0.1, 0.3),
+        UnitQuaternion::from_scaled_axis(Vector3::new(0.3, -0.5, 1.1)),
+    );
+    for (layout, n, wi, ii, mi) in expect {
+        assert_eq!(
+            (layout.joint_count(), layout.wrist(), layout.index_proximal(), layout.middle_proximal()),
+            (n, wi, ii, mi)
+        );
+        assert_eq!(HandLayout::from_name(layout.name()).unwrap(), layout);
+        for (hd, idx) in [(Handedness::Right, INDEX_RIGHT), (Handedness::Left, INDEX_LEFT)] {
+            // Every other joint is junk far away: only the three named ones may matter.
+            let mut joints: Vec<[f64; 3]> = (0..n).map(|k| [k as f64 * 10.0, -(k as f64), 3.0]).collect();
+            joints[wi] = place(&h, WRIST).into();
+            joints[ii] = place(&h, idx).into();
+            joints[mi] = place(&h, MIDDLE).into();
+            let t = hand_to_target_layout(&joints, layout, hd, &base_calib()).unwrap();
+            assert!((t.translation.vector - h.translation.vector).norm() < 1e-12);
+            assert!(
+                (t.rotation * Vector3::z() + h.rotation * Vector3::z()).norm() < 1e-9,
+                "{layout:?} {hd:?}"
+            );
+            assert!(matches!(
+                hand_to_target_layout(&joints[..n - 1], layout, hd, &base_calib()),
+                Err(KinError::InvalidPose(_))
+            ));
+        }
+    }
+}
