@@ -1,0 +1,281 @@
+//! Demos back to flat arrays for the trainer.
+
+use crate::DemoError;
+use crate::schemas::STEP_SCHEMA_NAME;
+use crate::writer::TOPIC_STEP;
+use mcap::records::Record;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One episode's steps as flat row-major arrays.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Episode {
+    /// Observations, `T × obs_dim`, row-major.
+    pub obs: Vec<f32>,
+    /// Actions, `T × act_dim`, row-major.
+    pub actions: Vec<f32>,
+    /// Rewards, `T`.
+    pub rewards: Vec<f32>,
+    /// Terminated flags, `T`.
+    pub terminated: Vec<bool>,
+    /// Truncated flags, `T`.
+    pub truncated: Vec<bool>,
+    /// Step times, seconds, `T`.
+    pub t: Vec<f64>,
+    /// Observation length.
+    pub obs_dim: usize,
+    /// Action length.
+    pub act_dim: usize,
+    /// The `episode` metadata record (or `episode_start` for a file that was never finished).
+    pub meta: BTreeMap<String, String>,
+}
+
+impl Episode {
+    /// Number of steps.
+    pub fn len(&self) -> usize {
+        self.rewards.len()
+    }
+
+    /// Whether there are no steps.
+    pub fn is_empty(&self) -> bool {
+        self.rewards.is_empty()
+    }
+}
+
+#[derive(Deserialize)]
+struct StepIn {
+    step: u64,
+    t: f64,
+    obs: Vec<f32>,
+    action: Vec<f32>,
+    reward: f64,
+    terminated: bool,
+    truncated: bool,
+}
+
+fn fmt_err(path: &Path, reason: impl Into<String>) -> DemoError {
+    DemoError::Format { path: path.to_path_buf(), reason: reason.into() }
+}
+
+/// Read the steps of one demo from its bytes (`name` is used in errors).
+///
+/// # Errors
+/// [`DemoError::Format`] for a file that is not a complete MCAP demo, has no `/demo/step` channel
+/// with schema [`STEP_SCHEMA_NAME`], has a step that does not parse, or steps that are not 0, 1, 2,
+/// ... with constant obs/action lengths. A cut file is refused: use [`crate::salvage_to`] first.
+pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
+    let mut ep = Episode::default();
+    let mut step_channels: Vec<u16> = Vec::new();
+    let mut step_schemas: Vec<u16> = Vec::new();
+    let mut start_meta: Option<BTreeMap<String, String>> = None;
+    let mut end_meta: Option<BTreeMap<String, String>> = None;
+    let mut saw_footer = false;
+    let top =
+        mcap::read::LinearReader::new(buf).map_err(|e| fmt_err(name, format!("not an MCAP file: {e}")))?;
+    let damaged = |e: String| {
+        fmt_err(
+            name,
+            format!("damaged or incomplete MCAP ({e}); `salvage_to` recovers its complete messages"),
+        )
+    };
+    for rec in top {
+        let rec = rec.map_err(|e| damaged(e.to_string()))?;
+        let decoded;
+        let records = match rec {
+            Record::Chunk { header, data } => {
+                decoded = crate::scan::decode_chunk(&header, &data).map_err(damaged)?;
+                crate::scan::chunk_records(&decoded).map_err(damaged)?
+            }
+            other => vec![other],
+        };
+        for rec in records {
+            match rec {
+                Record::Schema { header, .. } => {
+                    if header.name == STEP_SCHEMA_NAME {
+                        step_schemas.push(header.id);
+                    }
+                }
+                Record::Channel(c) => {
+                    if c.topic == TOPIC_STEP {
+                        if !step_schemas.contains(&c.schema_id) {
+                            return Err(fmt_err(
+                                name,
+                                format!(
+                                    "channel {TOPIC_STEP} does not use schema {STEP_SCHEMA_NAME} (unknown version?)"
+                                ),
+                            ));
+                        }
+                        step_channels.push(c.id);
+                    }
+                }
+                Record::Message { header, data } => {
+                    if !step_channels.contains(&header.channel_id) {
+                        continue;
+                    }
+                    let s: StepIn = serde_json::from_slice(&data).map_err(|e| {
+                        fmt_err(name, format!("step message {} does not parse: {e}", ep.len()))
+                    })?;
+                    if s.step as usize != ep.len() {
+                        return Err(fmt_err(
+                            name,
+                            format!("step {} found where step {} was expected", s.step, ep.len()),
+                        ));
+                    }
+                    if ep.is_empty() {
+                        ep.obs_dim = s.obs.len();
+                        ep.act_dim = s.action.len();
+                    } else if s.obs.len() != ep.obs_dim || s.action.len() != ep.act_dim {
+                        return Err(fmt_err(
+                            name,
+                            format!(
+                                "step {}: obs/action lengths {}/{} differ from {}/{}",
+                                s.step,
+                                s.obs.len(),
+                                s.action.len(),
+                                ep.obs_dim,
+                                ep.act_dim
+                            ),
+                        ));
+                    }
+                    ep.obs.extend_from_slice(&s.obs);
+                    ep.actions.extend_from_slice(&s.action);
+                    ep.rewards.push(s.reward as f32);
+                    ep.terminated.push(s.terminated);
+                    ep.truncated.push(s.truncated);
+                    ep.t.push(s.t);
+                }
+                Record::Metadata(m) => match m.name.as_str() {
+                    "episode" => end_meta = Some(m.metadata),
+                    "episode_start" => start_meta = Some(m.metadata),
+                    _ => {}
+                },
+                Record::Footer(_) => saw_footer = true,
+                _ => {}
+            }
+        }
+    }
+    if !saw_footer {
+        return Err(fmt_err(
+            name,
+            "incomplete MCAP (no footer); `salvage_to` recovers its complete messages",
+        ));
+    }
+    if step_channels.is_empty() {
+        return Err(fmt_err(name, format!("no {TOPIC_STEP} channel: not a mimicrete demo")));
+    }
+    ep.meta = end_meta.or(start_meta).unwrap_or_default();
+    Ok(ep)
+}
+
+/// Read one demo file.
+///
+/// # Errors
+/// [`DemoError::Io`] if it cannot be read, else as [`read_demo_bytes`].
+pub fn read_demo(path: impl AsRef<Path>) -> Result<Episode, DemoError> {
+    let path = path.as_ref();
+    let buf = std::fs::read(path).map_err(|e| DemoError::Io { path: path.to_path_buf(), source: e })?;
+    read_demo_bytes(&buf, path)
+}
+
+/// The `*.mcap` files of a directory, sorted by name (`*.mcap.partial` files are not listed).
+///
+/// # Errors
+/// [`DemoError::Io`] if the directory cannot be listed.
+pub fn demo_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, DemoError> {
+    let dir = dir.as_ref();
+    let rd = std::fs::read_dir(dir).map_err(|e| DemoError::Io { path: dir.to_path_buf(), source: e })?;
+    let mut out = Vec::new();
+    for entry in rd {
+        let entry = entry.map_err(|e| DemoError::Io { path: dir.to_path_buf(), source: e })?;
+        let p = entry.path();
+        if p.is_file() && p.extension().is_some_and(|x| x == "mcap") {
+            out.push(p);
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// Many episodes concatenated, as the trainer wants them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Dataset {
+    /// `N × obs_dim`, row-major.
+    pub obs: Vec<f32>,
+    /// `N × act_dim`, row-major.
+    pub actions: Vec<f32>,
+    /// `N`.
+    pub rewards: Vec<f32>,
+    /// `N`.
+    pub terminated: Vec<bool>,
+    /// `N`.
+    pub truncated: Vec<bool>,
+    /// Episode index of each row: the position of its file in `files` (`N`).
+    pub episode: Vec<u32>,
+    /// Observation length.
+    pub obs_dim: usize,
+    /// Action length.
+    pub act_dim: usize,
+    /// The files read, in order.
+    pub files: Vec<PathBuf>,
+    /// Each file's metadata record.
+    pub metas: Vec<BTreeMap<String, String>>,
+}
+
+/// Read and concatenate demos: a single file, or every `*.mcap` in a directory (sorted by name).
+/// Files are read on up to `available_parallelism` threads.
+///
+/// # Errors
+/// The first file's error (by file order); [`DemoError::Format`] if obs/action lengths differ
+/// between files or a directory holds no demo.
+pub fn load_dataset(path: impl AsRef<Path>) -> Result<Dataset, DemoError> {
+    let path = path.as_ref();
+    let files = if path.is_dir() {
+        let f = demo_files(path)?;
+        if f.is_empty() {
+            return Err(fmt_err(path, "no *.mcap demos in this directory"));
+        }
+        f
+    } else {
+        vec![path.to_path_buf()]
+    };
+    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1).min(files.len()).max(1);
+    let mut results: Vec<Option<Result<Episode, DemoError>>> = (0..files.len()).map(|_| None).collect();
+    std::thread::scope(|s| {
+        let chunks: Vec<_> = results.chunks_mut(files.len().div_ceil(threads)).collect();
+        let per = files.len().div_ceil(threads);
+        for (k, slot) in chunks.into_iter().enumerate() {
+            let files = &files;
+            s.spawn(move || {
+                for (j, r) in slot.iter_mut().enumerate() {
+                    *r = Some(read_demo(&files[k * per + j]));
+                }
+            });
+        }
+    });
+    let mut ds = Dataset::default();
+    for (i, r) in results.into_iter().enumerate() {
+        let ep = r.expect("every slot is filled by its thread")?;
+        if i == 0 || ds.rewards.is_empty() {
+            ds.obs_dim = ep.obs_dim;
+            ds.act_dim = ep.act_dim;
+        } else if !ep.is_empty() && (ep.obs_dim, ep.act_dim) != (ds.obs_dim, ds.act_dim) {
+            return Err(fmt_err(
+                &files[i],
+                format!(
+                    "obs/action lengths {}/{} differ from the earlier files' {}/{}",
+                    ep.obs_dim, ep.act_dim, ds.obs_dim, ds.act_dim
+                ),
+            ));
+        }
+        ds.obs.extend_from_slice(&ep.obs);
+        ds.actions.extend_from_slice(&ep.actions);
+        ds.rewards.extend_from_slice(&ep.rewards);
+        ds.terminated.extend_from_slice(&ep.terminated);
+        ds.truncated.extend_from_slice(&ep.truncated);
+        ds.episode.extend(std::iter::repeat_n(i as u32, ep.len()));
+        ds.metas.push(ep.meta);
+    }
+    ds.files = files;
+    Ok(ds)
+}

@@ -1,0 +1,992 @@
+//! The MCAP demonstration writer: one file per episode.
+
+use crate::handlog::{HandFrame, HandLogHeader};
+use crate::schemas;
+use crate::{DemoError, partial_path};
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use ur3_kin::nalgebra::{Translation3, UnitQuaternion, Vector3};
+use ur3_kin::{UrModel, urdf};
+
+/// Format name written in the `episode` metadata record.
+pub const DEMO_FORMAT: &str = "mimicrete.demo";
+/// Demo format version (bumped with any incompatible change of a channel or record).
+pub const DEMO_FORMAT_VERSION: u32 = 1;
+
+/// Topic of the step records.
+pub const TOPIC_STEP: &str = "/demo/step";
+/// Topic of the raw hand frames.
+pub const TOPIC_HAND: &str = "/hand/joints";
+/// Topic of the transforms.
+pub const TOPIC_TF: &str = "/tf";
+/// Topic of the 3D scene.
+pub const TOPIC_SCENE: &str = "/scene";
+/// Topic of the events.
+pub const TOPIC_EVENTS: &str = "/events";
+
+/// Name of the root frame (the UR controller's Base frame, Z up, metres).
+pub const BASE_FRAME: &str = "base";
+/// Frames of the robot links published on `/tf`, the links of the URDF attached to the file
+/// (`ur3_kin::urdf`, ROS-Industrial `ur_description` layout): each is the child of the one before,
+/// the first is the child of [`BASE_FRAME`].
+pub const LINK_FRAMES: [&str; 8] = [
+    "shoulder_link",
+    "upper_arm_link",
+    "forearm_link",
+    "wrist_1_link",
+    "wrist_2_link",
+    "wrist_3_link",
+    "flange",
+    "tool0",
+];
+/// Frame of the tile (child of [`BASE_FRAME`]).
+pub const TILE_FRAME: &str = "tile";
+
+/// A pose: position (m) and orientation quaternion `[x, y, z, w]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    /// Metres.
+    pub position: [f64; 3],
+    /// Unit quaternion, `[x, y, z, w]`.
+    pub orientation: [f64; 4],
+}
+
+impl Pose {
+    /// The identity pose.
+    pub const IDENTITY: Pose = Pose { position: [0.0; 3], orientation: [0.0, 0.0, 0.0, 1.0] };
+
+    /// From an `Isometry3`.
+    pub fn from_isometry(p: &ur3_kin::Pose) -> Pose {
+        let q = p.rotation.quaternion();
+        Pose {
+            position: [p.translation.x, p.translation.y, p.translation.z],
+            orientation: [q.i, q.j, q.k, q.w],
+        }
+    }
+
+    fn is_finite(&self) -> bool {
+        self.position.iter().chain(self.orientation.iter()).all(|x| x.is_finite())
+    }
+}
+
+impl Default for Pose {
+    fn default() -> Self {
+        Pose::IDENTITY
+    }
+}
+
+/// Primitive shape of a [`SceneEntity`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// A box, `size` = full extents x, y, z.
+    Cube,
+    /// A cylinder along its local Z, `size` = (diameter x, diameter y, height).
+    Cylinder,
+    /// An ellipsoid, `size` = diameters.
+    Sphere,
+}
+
+impl Shape {
+    /// `"cube"`, `"cylinder"` or `"sphere"`.
+    pub fn from_name(name: &str) -> Option<Shape> {
+        match name.to_ascii_lowercase().as_str() {
+            "cube" | "box" => Some(Shape::Cube),
+            "cylinder" => Some(Shape::Cylinder),
+            "sphere" => Some(Shape::Sphere),
+            _ => None,
+        }
+    }
+}
+
+/// A visual primitive for `/scene` (table, tile, target, suction cups, ...). Published frame-locked:
+/// an entity in frame [`TILE_FRAME`] moves with the tile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneEntity {
+    /// Unique id; a later entity with the same id replaces it.
+    pub id: String,
+    /// Frame the pose is expressed in (`"base"`, `"tile"`, `"tool0"`, ...).
+    pub frame_id: String,
+    /// Shape.
+    pub kind: Shape,
+    /// Size in metres (see [`Shape`]).
+    pub size: [f64; 3],
+    /// Pose of the primitive's centre in `frame_id`.
+    pub pose: Pose,
+    /// Colour, RGBA in 0..1.
+    pub color: [f32; 4],
+}
+
+/// Facts about an episode, known when recording starts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeMeta {
+    /// Episode index within its data set.
+    pub episode: u64,
+    /// Task name (`"suction"`, `"gripping"`, `"screwing"`).
+    pub task: String,
+    /// Simulator seed of the episode.
+    pub seed: u64,
+    /// Robot model name known to `ur3_kin::UrModel::by_name` (`"ur3"`).
+    pub robot_model: String,
+    /// Source hand log, if any; its SHA-256 is computed when recording starts.
+    pub source_handlog: Option<PathBuf>,
+    /// The hand log's header (layout, space, handedness), if hand frames are recorded.
+    pub hand: Option<HandLogHeader>,
+    /// Name/version of the gesture model used (`"svm-suction-v1"`), free text.
+    pub gesture_model: String,
+    /// Seconds per environment step, if fixed (0 = unknown).
+    pub control_dt: f64,
+    /// Static scene (table, target, tile, cups), published with the first step.
+    pub scene: Vec<SceneEntity>,
+    /// Any further facts, written into the metadata records.
+    pub extra: BTreeMap<String, String>,
+}
+
+impl Default for EpisodeMeta {
+    fn default() -> Self {
+        EpisodeMeta {
+            episode: 0,
+            task: "suction".into(),
+            seed: 0,
+            robot_model: "ur3".into(),
+            source_handlog: None,
+            hand: None,
+            gesture_model: String::new(),
+            control_dt: 0.0,
+            scene: Vec::new(),
+            extra: BTreeMap::new(),
+        }
+    }
+}
+
+/// One environment step to record.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StepRecord {
+    /// Step index: 0, 1, 2, ... (consecutive).
+    pub step: u64,
+    /// Seconds since the episode start (the message log time), non-decreasing.
+    pub t: f64,
+    /// Observation frame (the env's observation at this step, before the action).
+    pub obs: Vec<f32>,
+    /// Action taken.
+    pub action: Vec<f32>,
+    /// Reward received for the action.
+    pub reward: f64,
+    /// The episode ended by the task (install, fall).
+    pub terminated: bool,
+    /// The episode was cut (time limit).
+    pub truncated: bool,
+    /// Gesture read from the hand (`"suction"`, `"drop"`, `"hold"`, ...). A change is logged on
+    /// `/events` as `gesture_change`.
+    pub gesture: String,
+    /// Robot joint angles, rad, base to wrist 3. Drives `/tf`.
+    pub joints: [f64; 6],
+    /// tool0 pose in Base.
+    pub ee_pose: Pose,
+    /// Tile pose in Base; drives the `tile` frame.
+    pub tile_pose: Pose,
+    /// Named events at this step (`"pick"`, `"install"`, `"fall"`), logged on `/events`.
+    pub events: Vec<String>,
+    /// Scene entities to add or replace at this step (e.g. a cup changing colour).
+    pub scene: Vec<SceneEntity>,
+}
+
+/// Facts known when the episode ends.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EpisodeSummary {
+    /// The task succeeded (tile installed).
+    pub success: bool,
+    /// Any further facts (`"picked": "true"`, ...).
+    pub extra: BTreeMap<String, String>,
+}
+
+/// Writer tuning. The defaults keep at most ~64 KiB (uncompressed) of messages at risk on a crash.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WriterOptions {
+    /// Uncompressed bytes after which a chunk is closed.
+    pub chunk_size: u64,
+    /// Close the chunk and flush to the OS every this many steps (0 = only by size).
+    pub flush_every_steps: u64,
+    /// zstd level (0 = zstd's default, 3).
+    pub compression_level: u32,
+}
+
+impl Default for WriterOptions {
+    fn default() -> Self {
+        WriterOptions { chunk_size: 64 * 1024, flush_every_steps: 50, compression_level: 0 }
+    }
+}
+
+/// What [`DemoWriter::finish`] wrote.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WriteStats {
+    /// Final path of the file.
+    pub path: PathBuf,
+    /// Steps written.
+    pub steps: u64,
+    /// Messages written over all channels.
+    pub messages: u64,
+    /// Chunks in the file.
+    pub chunks: u64,
+    /// File size, bytes.
+    pub bytes: u64,
+}
+
+// ---- message bodies (field order is fixed by the structs: the bytes are deterministic) ----
+
+#[derive(Serialize, Clone, Copy)]
+struct V3 {
+    x: f64,
+    y: f64,
+    z: f64,
+}
+#[derive(Serialize, Clone, Copy)]
+struct Q4 {
+    x: f64,
+    y: f64,
+    z: f64,
+    w: f64,
+}
+#[derive(Serialize, Clone, Copy)]
+struct PoseMsg {
+    position: V3,
+    orientation: Q4,
+}
+impl From<&Pose> for PoseMsg {
+    fn from(p: &Pose) -> Self {
+        let [x, y, z] = p.position;
+        let [qx, qy, qz, qw] = p.orientation;
+        PoseMsg { position: V3 { x, y, z }, orientation: Q4 { x: qx, y: qy, z: qz, w: qw } }
+    }
+}
+#[derive(Serialize, Clone, Copy)]
+struct Time {
+    sec: u64,
+    nsec: u32,
+}
+impl Time {
+    fn from_ns(ns: u64) -> Time {
+        Time { sec: ns / 1_000_000_000, nsec: (ns % 1_000_000_000) as u32 }
+    }
+}
+#[derive(Serialize)]
+struct Rgba {
+    r: f32,
+    g: f32,
+    b: f32,
+    a: f32,
+}
+
+#[derive(Serialize)]
+struct StepMsg<'a> {
+    episode: u64,
+    step: u64,
+    t: f64,
+    obs: &'a [f32],
+    action: &'a [f32],
+    reward: f64,
+    terminated: bool,
+    truncated: bool,
+    gesture: &'a str,
+    joints: &'a [f64; 6],
+    ee_pose: PoseMsg,
+    tile_pose: PoseMsg,
+}
+
+#[derive(Serialize)]
+struct HandMsg<'a> {
+    t: f64,
+    tracked: bool,
+    joints: &'a [[f64; 3]],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    orientations: Option<&'a [[f64; 4]]>,
+}
+
+#[derive(Serialize)]
+struct Tf<'a> {
+    timestamp: Time,
+    parent_frame_id: &'a str,
+    child_frame_id: &'a str,
+    translation: V3,
+    rotation: Q4,
+}
+#[derive(Serialize)]
+struct TfMsg<'a> {
+    transforms: Vec<Tf<'a>>,
+}
+
+#[derive(Serialize)]
+struct Prim {
+    pose: PoseMsg,
+    size: V3,
+    color: Rgba,
+}
+#[derive(Serialize)]
+struct CylPrim {
+    pose: PoseMsg,
+    size: V3,
+    bottom_scale: f64,
+    top_scale: f64,
+    color: Rgba,
+}
+#[derive(Serialize)]
+struct Kv<'a> {
+    key: &'a str,
+    value: &'a str,
+}
+#[derive(Serialize)]
+struct Empty {}
+#[derive(Serialize)]
+struct Entity<'a> {
+    timestamp: Time,
+    frame_id: &'a str,
+    id: &'a str,
+    lifetime: Time,
+    frame_locked: bool,
+    metadata: Vec<Kv<'a>>,
+    arrows: [Empty; 0],
+    cubes: Vec<Prim>,
+    spheres: Vec<Prim>,
+    cylinders: Vec<CylPrim>,
+    lines: [Empty; 0],
+    triangles: [Empty; 0],
+    texts: [Empty; 0],
+    models: [Empty; 0],
+}
+#[derive(Serialize)]
+struct SceneMsg<'a> {
+    deletions: [Empty; 0],
+    entities: Vec<Entity<'a>>,
+}
+
+#[derive(Serialize)]
+struct EventType<'a> {
+    name: &'a str,
+    color: &'a str,
+}
+#[derive(Serialize)]
+struct EventProp {
+    key: String,
+    #[serde(rename = "type")]
+    kind: u8,
+    value: String,
+}
+#[derive(Serialize)]
+struct EventMsg<'a> {
+    timestamp: Time,
+    duration: Time,
+    event_type: EventType<'a>,
+    event_properties: Vec<EventProp>,
+    id: String,
+    device_id: &'a str,
+}
+
+fn event_color(name: &str) -> &'static str {
+    match name {
+        "gesture_change" => "#4A90D9",
+        "pick" => "#F5A623",
+        "install" | "success" => "#2EAD4B",
+        "fall" | "failure" => "#D0021B",
+        _ => "#9B9B9B",
+    }
+}
+
+fn rgba(c: [f32; 4]) -> Rgba {
+    Rgba { r: c[0], g: c[1], b: c[2], a: c[3] }
+}
+
+fn entity_msg<'a>(e: &'a SceneEntity, stamp: Time) -> Entity<'a> {
+    let size = V3 { x: e.size[0], y: e.size[1], z: e.size[2] };
+    let pose = PoseMsg::from(&e.pose);
+    let (mut cubes, mut spheres, mut cylinders) = (Vec::new(), Vec::new(), Vec::new());
+    match e.kind {
+        Shape::Cube => cubes.push(Prim { pose, size, color: rgba(e.color) }),
+        Shape::Sphere => spheres.push(Prim { pose, size, color: rgba(e.color) }),
+        Shape::Cylinder => {
+            cylinders.push(CylPrim { pose, size, bottom_scale: 1.0, top_scale: 1.0, color: rgba(e.color) })
+        }
+    }
+    Entity {
+        timestamp: stamp,
+        frame_id: &e.frame_id,
+        id: &e.id,
+        lifetime: Time { sec: 0, nsec: 0 },
+        frame_locked: true,
+        metadata: Vec::new(),
+        arrows: [],
+        cubes,
+        spheres,
+        cylinders,
+        lines: [],
+        triangles: [],
+        texts: [],
+        models: [],
+    }
+}
+
+fn origin(xyz: &[f64; 3], rpy: &[f64; 3]) -> ur3_kin::Pose {
+    ur3_kin::Pose::from_parts(
+        Translation3::new(xyz[0], xyz[1], xyz[2]),
+        UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+    )
+}
+
+/// The URDF joints in chain order: (parent, child, origin xyz, origin rpy, joint index or None
+/// for a fixed joint).
+fn urdf_chain(model: &UrModel) -> Vec<(&'static str, &'static str, [f64; 3], [f64; 3], Option<usize>)> {
+    let mut v: Vec<_> = urdf::joint_origins(model)
+        .into_iter()
+        .enumerate()
+        .map(|(i, (_, parent, child, xyz, rpy))| (parent, child, xyz, rpy, Some(i)))
+        .collect();
+    v.extend(urdf::FIXED_JOINTS.iter().map(|&(_, parent, child, xyz, rpy)| (parent, child, xyz, rpy, None)));
+    v
+}
+
+/// Parent-to-child transforms of every URDF link at joint angles `q`, in chain order:
+/// `(parent, child, pose of child in parent)`. Composed from `base` they give `ur3_kin::fk` at
+/// `tool0`.
+pub fn link_transforms(model: &UrModel, q: &[f64; 6]) -> Vec<(&'static str, &'static str, ur3_kin::Pose)> {
+    urdf_chain(model)
+        .into_iter()
+        .map(|(parent, child, xyz, rpy, joint)| {
+            let mut p = origin(&xyz, &rpy);
+            if let Some(i) = joint {
+                p *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q[i]);
+            }
+            (parent, child, p)
+        })
+        .collect()
+}
+
+/// Cylinders drawing the robot as a stick figure, each frame-locked to a URDF link so it moves with
+/// `/tf`: link L gets a cylinder from its origin to the origin of the next joint (a constant point
+/// in L's frame).
+pub fn robot_link_entities(model: &UrModel) -> Vec<SceneEntity> {
+    let mut out = Vec::new();
+    for (k, (parent, _child, xyz, _rpy, _)) in urdf_chain(model).into_iter().enumerate() {
+        let d = Vector3::new(xyz[0], xyz[1], xyz[2]);
+        let len = d.norm();
+        if len < 1e-9 {
+            continue;
+        }
+        let mid = d / 2.0;
+        let rot = UnitQuaternion::rotation_between(&Vector3::z(), &d)
+            .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        let q = rot.quaternion();
+        let radius = if k <= 3 { 0.045 } else { 0.035 };
+        out.push(SceneEntity {
+            id: format!("robot/{parent}"),
+            frame_id: parent.to_string(),
+            kind: Shape::Cylinder,
+            size: [2.0 * radius, 2.0 * radius, len],
+            pose: Pose { position: [mid.x, mid.y, mid.z], orientation: [q.i, q.j, q.k, q.w] },
+            color: [0.55, 0.62, 0.70, 1.0],
+        });
+    }
+    out
+}
+
+/// Seconds → nanoseconds log time.
+///
+/// # Errors
+/// [`DemoError::Invalid`] for a negative or non-finite time.
+pub fn log_time_ns(t: f64) -> Result<u64, DemoError> {
+    if !t.is_finite() || t < 0.0 || t > 1.8e10 {
+        return Err(DemoError::Invalid(format!(
+            "time {t} s is not a finite, non-negative number of seconds"
+        )));
+    }
+    Ok((t * 1e9).round() as u64)
+}
+
+/// Lower-case hex of a SHA-256 digest.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+struct Channels {
+    step: u16,
+    hand: u16,
+    tf: u16,
+    scene: u16,
+    events: u16,
+}
+
+/// Records one episode into an MCAP file.
+///
+/// Writes go to `PATH.partial`; [`DemoWriter::finish`] writes the summary and renames the file to
+/// `PATH`. A crash leaves `PATH.partial`, from which [`crate::salvage_to`] recovers every message
+/// of every complete chunk (chunks are closed at least every
+/// [`WriterOptions::flush_every_steps`] steps). Dropping the writer without `finish` closes the
+/// partial file validly (no `episode` record) and leaves it as `PATH.partial`.
+pub struct DemoWriter {
+    w: mcap::Writer<BufWriter<File>>,
+    final_path: PathBuf,
+    partial: PathBuf,
+    meta: EpisodeMeta,
+    model: &'static UrModel,
+    ch: Channels,
+    seq: [u32; 5],
+    last_log_time: u64,
+    steps: u64,
+    messages: u64,
+    events: u64,
+    last_gesture: Option<String>,
+    obs_dim: Option<usize>,
+    act_dim: Option<usize>,
+    total_reward: f64,
+    steps_since_flush: u64,
+    opts: WriterOptions,
+    scene_written: bool,
+    last_t: f64,
+    ended: bool,
+    handlog_sha256: Option<String>,
+}
+
+const DEVICE_ID: &str = "mimicrete";
+
+fn mcap_err(path: &Path) -> impl Fn(mcap::McapError) -> DemoError + '_ {
+    move |e| DemoError::Mcap { path: path.to_path_buf(), source: e }
+}
+
+impl DemoWriter {
+    /// Start recording an episode to `path` (written as `path.partial` until [`finish`](Self::finish)).
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] for an unknown robot model, [`DemoError::Io`] when the file cannot be
+    /// created or the source hand log cannot be read (for its hash).
+    pub fn create(path: impl AsRef<Path>, meta: &EpisodeMeta) -> Result<DemoWriter, DemoError> {
+        DemoWriter::create_with_options(path, meta, WriterOptions::default())
+    }
+
+    /// [`create`](Self::create) with explicit [`WriterOptions`].
+    ///
+    /// # Errors
+    /// As [`create`](Self::create).
+    pub fn create_with_options(
+        path: impl AsRef<Path>,
+        meta: &EpisodeMeta,
+        opts: WriterOptions,
+    ) -> Result<DemoWriter, DemoError> {
+        let final_path = path.as_ref().to_path_buf();
+        let model = UrModel::by_name(&meta.robot_model)
+            .map_err(|_| DemoError::Invalid(format!("unknown robot model \"{}\"", meta.robot_model)))?;
+        for e in &meta.scene {
+            check_entity(e)?;
+        }
+        let handlog_sha256 = match &meta.source_handlog {
+            Some(p) => {
+                let bytes = std::fs::read(p).map_err(|e| DemoError::Io { path: p.clone(), source: e })?;
+                Some(sha256_hex(&bytes))
+            }
+            None => None,
+        };
+        let partial = partial_path(&final_path);
+        let file = File::create(&partial).map_err(|e| DemoError::Io { path: partial.clone(), source: e })?;
+        let me = mcap_err(&partial);
+        let mut w = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_level(opts.compression_level)
+            .compression_threads(0)
+            .chunk_size(Some(opts.chunk_size.max(1024)))
+            .profile("")
+            .library(format!("mimicrete-demo-log/{}", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::with_capacity(256 * 1024, file))
+            .map_err(&me)?;
+        let js = "jsonschema";
+        let s_step =
+            w.add_schema(schemas::STEP_SCHEMA_NAME, js, schemas::step_schema().as_bytes()).map_err(&me)?;
+        let s_hand =
+            w.add_schema(schemas::HAND_SCHEMA_NAME, js, schemas::hand_schema().as_bytes()).map_err(&me)?;
+        let s_tf = w.add_schema(schemas::TF_SCHEMA_NAME, js, schemas::tf_schema().as_bytes()).map_err(&me)?;
+        let s_scene =
+            w.add_schema(schemas::SCENE_SCHEMA_NAME, js, schemas::scene_schema().as_bytes()).map_err(&me)?;
+        let s_ev =
+            w.add_schema(schemas::EVENT_SCHEMA_NAME, js, schemas::event_schema().as_bytes()).map_err(&me)?;
+        let none = BTreeMap::new();
+        let mut hand_md = BTreeMap::new();
+        if let Some(h) = &meta.hand {
+            hand_md.insert("layout".to_string(), h.layout.name().to_string());
+            hand_md.insert("space".to_string(), h.space.name().to_string());
+            hand_md.insert("handedness".to_string(), h.handedness.name().to_string());
+            hand_md.insert("joint_count".to_string(), h.layout.joint_count().to_string());
+            hand_md.insert("units".to_string(), "m".to_string());
+        }
+        let ch = Channels {
+            step: w.add_channel(s_step, TOPIC_STEP, "json", &none).map_err(&me)?,
+            hand: w.add_channel(s_hand, TOPIC_HAND, "json", &hand_md).map_err(&me)?,
+            tf: w.add_channel(s_tf, TOPIC_TF, "json", &none).map_err(&me)?,
+            scene: w.add_channel(s_scene, TOPIC_SCENE, "json", &none).map_err(&me)?,
+            events: w.add_channel(s_ev, TOPIC_EVENTS, "json", &none).map_err(&me)?,
+        };
+        let mut dw = DemoWriter {
+            w,
+            final_path,
+            partial: partial.clone(),
+            meta: meta.clone(),
+            model,
+            ch,
+            seq: [0; 5],
+            last_log_time: 0,
+            steps: 0,
+            messages: 0,
+            events: 0,
+            last_gesture: None,
+            obs_dim: None,
+            act_dim: None,
+            total_reward: 0.0,
+            steps_since_flush: 0,
+            opts,
+            scene_written: false,
+            last_t: 0.0,
+            ended: false,
+            handlog_sha256,
+        };
+        // Static facts first, so that a salvaged file still says what it is.
+        let start = dw.metadata_map(None);
+        dw.w.write_metadata(&mcap::records::Metadata { name: "episode_start".into(), metadata: start })
+            .map_err(mcap_err(&dw.partial))?;
+        let urdf = urdf::to_urdf_string(model);
+        dw.w.attach(&mcap::Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: format!("{}.urdf", model.name),
+            media_type: "application/xml".into(),
+            data: std::borrow::Cow::Owned(urdf.into_bytes()),
+        })
+        .map_err(mcap_err(&dw.partial))?;
+        Ok(dw)
+    }
+
+    /// The final path (`.partial` is dropped from it on finish).
+    pub fn path(&self) -> &Path {
+        &self.final_path
+    }
+
+    /// Steps written so far.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn metadata_map(&self, summary: Option<&EpisodeSummary>) -> BTreeMap<String, String> {
+        let m = &self.meta;
+        let mut md = BTreeMap::new();
+        for (k, v) in &m.extra {
+            md.insert(k.clone(), v.clone());
+        }
+        md.insert("format".into(), DEMO_FORMAT.into());
+        md.insert("format_version".into(), DEMO_FORMAT_VERSION.to_string());
+        md.insert("step_schema".into(), schemas::STEP_SCHEMA_NAME.into());
+        md.insert("episode".into(), m.episode.to_string());
+        md.insert("task".into(), m.task.clone());
+        md.insert("seed".into(), m.seed.to_string());
+        md.insert("robot_model".into(), self.model.name.into());
+        md.insert("gesture_model".into(), m.gesture_model.clone());
+        md.insert("control_dt".into(), format!("{}", m.control_dt));
+        md.insert(
+            "source_handlog".into(),
+            m.source_handlog.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+        );
+        md.insert("source_handlog_sha256".into(), self.handlog_sha256.clone().unwrap_or_default());
+        if let Some(h) = &m.hand {
+            md.insert("hand_layout".into(), h.layout.name().into());
+            md.insert("hand_space".into(), h.space.name().into());
+            md.insert("handedness".into(), h.handedness.name().into());
+        }
+        if let Some(s) = summary {
+            for (k, v) in &s.extra {
+                md.insert(k.clone(), v.clone());
+            }
+            md.insert("success".into(), s.success.to_string());
+            md.insert("length".into(), self.steps.to_string());
+            md.insert("total_reward".into(), format!("{}", self.total_reward));
+            md.insert("obs_dim".into(), self.obs_dim.unwrap_or(0).to_string());
+            md.insert("act_dim".into(), self.act_dim.unwrap_or(0).to_string());
+            md.insert("terminated".into(), self.ended.to_string());
+        }
+        md
+    }
+
+    fn put(&mut self, which: usize, log_time: u64, data: &[u8]) -> Result<(), DemoError> {
+        let channel_id = [self.ch.step, self.ch.hand, self.ch.tf, self.ch.scene, self.ch.events][which];
+        let sequence = self.seq[which];
+        self.seq[which] = sequence.wrapping_add(1);
+        self.w
+            .write_to_known_channel(
+                &mcap::records::MessageHeader { channel_id, sequence, log_time, publish_time: log_time },
+                data,
+            )
+            .map_err(mcap_err(&self.partial))?;
+        self.last_log_time = log_time;
+        self.messages += 1;
+        Ok(())
+    }
+
+    fn check_time(&self, t: f64, what: &str) -> Result<u64, DemoError> {
+        let ns = log_time_ns(t)?;
+        if ns < self.last_log_time {
+            return Err(DemoError::Invalid(format!(
+                "{what}: time {t} s is before the last message written ({} s); log times must not decrease",
+                self.last_log_time as f64 / 1e9
+            )));
+        }
+        Ok(ns)
+    }
+
+    /// Record one step: `/demo/step`, `/tf` (every robot link from FK of `joints`, and the tile),
+    /// `/scene` (the static scene and robot on the first step, then `rec.scene` updates) and
+    /// `/events` (gesture changes and `rec.events`).
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] for non-consecutive step numbers, decreasing time, non-finite values,
+    /// or obs/action lengths that differ from the first step's; [`DemoError::Mcap`] on write failure.
+    pub fn write_step(&mut self, rec: &StepRecord) -> Result<(), DemoError> {
+        if self.ended {
+            return Err(DemoError::Invalid(format!(
+                "step {}: the episode already ended (terminated or truncated at step {})",
+                rec.step,
+                self.steps.saturating_sub(1)
+            )));
+        }
+        if rec.step != self.steps {
+            return Err(DemoError::Invalid(format!(
+                "step number {} but {} steps were written",
+                rec.step, self.steps
+            )));
+        }
+        let ns = self.check_time(rec.t, &format!("step {}", rec.step))?;
+        let dims = (rec.obs.len(), rec.action.len());
+        if dims.0 == 0 || dims.1 == 0 {
+            return Err(DemoError::Invalid(format!("step {}: empty obs or action", rec.step)));
+        }
+        if let (Some(o), Some(a)) = (self.obs_dim, self.act_dim)
+            && (o, a) != dims
+        {
+            return Err(DemoError::Invalid(format!(
+                "step {}: obs/action lengths {}/{} differ from the first step's {o}/{a}",
+                rec.step, dims.0, dims.1
+            )));
+        }
+        if let Some(i) = rec.obs.iter().position(|x| !x.is_finite()) {
+            return Err(DemoError::Invalid(format!("step {}: obs[{i}] is {}", rec.step, rec.obs[i])));
+        }
+        if let Some(i) = rec.action.iter().position(|x| !x.is_finite()) {
+            return Err(DemoError::Invalid(format!("step {}: action[{i}] is {}", rec.step, rec.action[i])));
+        }
+        if !rec.reward.is_finite()
+            || rec.joints.iter().any(|x| !x.is_finite())
+            || !rec.ee_pose.is_finite()
+            || !rec.tile_pose.is_finite()
+        {
+            return Err(DemoError::Invalid(format!("step {}: non-finite reward, joints or pose", rec.step)));
+        }
+        for e in &rec.scene {
+            check_entity(e)?;
+        }
+        self.obs_dim = Some(dims.0);
+        self.act_dim = Some(dims.1);
+
+        let msg = StepMsg {
+            episode: self.meta.episode,
+            step: rec.step,
+            t: rec.t,
+            obs: &rec.obs,
+            action: &rec.action,
+            reward: rec.reward,
+            terminated: rec.terminated,
+            truncated: rec.truncated,
+            gesture: &rec.gesture,
+            joints: &rec.joints,
+            ee_pose: PoseMsg::from(&rec.ee_pose),
+            tile_pose: PoseMsg::from(&rec.tile_pose),
+        };
+        let bytes = serde_json::to_vec(&msg).map_err(|e| DemoError::Invalid(e.to_string()))?;
+        self.put(0, ns, &bytes)?;
+
+        // /tf: the link chain, then the tile.
+        let stamp = Time::from_ns(ns);
+        let mut tfs = Vec::with_capacity(LINK_FRAMES.len() + 1);
+        for (parent, child, rel) in link_transforms(self.model, &rec.joints) {
+            let pm = PoseMsg::from(&Pose::from_isometry(&rel));
+            tfs.push(Tf {
+                timestamp: stamp,
+                parent_frame_id: parent,
+                child_frame_id: child,
+                translation: pm.position,
+                rotation: pm.orientation,
+            });
+        }
+        let tile = PoseMsg::from(&rec.tile_pose);
+        tfs.push(Tf {
+            timestamp: stamp,
+            parent_frame_id: BASE_FRAME,
+            child_frame_id: TILE_FRAME,
+            translation: tile.position,
+            rotation: tile.orientation,
+        });
+        let bytes =
+            serde_json::to_vec(&TfMsg { transforms: tfs }).map_err(|e| DemoError::Invalid(e.to_string()))?;
+        self.put(2, ns, &bytes)?;
+
+        // /scene
+        let mut entities: Vec<SceneEntity> = Vec::new();
+        if !self.scene_written {
+            entities.extend(robot_link_entities(self.model));
+            entities.extend(self.meta.scene.iter().cloned());
+            self.scene_written = true;
+        }
+        entities.extend(rec.scene.iter().cloned());
+        if !entities.is_empty() {
+            let msg =
+                SceneMsg { deletions: [], entities: entities.iter().map(|e| entity_msg(e, stamp)).collect() };
+            let bytes = serde_json::to_vec(&msg).map_err(|e| DemoError::Invalid(e.to_string()))?;
+            self.put(3, ns, &bytes)?;
+        }
+
+        // /events
+        if self.last_gesture.as_deref() != Some(rec.gesture.as_str()) {
+            let mut props = vec![("to", rec.gesture.clone(), 0u8)];
+            if let Some(prev) = &self.last_gesture {
+                props.push(("from", prev.clone(), 0));
+            }
+            props.push(("step", rec.step.to_string(), 3));
+            self.event_at(ns, "gesture_change", props)?;
+            self.last_gesture = Some(rec.gesture.clone());
+        }
+        for name in &rec.events {
+            self.event_at(ns, name, vec![("step", rec.step.to_string(), 3)])?;
+        }
+
+        self.total_reward += rec.reward;
+        self.steps += 1;
+        self.last_t = rec.t;
+        self.ended = rec.terminated || rec.truncated;
+        self.steps_since_flush += 1;
+        if self.opts.flush_every_steps > 0 && self.steps_since_flush >= self.opts.flush_every_steps {
+            self.w.flush().map_err(mcap_err(&self.partial))?;
+            self.steps_since_flush = 0;
+        }
+        Ok(())
+    }
+
+    fn event_at(&mut self, ns: u64, name: &str, props: Vec<(&str, String, u8)>) -> Result<(), DemoError> {
+        let msg = EventMsg {
+            timestamp: Time::from_ns(ns),
+            duration: Time { sec: 0, nsec: 0 },
+            event_type: EventType { name, color: event_color(name) },
+            event_properties: props
+                .into_iter()
+                .map(|(k, v, kind)| EventProp { key: k.to_string(), kind, value: v })
+                .collect(),
+            id: format!("episode-{}/event-{}", self.meta.episode, self.events),
+            device_id: DEVICE_ID,
+        };
+        let bytes = serde_json::to_vec(&msg).map_err(|e| DemoError::Invalid(e.to_string()))?;
+        self.put(4, ns, &bytes)?;
+        self.events += 1;
+        Ok(())
+    }
+
+    /// Record an event (`"pick"`, `"install"`, `"fall"`, ...) at time `t` with string properties.
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] for a time before the last message.
+    pub fn write_event(
+        &mut self,
+        t: f64,
+        name: &str,
+        properties: &BTreeMap<String, String>,
+    ) -> Result<(), DemoError> {
+        let ns = self.check_time(t, &format!("event {name}"))?;
+        let props = properties.iter().map(|(k, v)| (k.as_str(), v.clone(), 0u8)).collect();
+        self.event_at(ns, name, props)
+    }
+
+    /// Record a raw hand frame on `/hand/joints` at log time `t` (episode seconds; the frame keeps
+    /// its own `t` in the message).
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] for a time before the last message, non-finite values, or a joint
+    /// count that does not match `meta.hand`'s layout.
+    pub fn write_hand_frame(&mut self, frame: &HandFrame, t: f64) -> Result<(), DemoError> {
+        let ns = self.check_time(t, "hand frame")?;
+        if let Some(h) = &self.meta.hand
+            && frame.joints.len() != h.layout.joint_count()
+        {
+            return Err(DemoError::Invalid(format!(
+                "hand frame has {} joints, layout {} has {}",
+                frame.joints.len(),
+                h.layout.name(),
+                h.layout.joint_count()
+            )));
+        }
+        if !frame.t.is_finite()
+            || frame.joints.iter().flatten().any(|x| !x.is_finite())
+            || frame.orientations.iter().flatten().flatten().any(|x| !x.is_finite())
+        {
+            return Err(DemoError::Invalid("hand frame has a non-finite value".into()));
+        }
+        let msg = HandMsg {
+            t: frame.t,
+            tracked: frame.tracked,
+            joints: &frame.joints,
+            orientations: frame.orientations.as_deref(),
+        };
+        let bytes = serde_json::to_vec(&msg).map_err(|e| DemoError::Invalid(e.to_string()))?;
+        self.put(1, ns, &bytes)
+    }
+
+    /// Close the episode: an `episode_end` event, the `episode` metadata record (task, seed, robot,
+    /// success, length, source hand log and its SHA-256, gesture model, format version, ...), the
+    /// summary; then rename `PATH.partial` to `PATH`.
+    ///
+    /// # Errors
+    /// [`DemoError::Mcap`] / [`DemoError::Io`] on write or rename failure.
+    pub fn finish(mut self, summary: &EpisodeSummary) -> Result<WriteStats, DemoError> {
+        let ns = log_time_ns(self.last_t)?.max(self.last_log_time);
+        let name = if summary.success { "success" } else { "failure" };
+        self.event_at(
+            ns,
+            name,
+            vec![
+                ("length", self.steps.to_string(), 3),
+                ("total_reward", format!("{}", self.total_reward), 3),
+            ],
+        )?;
+        let md = self.metadata_map(Some(summary));
+        self.w
+            .write_metadata(&mcap::records::Metadata { name: "episode".into(), metadata: md })
+            .map_err(mcap_err(&self.partial))?;
+        let s = self.w.finish().map_err(mcap_err(&self.partial))?;
+        let DemoWriter { w, partial, final_path, steps, messages, .. } = self;
+        // Flush the buffer and sync before the rename, so the final name never points at a short file.
+        let file = w
+            .into_inner()
+            .into_inner()
+            .map_err(|e| DemoError::Io { path: partial.clone(), source: e.into_error() })?;
+        file.sync_all().map_err(|e| DemoError::Io { path: partial.clone(), source: e })?;
+        let bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
+        drop(file);
+        std::fs::rename(&partial, &final_path)
+            .map_err(|e| DemoError::Io { path: final_path.clone(), source: e })?;
+        let chunks = s.stats.as_ref().map(|st| st.chunk_count as u64).unwrap_or(0);
+        Ok(WriteStats { path: final_path, steps, messages, chunks, bytes })
+    }
+}
+
+fn check_entity(e: &SceneEntity) -> Result<(), DemoError> {
+    if !e.pose.is_finite()
+        || e.size.iter().any(|x| !x.is_finite() || *x < 0.0)
+        || e.color.iter().any(|c| !c.is_finite())
+    {
+        return Err(DemoError::Invalid(format!(
+            "scene entity \"{}\": non-finite or negative pose/size/colour",
+            e.id
+        )));
+    }
+    Ok(())
+}
