@@ -84,9 +84,31 @@ def test_ppo_loss_ratio_one_and_clipping():
     _, (pl, vl, ent) = ppo_loss(actor, critic, obs, u, k, logp, adv, vals, vals + 1.0, 0.2, 0.01)
     assert pl == pytest.approx(-adv.mean().item(), abs=1e-6)  # ratio 1 -> -mean(A)
     assert vl == pytest.approx(1.0, abs=1e-6)  # (returns - values)^2 = 1 per head
-    # entropy: 6 unit Gaussians + a 3-way categorical
-    assert ent > 6 * 1.41 and ent < 6 * 1.42 + np.log(3) + 1e-6
+    # entropy: 6 Gaussians of sigma 1/3 (0.5 ln(2 pi e) - ln 3 each) + a 3-way categorical
+    h_gauss = 6 * (0.5 * np.log(2 * np.pi * np.e) - np.log(3))
+    assert h_gauss < ent < h_gauss + np.log(3) + 1e-6
     # a big positive advantage with old logp far below: ratio clipped at 1 + eps
     lp_old = logp - 5.0
     _, (pl2, _, _) = ppo_loss(actor, critic, obs, u, k, lp_old, torch.ones(32), vals, vals, 0.2, 0)
     assert pl2 == pytest.approx(-1.2, abs=1e-6)
+
+
+def test_bc_pretrain_reduces_loss_at_constant_rate():
+    torch.manual_seed(0)
+    d = toyenv.expert_demos(10, seed=4)
+    actor = Actor(toyenv.OBS_DIM, 6, 32, 2, normalize=True)
+    actor.norm.update(torch.from_numpy(d["obs"]))
+    bc = BehavioralCloning(
+        actor,
+        d["obs"],
+        d["actions"],
+        1e-3,
+        steps=10,
+        batch_size=64,
+        num_epoch=1,
+        samples_per_update=0,
+    )
+    losses = bc.pretrain(120, np.random.default_rng(0))
+    assert len(losses) == 120
+    assert np.mean(losses[-10:]) < 0.5 * np.mean(losses[:10])
+    assert bc.opt.param_groups[0]["lr"] == 1e-3

@@ -49,6 +49,7 @@ def test_group_matches_tables_3_and_4(group):
         assert rs.gail.use_actions is False
     if b.behavioral_cloning is not None:  # Table 4, BC column
         assert b.behavioral_cloning.steps == 100_000
+        assert b.behavioral_cloning.pretrain_steps == 2000  # extension (paper §4: BC pre-trains)
     assert h.buffer_size % cfg.env_settings.num_envs == 0
 
 

@@ -110,19 +110,27 @@ def run() -> None:
     torch.set_num_threads(1)
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        print(f"PPO, 256x3 nets, buffer {BUFFER}, batch 512, 3 epochs, {NUM_ENVS} envs, "
-              f"{UPDATES} updates, torch threads 1")
+        print(
+            f"PPO, 256x3 nets, buffer {BUFFER}, batch 512, 3 epochs, {NUM_ENVS} envs, "
+            f"{UPDATES} updates, torch threads 1"
+        )
         ours, roll, upd = _our_steps_per_s(_toy_cfg(tmp, 0.0, 0.0), tmp)
-        print(f"  toy env, ours (PPO only):     {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
-              f"update {upd:.2f} s)")
+        print(
+            f"  toy env, ours (PPO only):     {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+            f"update {upd:.2f} s)"
+        )
         sb3 = _sb3_steps_per_s()
         if sb3 is not None:
             torch.set_num_threads(1)
-            print(f"  toy env, SB3 PPO (peer):      {sb3:8.0f} steps/s  -> ours / SB3 = "
-                  f"{ours / sb3:.2f}x")
+            print(
+                f"  toy env, SB3 PPO (peer):      {sb3:8.0f} steps/s  -> ours / SB3 = "
+                f"{ours / sb3:.2f}x"
+            )
         full, roll, upd = _our_steps_per_s(_toy_cfg(tmp, 0.01, 0.5), tmp)
-        print(f"  toy env, ours (BC+GAIL+PPO):  {full:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
-              f"update {upd:.2f} s)")
+        print(
+            f"  toy env, ours (BC+GAIL+PPO):  {full:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+            f"update {upd:.2f} s)"
+        )
         try:
             from mimicrete.learn import config
             from mimicrete.learn.train import make_env
@@ -133,5 +141,7 @@ def run() -> None:
             return
         cfg = config.load(Path(__file__).resolve().parents[3] / "configs" / "group1.yaml")
         ours, roll, upd = _our_steps_per_s(cfg, tmp)
-        print(f"  TileSuction-v0, group1 (PPO): {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
-              f"update {upd:.2f} s) -> 1M steps in {1e6 / ours / 60:.1f} min")
+        print(
+            f"  TileSuction-v0, group1 (PPO): {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+            f"update {upd:.2f} s) -> 1M steps in {1e6 / ours / 60:.1f} min"
+        )

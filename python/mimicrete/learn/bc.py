@@ -81,3 +81,25 @@ class BehavioralCloning:
                 self.opt.step()
                 losses.append(loss.item())
         return float(np.mean(losses)), lr
+
+    def pretrain(self, grad_steps: int, rng: np.random.Generator) -> list[float]:
+        """Offline warm start (extension ``pretrain_steps``; the paper's "BC is used for
+        pre-training"): ``grad_steps`` minibatch steps at the initial BC learning rate before the
+        first rollout. Returns the loss of every step."""
+        for g in self.opt.param_groups:
+            g["lr"] = self.initial_lr
+        n = self.obs.shape[0]
+        bs = min(self.batch_size, n)
+        losses: list[float] = []
+        while len(losses) < grad_steps:
+            perm = torch.as_tensor(rng.permutation(n))
+            for i in range(0, n - bs + 1, bs):
+                if len(losses) >= grad_steps:
+                    break
+                idx = perm[i : i + bs]
+                loss = bc_loss(self.actor, self.obs[idx], self.actions[idx])
+                self.opt.zero_grad()
+                loss.backward()
+                self.opt.step()
+                losses.append(loss.item())
+        return losses

@@ -81,6 +81,7 @@ class BehavioralCloningSettings:
     batch_size: int | None = None  # None: the trainer's batch_size
     num_epoch: int | None = None  # None: the trainer's num_epoch
     samples_per_update: int = 0
+    pretrain_steps: int = 0  # extension: offline BC gradient steps before the first rollout
 
 
 @dataclass

@@ -6,7 +6,8 @@ state-independent sigma (``condition_sigma_on_obs=False`` for PPO) and one categ
 the three end-effector commands, mapped to ``{-1, 0, +1}`` (drop, fixed, suction) in the env's last
 action dimension. The env receives ``clip(u, -1, 1)`` for the Gaussian sample ``u``; ML-Agents sends
 ``clamp(u, -3, 3) / 3`` instead (a departure: ours keeps the Gaussian mean in the demo actions'
-units, so BC's MSE and the env see the same scale).
+units, so BC's MSE and the env see the same scale; sigma starts at 1/3 so that the initial
+exploration noise in action units is ML-Agents').
 
 Log-probabilities are returned *per action component* (``n_cont`` Gaussian dims + 1 branch),
 because ML-Agents' PPO clips the probability ratio per component.
@@ -60,7 +61,9 @@ class Actor(nn.Module):
         self.norm = RunningNorm(obs_dim, enabled=normalize)
         self.body = mlp(obs_dim, hidden, layers)
         self.mu = _head(hidden, n_cont, 0.2)
-        self.log_std = nn.Parameter(torch.zeros(n_cont))
+        # sigma starts at 1/3: ML-Agents starts at sigma 1 but sends clamp(u, -3, 3) / 3 to the
+        # env, i.e. an initial exploration sigma of 1/3 in action units; ours is the same.
+        self.log_std = nn.Parameter(torch.full((n_cont,), -math.log(3.0)))
         self.logits = _head(hidden, N_EE, 0.1)
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

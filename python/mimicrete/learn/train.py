@@ -231,6 +231,19 @@ class Trainer:
         self._t_summary = time.perf_counter()
         self._steps_at_t = 0
 
+    def pretrain(self) -> None:
+        """Offline BC warm start (``behavioral_cloning.pretrain_steps``, a mimicrete extension).
+        The observation normalisers are first seeded with the demos' statistics so that the
+        warm-started policy sees the same inputs once agent data starts flowing in."""
+        bcs = self.b.behavioral_cloning
+        if self.bc is None or bcs is None or bcs.pretrain_steps <= 0:
+            return
+        demo_obs = torch.from_numpy(np.asarray(self.bc.obs))
+        self.actor.norm.update(demo_obs)
+        self.critic.norm.update(demo_obs)
+        losses = self.bc.pretrain(bcs.pretrain_steps, self.rng)
+        self._log("Losses/Pretraining Loss", float(np.mean(losses[-50:])))
+
     # -- helpers --------------------------------------------------------------------------------
 
     def _disc_inputs(self, obs: np.ndarray, actions: np.ndarray) -> np.ndarray:
@@ -590,6 +603,8 @@ def train(
         if ck is None:
             raise FileNotFoundError(f"--resume: no checkpoint in {run_dir / 'checkpoints'}")
         tr.load_state_dict(torch.load(ck, weights_only=False))
+    else:
+        tr.pretrain()
     log = ScalarLog(run_dir, resume)
     bar = None
     if progress:
