@@ -136,3 +136,25 @@ def test_train_module_entry_points_and_resume_flag(tmp_path):
     evaluate.configure(e)
     assert evaluate.main(e.parse_args([str(run_dir), "--episodes", "4"])) == 0
     assert plots.compare([run_dir], tmp_path / "cmp.png").stat().st_size > 1000
+
+
+def test_load_demos_selects_the_first_episodes(tmp_path):
+    import collections
+
+    import numpy as np
+
+    from mimicrete.learn import toyenv
+
+    d = toyenv.expert_demos(6, seed=2)
+    np.savez(tmp_path / "d.npz", **d)
+    sel = tr_mod.load_demos(str(tmp_path / "d.npz"), 4)
+    assert sorted(set(sel["episode"].tolist())) == [0, 1, 2, 3]
+    assert len(sel["obs"]) == int(np.isin(d["episode"], [0, 1, 2, 3]).sum())
+    with pytest.raises(ValueError, match="6 demo episodes"):
+        tr_mod.load_demos(str(tmp_path / "d.npz"), 60)
+    with pytest.raises(FileNotFoundError):
+        tr_mod.load_demos(str(tmp_path / "missing"), 4)
+    nt = collections.namedtuple("Demos", tr_mod.DEMO_KEYS)(*[d[k] for k in tr_mod.DEMO_KEYS])
+    for form in (nt, tuple(nt), dict(nt._asdict())):
+        out = tr_mod._demo_arrays(form)
+        assert all(np.array_equal(out[k], d[k]) for k in tr_mod.DEMO_KEYS)

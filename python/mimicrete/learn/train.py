@@ -106,8 +106,7 @@ def load_demos(path: str, episodes: int | None) -> dict[str, np.ndarray]:
             )
         from mimicrete import demos  # demo-log engineer's module
 
-        loaded = demos.load(str(p))
-        d = dict(loaded) if isinstance(loaded, dict) else dict(loaded._asdict())
+        d = _demo_arrays(demos.load(str(p)))
     ep = np.asarray(d["episode"])
     if episodes is not None:
         uniq = np.unique(ep)
@@ -116,6 +115,25 @@ def load_demos(path: str, episodes: int | None) -> dict[str, np.ndarray]:
         keep = np.isin(ep, uniq[:episodes])
         d = {k: np.asarray(v)[keep] for k, v in d.items()}
     return d
+
+
+DEMO_KEYS = ("obs", "actions", "rewards", "terminated", "truncated", "episode")
+
+
+def _demo_arrays(loaded: Any) -> dict[str, np.ndarray]:
+    """Accept a dict, a NamedTuple, a dataclass / object with attributes, or a plain tuple in the
+    order (obs, actions, rewards, terminated, truncated, episode)."""
+    if isinstance(loaded, dict):
+        src = loaded
+    elif hasattr(loaded, "_asdict"):
+        src = loaded._asdict()
+    elif all(hasattr(loaded, k) for k in DEMO_KEYS):
+        src = {k: getattr(loaded, k) for k in DEMO_KEYS}
+    elif isinstance(loaded, (tuple, list)) and len(loaded) >= len(DEMO_KEYS):
+        src = dict(zip(DEMO_KEYS, loaded, strict=False))
+    else:
+        raise TypeError(f"mimicrete.demos.load returned {type(loaded).__name__}")
+    return {k: np.asarray(src[k]) for k in DEMO_KEYS}
 
 
 def final_obs_of(infos: dict, ended: np.ndarray) -> np.ndarray:
@@ -647,6 +665,7 @@ def train(
         if bar is not None:
             bar.close()
         log.close()
+        tr.env.close()
     export_onnx(tr.actor, tr.obs_dim, run_dir / "policy.onnx")
     torch.save(
         {
