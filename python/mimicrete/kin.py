@@ -54,7 +54,9 @@ def _arr(x: Any, name: str) -> np.ndarray:
 
 def _shaped(x: Any, name: str, shape: tuple[int | None, ...], text: str) -> np.ndarray:
     a = _arr(x, name)
-    if a.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, a.shape)):
+    if a.ndim != len(shape) or any(
+        s is not None and s != d for s, d in zip(shape, a.shape, strict=True)
+    ):
         raise ValueError(f"{name} must have shape {text}, got {a.shape}")
     return a
 
