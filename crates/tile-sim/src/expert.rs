@@ -68,7 +68,8 @@ pub fn tool_down() -> UnitQuaternion<f64> {
     UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI)
 }
 
-fn tool0_for_tcp(tcp: Vector3<f64>, tcp_z: f64) -> Isometry3<f64> {
+/// tool0 pose that puts a TCP `tcp_z` m out along the flange axis at `tcp`, flange pointing down.
+pub fn tool0_for_tcp(tcp: Vector3<f64>, tcp_z: f64) -> Isometry3<f64> {
     // Tool Z points down, so tool0 sits tcp_z above the TCP.
     Isometry3::from_parts(Translation3::from(tcp + Vector3::new(0.0, 0.0, tcp_z)), tool_down())
 }

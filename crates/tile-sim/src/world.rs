@@ -142,6 +142,22 @@ pub fn arm_capsules() -> Vec<(u8, [f32; 3], [f32; 3], f32)> {
     ]
 }
 
+const G_ARM: Group = Group::GROUP_1;
+const G_OBJECT: Group = Group::GROUP_2;
+const G_STATIC: Group = Group::GROUP_3;
+
+fn arm_groups() -> InteractionGroups {
+    InteractionGroups::new(G_ARM, G_OBJECT, InteractionTestMode::And)
+}
+
+fn static_groups() -> InteractionGroups {
+    InteractionGroups::new(G_STATIC, G_OBJECT, InteractionTestMode::And)
+}
+
+fn object_groups() -> InteractionGroups {
+    InteractionGroups::new(G_OBJECT, G_ARM.union(G_STATIC), InteractionTestMode::And)
+}
+
 /// Handles of one built world.
 #[derive(Debug, Clone, Copy)]
 pub struct Handles {
@@ -161,19 +177,22 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
     w.integration_parameters.num_solver_iterations = PHYSICS_SUBSTEPS;
     // Scene scale ~0.2 m: allowed penetration 1 mm, prediction distance 4 mm.
     w.integration_parameters.length_unit = 0.2;
+    // ~12 leaves, most of them moving every step: re-optimising the broad-phase tree each step
+    // costs more than it saves (measured), so keep the tree as built.
+    w.broad_phase = BroadPhaseBvh::with_optimization_strategy(BvhOptimizationStrategy::None);
 
     // Table (fixed).
     let table = w.insert_body(RigidBodyBuilder::fixed());
     w.insert_collider(
         ColliderBuilder::cuboid(TABLE_HALF[0], TABLE_HALF[1], TABLE_HALF[2])
             .translation(Vector::new(0.0, 0.0, TABLE_TOP - TABLE_HALF[2]))
-            .friction(FRICTION),
+            .friction(FRICTION).collision_groups(static_groups()),
         Some(table),
     );
     // UR3 base housing (fixed cylinder, axis Z).
     w.insert_collider(
         ColliderBuilder::cylinder(0.045, 0.064)
-            .position(Pose::from_parts(Vector::new(0.0, 0.0, 0.045), Rotation::from_rotation_x(FRAC_PI_2))),
+            .position(Pose::from_parts(Vector::new(0.0, 0.0, 0.045), Rotation::from_rotation_x(FRAC_PI_2))).collision_groups(static_groups()),
         Some(table),
     );
     match task {
@@ -181,14 +200,14 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
             w.insert_collider(
                 ColliderBuilder::cuboid(PAD_HALF[0], PAD_HALF[1], PAD_HALF[2])
                     .translation(Vector::new(PAD_XY[0], PAD_XY[1], TABLE_TOP + PAD_HALF[2]))
-                    .friction(FRICTION),
+                    .friction(FRICTION).collision_groups(static_groups()),
                 Some(table),
             );
         }
         Task::Screw => {
             // Steel plate with the bolt (the nut is kinematic along the bolt, no contact needed).
             w.insert_collider(
-                ColliderBuilder::cuboid(0.04, 0.04, 0.005).translation(Vector::new(object_pos.x, object_pos.y, 0.005)),
+                ColliderBuilder::cuboid(0.04, 0.04, 0.005).translation(Vector::new(object_pos.x, object_pos.y, 0.005)).collision_groups(static_groups()),
                 Some(table),
             );
             w.insert_collider(
@@ -196,60 +215,68 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
                     Vector::new(object_pos.x, object_pos.y, 0.01),
                     Vector::new(object_pos.x, object_pos.y, BOLT_TOP - BOLT_RADIUS),
                     BOLT_RADIUS,
-                ),
+                ).collision_groups(static_groups()),
                 Some(table),
             );
         }
     }
 
-    // Arm links: kinematic, placed each step from FK.
+    // Arm links: kinematic, placed each step from FK; one compound collider per link. The arm
+    // only interacts with the task object (group filter), so arm-vs-table/pad/self pairs cost nothing.
     let mut links = [RigidBodyHandle::invalid(); 6];
-    for (i, l) in links.iter_mut().enumerate() {
+    for l in links.iter_mut() {
         *l = w.insert_body(RigidBodyBuilder::kinematic_position_based());
-        let _ = i;
     }
+    let mut parts: [Vec<(Pose, SharedShape)>; 6] = Default::default();
     for (frame, a, b, r) in arm_capsules() {
-        w.insert_collider(
-            ColliderBuilder::capsule_from_endpoints(Vector::from(a), Vector::from(b), r).density(1.0),
-            Some(links[frame as usize - 1]),
-        );
+        parts[frame as usize - 1].push((Pose::IDENTITY, SharedShape::capsule(Vector::from(a), Vector::from(b), r)));
     }
-    let tool = links[5];
     let mut fingers = None;
     match task {
         Task::TileSuction => {
-            w.insert_collider(
-                ColliderBuilder::cuboid(PLATE_HALF[0], PLATE_HALF[1], PLATE_HALF[2])
-                    .translation(Vector::new(0.0, 0.0, PLATE_HALF[2])),
-                Some(tool),
-            );
+            parts[5].push((
+                Pose::from_translation(Vector::new(0.0, 0.0, PLATE_HALF[2])),
+                SharedShape::cuboid(PLATE_HALF[0], PLATE_HALF[1], PLATE_HALF[2]),
+            ));
+            let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
             for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
-                let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
-                w.insert_collider(
-                    ColliderBuilder::cylinder(hh, CUP_RADIUS).position(Pose::from_parts(
+                parts[5].push((
+                    Pose::from_parts(
                         Vector::new(sx * CUP_OFFSET, sy * CUP_OFFSET, 2.0 * PLATE_HALF[2] + hh),
                         Rotation::from_rotation_x(FRAC_PI_2),
-                    )),
-                    Some(tool),
-                );
+                    ),
+                    SharedShape::cylinder(hh, CUP_RADIUS),
+                ));
             }
         }
         Task::BlockGrip | Task::Screw => {
-            w.insert_collider(
-                ColliderBuilder::cuboid(GRIPPER_BODY_HALF[0], GRIPPER_BODY_HALF[1], GRIPPER_BODY_HALF[2])
-                    .translation(Vector::new(0.0, 0.0, GRIPPER_BODY_HALF[2])),
-                Some(tool),
-            );
+            parts[5].push((
+                Pose::from_translation(Vector::new(0.0, 0.0, GRIPPER_BODY_HALF[2])),
+                SharedShape::cuboid(GRIPPER_BODY_HALF[0], GRIPPER_BODY_HALF[1], GRIPPER_BODY_HALF[2]),
+            ));
             let mut f = [RigidBodyHandle::invalid(); 2];
             for fh in f.iter_mut() {
                 *fh = w.insert_body(RigidBodyBuilder::kinematic_position_based());
                 w.insert_collider(
-                    ColliderBuilder::cuboid(FINGER_HALF[0], FINGER_HALF[1], FINGER_HALF[2]).friction(1.0),
+                    ColliderBuilder::cuboid(FINGER_HALF[0], FINGER_HALF[1], FINGER_HALF[2])
+                        .friction(1.0)
+                        .collision_groups(arm_groups()),
                     Some(*fh),
                 );
             }
             fingers = Some(f);
         }
+    }
+    for (i, p) in parts.into_iter().enumerate() {
+        if p.is_empty() {
+            continue;
+        }
+        let c = if p.len() == 1 && p[0].0 == Pose::IDENTITY {
+            ColliderBuilder::new(p[0].1.clone())
+        } else {
+            ColliderBuilder::compound(p)
+        };
+        w.insert_collider(c.collision_groups(arm_groups()), Some(links[i]));
     }
 
     // The object.
@@ -257,7 +284,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
         Task::TileSuction => {
             let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
             w.insert_collider(
-                ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2]).mass(TILE_MASS).friction(FRICTION),
+                ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2]).mass(TILE_MASS).friction(FRICTION).collision_groups(object_groups()),
                 Some(b),
             );
             b
@@ -265,7 +292,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
         Task::BlockGrip => {
             let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
             w.insert_collider(
-                ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF).mass(BLOCK_MASS).friction(FRICTION),
+                ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF).mass(BLOCK_MASS).friction(FRICTION).collision_groups(object_groups()),
                 Some(b),
             );
             b
@@ -275,7 +302,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
             let b = w.insert_body(RigidBodyBuilder::kinematic_position_based().translation(object_pos));
             w.insert_collider(
                 ColliderBuilder::cylinder(NUT_HALF_HEIGHT, NUT_RADIUS)
-                    .rotation(Vector::new(FRAC_PI_2, 0.0, 0.0)),
+                    .rotation(Vector::new(FRAC_PI_2, 0.0, 0.0)).collision_groups(object_groups()),
                 Some(b),
             );
             b
