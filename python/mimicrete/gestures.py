@@ -632,6 +632,7 @@ def fit(
         "test_size": test_size,
         "seed": seed,
         "n_support": int(best.named_steps["svc"].n_support_.sum()),
+        "grid": {k: list(v) for k, v in (grid or DEFAULT_GRID).items()},
     }
     return best, info, (xte, yte)
 
@@ -765,8 +766,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
             )
 
 
-def _load_csv_args(args: argparse.Namespace) -> GestureCsv:
-    names = args.label_names.split(",") if args.label_names else None
+def _load_csv_args(args: argparse.Namespace, default_names: list[str] | None = None) -> GestureCsv:
+    names = args.label_names.split(",") if args.label_names else default_names
     return read_gesture_csv(args.data, args.layout, names)
 
 
@@ -781,9 +782,9 @@ def main(args: argparse.Namespace) -> int:
         return 2
 
 
-def _report(task: str, classes, truth, pred, n_test: int) -> None:
+def _report(task: str, classes, truth, pred, n_test: int, what: str = "held-out") -> None:
     acc = float(np.mean(np.asarray(truth) == np.asarray(pred)))
-    line = f"held-out accuracy: {100 * acc:.2f} % on {n_test} samples"
+    line = f"{what} accuracy: {100 * acc:.2f} % on {n_test} samples"
     if task in PAPER_ACCURACY:
         n_paper = {"grip": 165, "screw": 2078}[task]
         line += f"   (paper Table 1: {100 * PAPER_ACCURACY[task]:.2f} % on {n_paper})"
@@ -802,6 +803,8 @@ def _main_train(args: argparse.Namespace) -> int:
             feats, data.labels, test_size=args.test_size or 0.2, seed=args.seed, grid=grid
         )
         info["data"] = str(args.data)
+        if args.label_names:
+            info["label_names"] = args.label_names.split(",")
         classes = tuple(sorted(set(data.labels.tolist())))
         model = GestureModel(pipe, classes, data.layout, data.dims, "custom", info)
         out = Path(args.out or "gesture_custom.joblib")
@@ -822,7 +825,7 @@ def _main_eval(args: argparse.Namespace) -> int:
     task = TASK_MODEL[args.task]
     model = load_model(args.model) if args.model else load_default(task)
     if args.data:
-        data = _load_csv_args(args)
+        data = _load_csv_args(args, model.info.get("label_names"))
         if data.dims != model.dims:
             print(
                 f"error: {args.data} holds {data.dims}-D {data.layout} joints, the model "
@@ -832,7 +835,7 @@ def _main_eval(args: argparse.Namespace) -> int:
             return 2
         feats = featurize(data.joints, data.layout, data.dims, "right")
         truth = data.labels
-        print(f"{args.data}: every row is scored (no split)")
+        what = f"{Path(args.data).name} (every row, no split)"
     else:
         if model.task not in TASK_CLASSES:
             print("error: a custom model needs --data to be scored", file=sys.stderr)
@@ -850,7 +853,7 @@ def _main_eval(args: argparse.Namespace) -> int:
             random_state=seed,
             stratify=labels[ok],
         )
-        print(f"built-in synthetic data (seed {seed}), the held-out split the model never saw")
+        what = f"held-out (built-in synthetic data, seed {seed}, the split the model never saw)"
     ok = np.all(np.isfinite(feats), axis=1)
     pred = np.full(len(truth), "<degenerate>", dtype=object)
     pred[ok] = model.pipeline.predict(feats[ok])
@@ -858,7 +861,7 @@ def _main_eval(args: argparse.Namespace) -> int:
     extra = sorted(set(map(str, truth)) - set(classes))
     if not ok.all():
         extra.append("<degenerate>")
-    _report(model.task, classes + extra, truth, pred, len(truth))
+    _report(model.task, classes + extra, truth, pred, len(truth), what)
     return 0
 
 
