@@ -283,7 +283,8 @@ def test_csv_3d_any_layout_and_cli(tmp_path, capsys):
     args = parser.parse_args(["eval", "--data", str(path), "--model", str(out)])
     assert g.main(args) == 0
     text = capsys.readouterr().out
-    acc = float(text.split("held-out accuracy: ")[1].split(" %")[0])
+    assert "webxr.csv (every row, no split) accuracy: " in text
+    acc = float(text.split("accuracy: ")[1].split(" %")[0])
     assert acc > 95.0
 
 
