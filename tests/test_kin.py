@@ -276,8 +276,10 @@ def test_urdf_loads_in_ikpy(tmp_path):
     ikpy_chain = pytest.importorskip("ikpy.chain")
     path = tmp_path / "ur3.urdf"
     path.write_text(kin.urdf("ur3"))
+    # ikpy's links: its own origin link, then one per URDF joint (6 revolute, 2 fixed).
+    mask = [False] + [True] * 6 + [False, False]
     chain = ikpy_chain.Chain.from_urdf_file(
-        str(path), base_elements=["base"], active_links_mask=None, name="ur3"
+        str(path), base_elements=["base"], active_links_mask=mask, name="ur3"
     )
     q = np.array([0.3, -1.1, 0.7, 2.0, -0.4, 1.3])
     n = len(chain.links)

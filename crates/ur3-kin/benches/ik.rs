@@ -88,6 +88,10 @@ fn main() {
         let _ = black_box(ik(&UR3, t, None, &opts));
     }
     report("ik warm (seed = q + N(0,0.1))", &targets, |i| ik(&UR3, &targets[i], Some(&seeds[i]), &opts));
+    let cf_opts = IkOptions { gn_first: false, ..opts };
+    report("ik warm, closed-form branch first", &targets, |i| {
+        ik(&UR3, &targets[i], Some(&seeds[i]), &cf_opts)
+    });
     report("ik cold (no seed)", &targets, |i| ik(&UR3, &targets[i], None, &opts));
     report("paper GN alone, warm seed", &targets, |i| ik_gn(&UR3, &targets[i], &seeds[i], &gn_opts));
     report("paper GN alone, cold (seed 0)", &targets, |i| ik_gn(&UR3, &targets[i], &[0.0; 6], &gn_opts));

@@ -8,6 +8,10 @@
 //!    nearer the seed than the Gauss-Newton result (or Gauss-Newton failed, or there is no seed),
 //!    the nearest are polished by Gauss-Newton in order of distance and the first that converges is
 //!    returned. Without a seed "nearest" means nearest the all-zero configuration.
+//!    With [`IkOptions::gn_first`] = false the seeded case skips step 2 and goes straight to the
+//!    nearest closed-form branch (Gauss-Newton from the seed stays as the fallback).
+//!
+//! [`IkOptions::use_analytic`] = false reduces [`ik`] to the paper's solver alone.
 //!
 //! Distances between joint vectors are Euclidean over per-joint wrapped differences.
 
@@ -65,6 +69,11 @@ pub struct IkOptions {
     /// Use the closed-form solutions (cold-start seeds, fallback and nearest-branch check).
     /// `false` gives the paper's Gauss-Newton alone (a seed is then required).
     pub use_analytic: bool,
+    /// With a seed: run Gauss-Newton from the seed first and keep its answer unless a closed-form
+    /// branch is nearer (`true`, the paper's warm start), or go straight to the closed-form
+    /// branch nearest the seed and polish it, with Gauss-Newton from the seed only as fallback
+    /// (`false`, same answers, faster). Ignored when `use_analytic` is false.
+    pub gn_first: bool,
 }
 
 impl Default for IkOptions {
@@ -78,6 +87,7 @@ impl Default for IkOptions {
             min_pivot_ratio: 1e-7,
             pinv_rcond: 1e-9,
             use_analytic: true,
+            gn_first: true,
         }
     }
 }
@@ -390,7 +400,8 @@ pub fn ik(
     let mut iters_total = 0;
     let mut best_res = (f64::INFINITY, f64::INFINITY);
     let mut gn_solution: Option<(Joints, f64)> = None;
-    if let Some(s) = seed {
+    let gn_first = opts.gn_first || !opts.use_analytic;
+    if let (Some(s), true) = (seed, gn_first) {
         let (q, it, ep, er, ok) = gauss_newton(model, &t, s, opts.max_iters, opts);
         iters_total += it;
         if ok {
@@ -437,7 +448,17 @@ pub fn ik(
     if let Some((q, _)) = gn_solution {
         return Ok(q);
     }
-    if cands.is_empty() {
+    if let (Some(s), false) = (seed, gn_first) {
+        let (q, it, ep, er, ok) = gauss_newton(model, &t, s, opts.max_iters, opts);
+        iters_total += it;
+        if ok {
+            return Ok(q);
+        }
+        if ep + er < best_res.0 + best_res.1 {
+            best_res = (ep, er);
+        }
+    }
+    if cands.is_empty() && best_res.0 > 1e-6 {
         return Err(KinError::Unreachable { reason: reason.unwrap_or("no closed-form solution") });
     }
     Err(KinError::NotConverged {

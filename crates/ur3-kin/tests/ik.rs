@@ -32,25 +32,30 @@ fn model() -> impl Strategy<Value = UrModel> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(4000))]
 
-    /// Random q → FK → cold IK → FK reproduces the pose, every model.
+    /// Random q → FK → cold IK → FK reproduces the pose, every model in every case.
     #[test]
-    fn cold_round_trip(m in model(), q in angles()) {
-        let t = fk(&m, &q);
-        let s = ik(&m, &t, None, &IkOptions::default());
-        prop_assert!(s.is_ok(), "{}: {:?} for q {:?}", m.name, s, q);
-        assert_reproduces(&m, &s.unwrap(), &t)?;
+    fn cold_round_trip(q in angles()) {
+        for m in MODELS {
+            let t = fk(&m, &q);
+            let s = ik(&m, &t, None, &IkOptions::default());
+            prop_assert!(s.is_ok(), "{}: {:?} for q {:?}", m.name, s, q);
+            assert_reproduces(&m, &s.unwrap(), &t)?;
+        }
     }
 
     /// Warm start near the true q: the answer reproduces the pose and is no farther from the seed
-    /// than the true q (ik returns the solution nearest the seed).
+    /// than the true q (ik returns the solution nearest the seed). Every model in every case.
     #[test]
-    fn warm_round_trip_is_nearest(m in model(), q in angles(), noise in prop::array::uniform6(-0.3..0.3f64)) {
-        let t = fk(&m, &q);
-        let seed: Joints = std::array::from_fn(|k| q[k] + noise[k]);
-        let s = ik(&m, &t, Some(&seed), &IkOptions::default()).map_err(|e| TestCaseError::fail(format!("{e}")))?;
-        assert_reproduces(&m, &s, &t)?;
-        prop_assert!(joint_distance(&s, &seed) <= joint_distance(&q, &seed) + 1e-6,
-            "returned {:?} farther from seed than the true {:?}", s, q);
+    fn warm_round_trip_is_nearest(q in angles(), noise in prop::array::uniform6(-0.3..0.3f64)) {
+        for m in MODELS {
+            let t = fk(&m, &q);
+            let seed: Joints = std::array::from_fn(|k| q[k] + noise[k]);
+            let s = ik(&m, &t, Some(&seed), &IkOptions::default())
+                .map_err(|e| TestCaseError::fail(format!("{}: {e}", m.name)))?;
+            assert_reproduces(&m, &s, &t)?;
+            prop_assert!(joint_distance(&s, &seed) <= joint_distance(&q, &seed) + 1e-6,
+                "{}: returned {:?} farther from seed than the true {:?}", m.name, s, q);
+        }
     }
 
     /// Every closed-form solution reproduces the target, and the true q is among them.
@@ -339,4 +344,20 @@ fn batch_equals_single() {
         assert!(matches!(r.last(), Some(Err(KinError::Unreachable { .. }))));
     }
     assert!(ik_batch(&UR3, &[], None, &opts, 2).is_empty());
+}
+
+#[test]
+fn gn_first_and_closed_form_first_agree() {
+    let closed_first = IkOptions { gn_first: false, ..IkOptions::default() };
+    for m in MODELS {
+        for k in 0..300 {
+            let kf = k as f64;
+            let q: Joints = std::array::from_fn(|j| ((kf + 1.0) * (j as f64 + 1.3)).sin() * 3.1);
+            let seed: Joints = std::array::from_fn(|j| q[j] + 0.1 * (kf * 7.0 + j as f64).cos());
+            let t = fk(&m, &q);
+            let a = ik(&m, &t, Some(&seed), &IkOptions::default()).unwrap();
+            let b = ik(&m, &t, Some(&seed), &closed_first).unwrap();
+            assert!(joint_distance(&a, &b) < 1e-6, "{} k={k}: {a:?} vs {b:?}", m.name);
+        }
+    }
 }
