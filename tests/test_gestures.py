@@ -378,3 +378,21 @@ def test_fast_single_sample_path_matches_sklearn(task):
     assert [model.predict_one(j, h) for j, h in zip(joints[:100], hands[:100], strict=True)] == (
         list(ref[:100])
     )
+
+
+def test_cli_2d_keypoint_csv_label_names_carry_to_eval(tmp_path, capsys):
+    csv_path = tmp_path / "keypoint.csv"
+    _mediapipe_2d_csv(csv_path, 60, seed=1)
+    parser = argparse.ArgumentParser()
+    g.configure(parser)
+    out = tmp_path / "kp.joblib"
+    argv = ["train", "--data", str(csv_path), "--label-names", "open,close,pointer", "--quick"]
+    assert g.main(parser.parse_args([*argv, "--out", str(out)])) == 0
+    side = json.loads((tmp_path / "kp.joblib.json").read_text())
+    assert side["features"]["kind"] == "2d" and side["info"]["label_names"][2] == "pointer"
+    capsys.readouterr()
+    assert g.main(parser.parse_args(["eval", "--data", str(csv_path), "--model", str(out)])) == 0
+    text = capsys.readouterr().out
+    assert "pointer" in text and float(text.split("accuracy: ")[1].split(" %")[0]) > 90.0
+    # a 3-D model refuses 2-D data with a clear message
+    assert g.main(parser.parse_args(["eval", "--data", str(csv_path), "--task", "grip"])) == 2
