@@ -412,11 +412,11 @@ def convert_log(
     act_dim = 8 if task == "screw" else 7
     q = np.asarray(obs[-fd:][:6], dtype=np.float64)
     q_ik = q.copy()
-    writer = None
+    sink = None
     out_path = None
     if out_dir is not None:
         out_path = Path(out_dir) / (Path(log.path).name.split(".")[0] + ".mcap")
-        writer = backend.open_writer(out_path, task, seed, episode_index, log, tele.model)
+        sink = backend.open_writer(out_path, task, seed, episode_index, log, tele.model)
     t0 = float(log.t[0])
     k = 0  # frames consumed
     n = len(log.t)
@@ -425,53 +425,73 @@ def convert_log(
     actions: list[np.ndarray] = []
     picked = installed = fell = terminated = truncated = False
     counts = tele.counts
-    while True:
-        t_ctrl = t0 + step * dt
-        while k < n and log.t[k] <= t_ctrl + 1e-9:
-            tele.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k])
-            k += 1
-        if k >= n and t_ctrl > float(log.t[-1]) + dt:
-            break  # the log has ended
-        a = np.zeros(act_dim, dtype=np.float32)
-        if tele.target is not None:
-            try:
-                sol = backend.ik(tele.target, q_ik)
-                if np.max(np.abs(wrap_to_pi(sol - q_ik))) > 1.5:  # a branch flip, not a motion
-                    raise ArithmeticError("IK jumped to another branch")
-                q_ik = q_ik + wrap_to_pi(sol - q_ik)
-            except ArithmeticError:
-                counts.unreachable += 1
-            a[:6] = joint_action(q_ik, q, max_step)
-        cmd, spin = tele.command()
-        a[6] = cmd
-        if act_dim == 8:
-            a[7] = spin
-        obs, reward, terminated, truncated, info = env.step(a)
-        q = np.asarray(obs[-fd:][:6], dtype=np.float64)
-        rewards.append(float(reward))
-        actions.append(a)
-        picked = picked or bool(info.get("picked", False))
-        installed = installed or bool(info.get("installed", False))
-        fell = fell or bool(info.get("fell", False))
-        if writer is not None:
-            writer.step(
-                step,
-                t_ctrl - t0,
-                obs,
-                a,
-                float(reward),
-                bool(terminated),
-                bool(truncated),
-                tele.smoother.state or "",
-                env,
-            )
-        step += 1
-        if terminated or truncated:
-            break
+    try:
+        while True:
+            t_ctrl = t0 + step * dt
+            while k < n and log.t[k] <= t_ctrl + 1e-9:
+                before = tele.smoother.state
+                tele.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k])
+                if sink is not None:
+                    te = float(log.t[k]) - t0
+                    sink.hand(te, log.joints[k], bool(log.tracked[k]), float(log.t[k]))
+                    if tele.smoother.state != before:
+                        sink.event(te, "gesture", {"from": before or "", "to": tele.smoother.state})
+                k += 1
+            if k >= n and t_ctrl > float(log.t[-1]) + dt:
+                break  # the log has ended
+            a = np.zeros(act_dim, dtype=np.float32)
+            if tele.target is not None:
+                try:
+                    sol = backend.ik(tele.target, q_ik)
+                    if np.max(np.abs(wrap_to_pi(sol - q_ik))) > 1.5:  # a branch flip, not a motion
+                        raise ArithmeticError("IK jumped to another branch")
+                    q_ik = q_ik + wrap_to_pi(sol - q_ik)
+                except ArithmeticError:
+                    counts.unreachable += 1
+                a[:6] = joint_action(q_ik, q, max_step)
+            cmd, spin = tele.command()
+            a[6] = cmd
+            if act_dim == 8:
+                a[7] = spin
+            obs, reward, terminated, truncated, info = env.step(a)
+            q = np.asarray(obs[-fd:][:6], dtype=np.float64)
+            rewards.append(float(reward))
+            actions.append(a)
+            events = []
+            if info.get("picked", False) and not picked:
+                events.append("pick")
+            if info.get("installed", False):
+                events.append("install")
+            if info.get("fell", False):
+                events.append("fall")
+            picked = picked or bool(info.get("picked", False))
+            installed = installed or bool(info.get("installed", False))
+            fell = fell or bool(info.get("fell", False))
+            if sink is not None:
+                sink.step(
+                    step,
+                    (step + 1) * dt,
+                    obs,
+                    a,
+                    float(reward),
+                    bool(terminated),
+                    bool(truncated),
+                    tele.smoother.state or "",
+                    q,
+                    fd,
+                    events,
+                )
+            step += 1
+            if terminated or truncated:
+                break
+    except BaseException:
+        if sink is not None:
+            sink.abandon()
+        raise
     counts.steps = step
     counts.frames_after_end = n - k
-    if writer is not None:
-        writer.close(installed, counts)
+    if sink is not None:
+        sink.close(installed, counts)
     return EpisodeResult(
         str(log.path),
         str(out_path) if out_path else None,
@@ -543,41 +563,82 @@ class Backend:
         except IkError as e:
             raise ArithmeticError(str(e)) from None
 
-    @staticmethod
-    def open_writer(path: Path, task: str, seed: int, episode: int, log: HandLog, model) -> Any:
-        return _DemoSink(path, task, seed, episode, log, model)
+    def open_writer(
+        self, path: Path, task: str, seed: int, episode: int, log: HandLog, model
+    ) -> Any:
+        return _DemoSink(path, task, seed, episode, log, model, self.control_dt)
 
 
 class _DemoSink:
-    """Writes one episode through ``mimicrete.demos``."""
+    """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer)."""
 
-    def __init__(self, path: Path, task: str, seed: int, episode: int, log: HandLog, model) -> None:
+    def __init__(
+        self, path: Path, task: str, seed: int, episode: int, log: HandLog, model, control_dt: float
+    ) -> None:
         from mimicrete import demos
 
         path.parent.mkdir(parents=True, exist_ok=True)
-        self.w = demos.DemoWriter(
-            str(path),
-            task=SIM_TASK[task],
-            seed=seed,
-            episode=episode,
-            source_handlog=str(log.path),
-            gesture_model=f"svm-{model.task}",
-        )
+        meta = {
+            "episode": int(episode),
+            "task": SIM_TASK[task],
+            "seed": int(seed),
+            "robot_model": "ur3",
+            "source_handlog": str(log.path),
+            "gesture_model": f"svm-{model.task} ({'/'.join(model.classes)})",
+            "control_dt": float(control_dt),
+            "hand": {k: log.header[k] for k in ("layout", "space", "handedness")},
+            "extra": {"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
+        }
+        self.task = task
+        self.w = demos.DemoWriter(str(path), meta)
 
-    def step(self, step, t, obs, action, reward, terminated, truncated, gesture, env) -> None:
+    def hand(self, t: float, joints: np.ndarray, tracked: bool, hand_t: float) -> None:
+        self.w.write_hand_frame(t, np.ascontiguousarray(joints, dtype=np.float64), tracked, hand_t)
+
+    def event(self, t: float, name: str, props: dict[str, Any]) -> None:
+        self.w.write_event(t, name, {k: str(v) for k, v in props.items()})
+
+    def step(
+        self, step, t, obs, action, reward, terminated, truncated, gesture, q, fd, events
+    ) -> None:
+        from mimicrete import kin
+
+        frame = np.asarray(obs[-fd:], dtype=np.float64)
+        lay = _obs_fields(self.task)
+        obj = frame[lay["object"]]
         self.w.write_step(
-            step=step,
-            t=t,
-            obs=obs,
-            action=action,
-            reward=reward,
-            terminated=terminated,
-            truncated=truncated,
-            gesture=gesture,
+            step,
+            t,
+            np.ascontiguousarray(obs, dtype=np.float32),
+            np.ascontiguousarray(action, dtype=np.float32),
+            reward,
+            terminated,
+            truncated,
+            gesture,
+            [float(x) for x in q],
+            kin.fk(q),
+            [obj[0], obj[1], obj[2], 0.0, 0.0, 0.0, 1.0],
+            events,
         )
 
     def close(self, success: bool, counts: Counts) -> None:
-        self.w.finish(success=success, extra={k: str(v) for k, v in counts.as_dict().items()})
+        self.w.finish(success, {k: json.dumps(v) for k, v in counts.as_dict().items()})
+
+    def abandon(self) -> None:
+        self.w.abandon()
+
+
+def _rate(log: HandLog) -> float:
+    d = np.diff(log.t)
+    d = d[d > 0]
+    return float(1.0 / np.median(d)) if len(d) else 0.0
+
+
+def _obs_fields(task: str) -> dict[str, slice]:
+    """Fields of one observation frame (tile-sim ``Task::obs_frame_dim``)."""
+    from mimicrete.synth import obs_layout
+
+    return obs_layout(task)
 
 
 # ----------------------------------------------------------------------------------------------

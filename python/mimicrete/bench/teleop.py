@@ -103,6 +103,11 @@ def run(task: str = "suction", episodes: int = 2) -> None:
             stages["parse"].append(t1 - t0)
             stages["gesture+frame"].append(t2 - t1)
             t_first = t if t_first is None else t_first
+            if writer is not None:  # the raw hand frame goes into the demo too
+                writer.hand(t - t_first, arr, tracked, t)
+                t2b = time.perf_counter()
+                stages["record"].append(t2b - t2)
+                t2 = t2b
             if (
                 env is not None
                 and not done
@@ -130,7 +135,9 @@ def run(task: str = "suction", episodes: int = 2) -> None:
                     bool(term),
                     bool(trunc),
                     tele.smoother.state or "",
-                    env,
+                    q,
+                    fd,
+                    [],
                 )
                 t5 = time.perf_counter()
                 stages["ik"].append(t3 - t2)
