@@ -69,6 +69,9 @@ pub use writer::{
     WriteStats, WriterOptions, link_transforms, log_time_ns, robot_link_entities, sha256_hex,
 };
 
+/// Re-exported so that bindings can build the `extra` objects of hand-log headers.
+pub use serde_json;
+
 use std::path::{Path, PathBuf};
 
 /// Errors of the demo writer, reader and salvage.

@@ -597,6 +597,21 @@ impl DemoWriter {
             .library(format!("mimicrete-demo-log/{}", env!("CARGO_PKG_VERSION")))
             .create(BufWriter::with_capacity(256 * 1024, file))
             .map_err(&me)?;
+        // Static facts and the robot description first (outside chunks), so that a salvaged file
+        // still says what it is and the first chunk starts with the schemas and channels.
+        w.write_metadata(&mcap::records::Metadata {
+            name: "episode_start".into(),
+            metadata: metadata_map(meta, model, handlog_sha256.as_deref(), None),
+        })
+        .map_err(&me)?;
+        w.attach(&mcap::Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: format!("{}.urdf", model.name),
+            media_type: "application/xml".into(),
+            data: std::borrow::Cow::Owned(urdf::to_urdf_string(model).into_bytes()),
+        })
+        .map_err(&me)?;
         let js = "jsonschema";
         let s_step =
             w.add_schema(schemas::STEP_SCHEMA_NAME, js, schemas::step_schema().as_bytes()).map_err(&me)?;
@@ -623,7 +638,7 @@ impl DemoWriter {
             scene: w.add_channel(s_scene, TOPIC_SCENE, "json", &none).map_err(&me)?,
             events: w.add_channel(s_ev, TOPIC_EVENTS, "json", &none).map_err(&me)?,
         };
-        let mut dw = DemoWriter {
+        Ok(DemoWriter {
             w,
             final_path,
             partial: partial.clone(),
@@ -645,21 +660,7 @@ impl DemoWriter {
             last_t: 0.0,
             ended: false,
             handlog_sha256,
-        };
-        // Static facts first, so that a salvaged file still says what it is.
-        let start = dw.metadata_map(None);
-        dw.w.write_metadata(&mcap::records::Metadata { name: "episode_start".into(), metadata: start })
-            .map_err(mcap_err(&dw.partial))?;
-        let urdf = urdf::to_urdf_string(model);
-        dw.w.attach(&mcap::Attachment {
-            log_time: 0,
-            create_time: 0,
-            name: format!("{}.urdf", model.name),
-            media_type: "application/xml".into(),
-            data: std::borrow::Cow::Owned(urdf.into_bytes()),
         })
-        .map_err(mcap_err(&dw.partial))?;
-        Ok(dw)
     }
 
     /// The final path (`.partial` is dropped from it on finish).
@@ -673,35 +674,8 @@ impl DemoWriter {
     }
 
     fn metadata_map(&self, summary: Option<&EpisodeSummary>) -> BTreeMap<String, String> {
-        let m = &self.meta;
-        let mut md = BTreeMap::new();
-        for (k, v) in &m.extra {
-            md.insert(k.clone(), v.clone());
-        }
-        md.insert("format".into(), DEMO_FORMAT.into());
-        md.insert("format_version".into(), DEMO_FORMAT_VERSION.to_string());
-        md.insert("step_schema".into(), schemas::STEP_SCHEMA_NAME.into());
-        md.insert("episode".into(), m.episode.to_string());
-        md.insert("task".into(), m.task.clone());
-        md.insert("seed".into(), m.seed.to_string());
-        md.insert("robot_model".into(), self.model.name.into());
-        md.insert("gesture_model".into(), m.gesture_model.clone());
-        md.insert("control_dt".into(), format!("{}", m.control_dt));
-        md.insert(
-            "source_handlog".into(),
-            m.source_handlog.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
-        );
-        md.insert("source_handlog_sha256".into(), self.handlog_sha256.clone().unwrap_or_default());
-        if let Some(h) = &m.hand {
-            md.insert("hand_layout".into(), h.layout.name().into());
-            md.insert("hand_space".into(), h.space.name().into());
-            md.insert("handedness".into(), h.handedness.name().into());
-        }
-        if let Some(s) = summary {
-            for (k, v) in &s.extra {
-                md.insert(k.clone(), v.clone());
-            }
-            md.insert("success".into(), s.success.to_string());
+        let mut md = metadata_map(&self.meta, self.model, self.handlog_sha256.as_deref(), summary);
+        if summary.is_some() {
             md.insert("length".into(), self.steps.to_string());
             md.insert("total_reward".into(), format!("{}", self.total_reward));
             md.insert("obs_dim".into(), self.obs_dim.unwrap_or(0).to_string());
@@ -976,6 +950,41 @@ impl DemoWriter {
         let chunks = s.stats.as_ref().map(|st| st.chunk_count as u64).unwrap_or(0);
         Ok(WriteStats { path: final_path, steps, messages, chunks, bytes })
     }
+}
+
+fn metadata_map(
+    m: &EpisodeMeta,
+    model: &UrModel,
+    handlog_sha256: Option<&str>,
+    summary: Option<&EpisodeSummary>,
+) -> BTreeMap<String, String> {
+    let mut md = BTreeMap::new();
+    for (k, v) in &m.extra {
+        md.insert(k.clone(), v.clone());
+    }
+    md.insert("format".into(), DEMO_FORMAT.into());
+    md.insert("format_version".into(), DEMO_FORMAT_VERSION.to_string());
+    md.insert("step_schema".into(), schemas::STEP_SCHEMA_NAME.into());
+    md.insert("episode".into(), m.episode.to_string());
+    md.insert("task".into(), m.task.clone());
+    md.insert("seed".into(), m.seed.to_string());
+    md.insert("robot_model".into(), model.name.into());
+    md.insert("gesture_model".into(), m.gesture_model.clone());
+    md.insert("control_dt".into(), format!("{}", m.control_dt));
+    md.insert("source_handlog".into(), m.source_handlog.as_ref().map(|p| p.display().to_string()).unwrap_or_default());
+    md.insert("source_handlog_sha256".into(), handlog_sha256.unwrap_or_default().to_string());
+    if let Some(h) = &m.hand {
+        md.insert("hand_layout".into(), h.layout.name().into());
+        md.insert("hand_space".into(), h.space.name().into());
+        md.insert("handedness".into(), h.handedness.name().into());
+    }
+    if let Some(s) = summary {
+        for (k, v) in &s.extra {
+            md.insert(k.clone(), v.clone());
+        }
+        md.insert("success".into(), s.success.to_string());
+    }
+    md
 }
 
 fn check_entity(e: &SceneEntity) -> Result<(), DemoError> {
