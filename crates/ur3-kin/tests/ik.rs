@@ -361,3 +361,37 @@ fn gn_first_and_closed_form_first_agree() {
         }
     }
 }
+
+/// Completeness of the closed form: Gauss-Newton from many random seeds finds no solution that
+/// `ik_all` does not list (and ik_all lists nothing GN cannot confirm: checked by reproduction).
+#[test]
+fn ik_all_is_complete_against_random_restarts() {
+    let mut s: u64 = 0x1234_5678;
+    let mut rnd = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 * PI - PI
+    };
+    let opts = IkOptions { use_analytic: false, max_iters: 200, ..IkOptions::default() };
+    for m in [UR3, ur3_kin::UR10E] {
+        let mut found_total = 0;
+        for _ in 0..40 {
+            let q: Joints = std::array::from_fn(|_| rnd());
+            let t = fk(&m, &q);
+            let all = ik_all(&m, &t);
+            for _ in 0..100 {
+                let seed: Joints = std::array::from_fn(|_| rnd());
+                if let Ok(x) = ik_gn(&m, &t, &seed, &opts) {
+                    found_total += 1;
+                    assert!(
+                        all.iter().any(|a| joint_distance(a, &x) < 1e-6),
+                        "{}: GN found {x:?}, not among {all:?}",
+                        m.name
+                    );
+                }
+            }
+        }
+        assert!(found_total > 1000, "too few GN successes ({found_total}) for the check to mean anything");
+    }
+}
