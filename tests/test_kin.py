@@ -146,8 +146,14 @@ def test_errors_and_messages():
         kin.ik(refl)
     with pytest.raises(ValueError, match="numeric"):
         kin.fk(["a"] * 6)
-    with pytest.raises(ValueError, match=r"seed"):
+    with pytest.raises(ValueError, match=r"seed holds a NaN"):
         kin.ik(t, seed=np.full(6, np.inf))
+    with pytest.raises(ValueError, match=r"q holds a NaN"):
+        kin.fk(np.array([0, 0, np.nan, 0, 0, 0]))
+    with pytest.raises(ValueError, match=r"q holds a NaN"):
+        kin.fk_batch(np.full((2, 6), np.inf))
+    with pytest.raises(ValueError, match=r"q holds a NaN"):
+        kin.jacobian(np.full(6, np.nan))
     far = np.eye(4)
     far[0, 3] = 2.0
     assert kin.ik_all(far).shape == (0, 6)

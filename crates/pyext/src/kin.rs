@@ -33,6 +33,9 @@ fn joints_from(v: ArrayView1<'_, f64>, what: &str) -> PyResult<Joints> {
     if v.len() != 6 {
         return Err(shape_err(what, "(6,)", v.shape()));
     }
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!("{what} holds a NaN or an infinity")));
+    }
     Ok(std::array::from_fn(|i| v[i]))
 }
 
@@ -116,6 +119,9 @@ fn kin_fk_batch<'py>(
     let a = q.as_array();
     if a.shape()[1] != 6 {
         return Err(shape_err("q", "(N, 6)", a.shape()));
+    }
+    if a.iter().any(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err("q holds a NaN or an infinity"));
     }
     let n = a.shape()[0];
     let mut out = Array3::<f64>::zeros((n, 4, 4));
