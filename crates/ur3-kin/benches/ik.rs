@@ -83,6 +83,10 @@ fn main() {
         "tolerance {:.0e} m / {:.0e} rad inside the solver; success = FK error < 1e-6 m and < 1e-6 rad",
         opts.tol_pos_m, opts.tol_rot_rad
     );
+    println!(
+        "published anchor: TRAC-IK on UR3, 98.60% success at 0.45 ms average (10k random reachable \
+         targets, 1e-5 tolerance, TRAC-IK README v1.5.1); goal here: >= 99.9% cold, median < 20 us"
+    );
     // Warm-up so the first timings are not cold caches.
     for t in targets.iter().take(200) {
         let _ = black_box(ik(&UR3, t, None, &opts));
