@@ -47,7 +47,11 @@ fn main() {
         let mut line = format!("RESULT task={}", task.name());
         for threads in [1, 2] {
             let (sps, eps) = run(task, n, threads, secs);
-            println!("  {:<12} threads={threads}: {:>10.0} env-steps/s  ({eps} episodes ended)", task.name(), sps);
+            println!(
+                "  {:<12} threads={threads}: {:>10.0} env-steps/s  ({eps} episodes ended)",
+                task.name(),
+                sps
+            );
             line.push_str(&format!(" threads{threads}={sps:.0}"));
         }
         println!("{line}");

@@ -17,15 +17,31 @@ fn main() {
             ex.act(&env.snapshot(), &mut act);
             let o = env.step(&act, &mut obs).expect("step");
             if o.terminated || o.truncated {
-                if o.installed { ok += 1; } else {
+                if o.installed {
+                    ok += 1;
+                } else {
                     let s = env.snapshot();
-                    println!("seed {seed} failed: fell={} trunc={} phase={} step={} obj={:?} tcp={:?}", o.fell, o.truncated, ex.phase(), s.step, s.object.t, s.tcp.t);
+                    println!(
+                        "seed {seed} failed: fell={} trunc={} phase={} step={} obj={:?} tcp={:?}",
+                        o.fell,
+                        o.truncated,
+                        ex.phase(),
+                        s.step,
+                        s.object.t,
+                        s.tcp.t
+                    );
                 }
-                if o.picked { picked += 1; }
+                if o.picked {
+                    picked += 1;
+                }
                 steps += env.snapshot().step as u64;
                 break;
             }
         }
     }
-    println!("{}: installed {ok}/{n}, picked {picked}/{n}, mean length {:.1}", task.name(), steps as f64 / n as f64);
+    println!(
+        "{}: installed {ok}/{n}, picked {picked}/{n}, mean length {:.1}",
+        task.name(),
+        steps as f64 / n as f64
+    );
 }

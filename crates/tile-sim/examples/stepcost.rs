@@ -25,8 +25,16 @@ fn main() {
     for k in 0..n {
         let a = &acts[(k % 4096) * task.act_dim()..][..task.act_dim()];
         let o = env.step(a, &mut obs).expect("step");
-        if o.terminated || o.truncated { env.reset(None, &mut obs).expect("reset"); eps += 1; }
+        if o.terminated || o.truncated {
+            env.reset(None, &mut obs).expect("reset");
+            eps += 1;
+        }
     }
     let cpu = cpu_secs() - c0;
-    println!("{}: {:.2} cpu-us/step, {:.2} wall-us/step, {eps} episodes", task.name(), cpu * 1e6 / n as f64, t0.elapsed().as_secs_f64() * 1e6 / n as f64);
+    println!(
+        "{}: {:.2} cpu-us/step, {:.2} wall-us/step, {eps} episodes",
+        task.name(),
+        cpu * 1e6 / n as f64,
+        t0.elapsed().as_secs_f64() * 1e6 / n as f64
+    );
 }

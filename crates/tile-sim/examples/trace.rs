@@ -13,7 +13,18 @@ fn main() {
         ex.act(&env.snapshot(), &mut act);
         let o = env.step(&act, &mut obs).expect("step");
         let s = env.snapshot();
-        println!("{} ph{} obj {:.4?} tcp {:.4?} w {:.4} held {} r {}", s.step, ex.phase(), s.object.t, s.tcp.t, s.gripper_width, s.held, o.reward);
-        if o.terminated || o.truncated { break; }
+        println!(
+            "{} ph{} obj {:.4?} tcp {:.4?} w {:.4} held {} r {}",
+            s.step,
+            ex.phase(),
+            s.object.t,
+            s.tcp.t,
+            s.gripper_width,
+            s.held,
+            o.reward
+        );
+        if o.terminated || o.truncated {
+            break;
+        }
     }
 }

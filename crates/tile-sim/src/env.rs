@@ -1,9 +1,7 @@
 //! One simulated episode stream: a Rapier world, the UR3, an end effector, a task object.
 
 use crate::world::{self, Handles, Scene};
-use crate::{
-    CONTROL_DT, FRAME_STACK, MAX_EPISODE_STEPS, MAX_JOINT_STEP, SCREW_TURNS, SimError, Task,
-};
+use crate::{CONTROL_DT, FRAME_STACK, MAX_EPISODE_STEPS, MAX_JOINT_STEP, SCREW_TURNS, SimError, Task};
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
@@ -470,7 +468,9 @@ impl Env {
                 let ext = |u: Vector| {
                     let r = obj.rotation;
                     world::BLOCK_HALF
-                        * ((r * Vector::X).dot(u).abs() + (r * Vector::Y).dot(u).abs() + (r * Vector::Z).dot(u).abs())
+                        * ((r * Vector::X).dot(u).abs()
+                            + (r * Vector::Y).dot(u).abs()
+                            + (r * Vector::Z).dot(u).abs())
                 };
                 let (ex, ey, ez) = (ext(tool_x), ext(tool_y), ext(tool_z));
                 let inside = p.x.abs() < world::FINGER_HALF[0] + ex - 0.005
@@ -529,7 +529,10 @@ impl Env {
                     out.reward += 1.0;
                     out.installed = true;
                     out.terminated = true;
-                } else if !p.is_finite() || p.translation.z < FALL_Z || (!self.held && v.z < -FALL_SPEED * 2.0) {
+                } else if !p.is_finite()
+                    || p.translation.z < FALL_Z
+                    || (!self.held && v.z < -FALL_SPEED * 2.0)
+                {
                     out.reward -= 0.5;
                     out.fell = true;
                     out.terminated = true;
@@ -587,7 +590,9 @@ impl Env {
     /// A held object moves with the flange. The observation is refreshed at the next step.
     pub fn set_joints(&mut self, q: [f64; 6]) -> Result<(), SimError> {
         if q.iter().any(|v| !v.is_finite() || v.abs() > PI) {
-            return Err(SimError::InvalidState(format!("joint angles must be finite and within [-pi, pi]: {q:?}")));
+            return Err(SimError::InvalidState(format!(
+                "joint angles must be finite and within [-pi, pi]: {q:?}"
+            )));
         }
         self.teleport_arm(q);
         if self.held && self.task != Task::Screw {

@@ -243,7 +243,10 @@ impl Expert {
                     4 | 5 => {
                         let lift = if self.phase == 4 { 0.08 } else { 0.004 };
                         let obj_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
-                        let goal = Isometry3::from_parts(Translation3::from(tgt + up * lift), iso(&s.object).rotation);
+                        let goal = Isometry3::from_parts(
+                            Translation3::from(tgt + up * lift),
+                            iso(&s.object).rotation,
+                        );
                         self.linear(s, goal * obj_in_tool.inverse())
                     }
                     _ => Some(s.q),

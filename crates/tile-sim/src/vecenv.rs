@@ -94,7 +94,7 @@ impl VecEnv {
             task,
             envs,
             num_threads: num_threads.clamp(1, num_envs),
-            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0F_5EED),
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0F5E_ED00),
         })
     }
 
@@ -184,7 +184,8 @@ impl VecEnv {
             check_action(self.task, row)?;
         }
         let chunk = n.div_ceil(self.num_threads);
-        let StepOut { obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell } = out;
+        let StepOut { obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell } =
+            out;
         let mut parts = self
             .envs
             .chunks_mut(chunk)

@@ -186,13 +186,15 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
     w.insert_collider(
         ColliderBuilder::cuboid(TABLE_HALF[0], TABLE_HALF[1], TABLE_HALF[2])
             .translation(Vector::new(0.0, 0.0, TABLE_TOP - TABLE_HALF[2]))
-            .friction(FRICTION).collision_groups(static_groups()),
+            .friction(FRICTION)
+            .collision_groups(static_groups()),
         Some(table),
     );
     // UR3 base housing (fixed cylinder, axis Z).
     w.insert_collider(
         ColliderBuilder::cylinder(0.045, 0.064)
-            .position(Pose::from_parts(Vector::new(0.0, 0.0, 0.045), Rotation::from_rotation_x(FRAC_PI_2))).collision_groups(static_groups()),
+            .position(Pose::from_parts(Vector::new(0.0, 0.0, 0.045), Rotation::from_rotation_x(FRAC_PI_2)))
+            .collision_groups(static_groups()),
         Some(table),
     );
     match task {
@@ -200,14 +202,17 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
             w.insert_collider(
                 ColliderBuilder::cuboid(PAD_HALF[0], PAD_HALF[1], PAD_HALF[2])
                     .translation(Vector::new(PAD_XY[0], PAD_XY[1], TABLE_TOP + PAD_HALF[2]))
-                    .friction(FRICTION).collision_groups(static_groups()),
+                    .friction(FRICTION)
+                    .collision_groups(static_groups()),
                 Some(table),
             );
         }
         Task::Screw => {
             // Steel plate with the bolt (the nut is kinematic along the bolt, no contact needed).
             w.insert_collider(
-                ColliderBuilder::cuboid(0.04, 0.04, 0.005).translation(Vector::new(object_pos.x, object_pos.y, 0.005)).collision_groups(static_groups()),
+                ColliderBuilder::cuboid(0.04, 0.04, 0.005)
+                    .translation(Vector::new(object_pos.x, object_pos.y, 0.005))
+                    .collision_groups(static_groups()),
                 Some(table),
             );
             w.insert_collider(
@@ -215,7 +220,8 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
                     Vector::new(object_pos.x, object_pos.y, 0.01),
                     Vector::new(object_pos.x, object_pos.y, BOLT_TOP - BOLT_RADIUS),
                     BOLT_RADIUS,
-                ).collision_groups(static_groups()),
+                )
+                .collision_groups(static_groups()),
                 Some(table),
             );
         }
@@ -229,7 +235,8 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
     }
     let mut parts: [Vec<(Pose, SharedShape)>; 6] = Default::default();
     for (frame, a, b, r) in arm_capsules() {
-        parts[frame as usize - 1].push((Pose::IDENTITY, SharedShape::capsule(Vector::from(a), Vector::from(b), r)));
+        parts[frame as usize - 1]
+            .push((Pose::IDENTITY, SharedShape::capsule(Vector::from(a), Vector::from(b), r)));
     }
     let mut fingers = None;
     match task {
@@ -284,7 +291,10 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
         Task::TileSuction => {
             let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
             w.insert_collider(
-                ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2]).mass(TILE_MASS).friction(FRICTION).collision_groups(object_groups()),
+                ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2])
+                    .mass(TILE_MASS)
+                    .friction(FRICTION)
+                    .collision_groups(object_groups()),
                 Some(b),
             );
             b
@@ -292,7 +302,10 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
         Task::BlockGrip => {
             let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
             w.insert_collider(
-                ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF).mass(BLOCK_MASS).friction(FRICTION).collision_groups(object_groups()),
+                ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF)
+                    .mass(BLOCK_MASS)
+                    .friction(FRICTION)
+                    .collision_groups(object_groups()),
                 Some(b),
             );
             b
@@ -302,7 +315,8 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
             let b = w.insert_body(RigidBodyBuilder::kinematic_position_based().translation(object_pos));
             w.insert_collider(
                 ColliderBuilder::cylinder(NUT_HALF_HEIGHT, NUT_RADIUS)
-                    .rotation(Vector::new(FRAC_PI_2, 0.0, 0.0)).collision_groups(object_groups()),
+                    .rotation(Vector::new(FRAC_PI_2, 0.0, 0.0))
+                    .collision_groups(object_groups()),
                 Some(b),
             );
             b
@@ -338,16 +352,8 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
         [0.6, 0.65, 0.7, 1.0],
     ));
     for (k, (frame, a, b, r)) in arm_capsules().into_iter().enumerate() {
-        const NAMES: [&str; 8] = [
-            "shoulder_column",
-            "shoulder",
-            "upper_arm",
-            "elbow",
-            "forearm",
-            "wrist1",
-            "wrist2",
-            "wrist3",
-        ];
+        const NAMES: [&str; 8] =
+            ["shoulder_column", "shoulder", "upper_arm", "elbow", "forearm", "wrist1", "wrist2", "wrist3"];
         items.push(item(
             NAMES[k],
             SceneFrame::Link(frame),
@@ -359,10 +365,28 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
     let tool = SceneFrame::Link(6);
     match task {
         Task::TileSuction => {
-            items.push(item("pad", SceneFrame::World, Shape::Box { half: PAD_HALF }, [PAD_XY[0], PAD_XY[1], PAD_HALF[2]], [0.5, 0.5, 0.5, 1.0]));
+            items.push(item(
+                "pad",
+                SceneFrame::World,
+                Shape::Box { half: PAD_HALF },
+                [PAD_XY[0], PAD_XY[1], PAD_HALF[2]],
+                [0.5, 0.5, 0.5, 1.0],
+            ));
             let t = pad_target(task);
-            items.push(item("target", SceneFrame::World, Shape::Box { half: [TILE_HALF[0], TILE_HALF[1], 0.0005] }, [t.x, t.y, t.z], [0.1, 0.8, 0.1, 0.4]));
-            items.push(item("suction_plate", tool, Shape::Box { half: PLATE_HALF }, [0.0, 0.0, PLATE_HALF[2]], [0.2, 0.2, 0.2, 1.0]));
+            items.push(item(
+                "target",
+                SceneFrame::World,
+                Shape::Box { half: [TILE_HALF[0], TILE_HALF[1], 0.0005] },
+                [t.x, t.y, t.z],
+                [0.1, 0.8, 0.1, 0.4],
+            ));
+            items.push(item(
+                "suction_plate",
+                tool,
+                Shape::Box { half: PLATE_HALF },
+                [0.0, 0.0, PLATE_HALF[2]],
+                [0.2, 0.2, 0.2, 1.0],
+            ));
             let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
             for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
                 items.push(item(
@@ -373,7 +397,13 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
                     [0.1, 0.1, 0.1, 1.0],
                 ));
             }
-            items.push(item("tile", SceneFrame::Object, Shape::Box { half: TILE_HALF }, [0.0; 3], [0.9, 0.9, 0.85, 1.0]));
+            items.push(item(
+                "tile",
+                SceneFrame::Object,
+                Shape::Box { half: TILE_HALF },
+                [0.0; 3],
+                [0.9, 0.9, 0.85, 1.0],
+            ));
         }
         Task::BlockGrip | Task::Screw => {
             items.push(item(
@@ -384,12 +414,36 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
                 [0.2, 0.2, 0.2, 1.0],
             ));
             if task == Task::BlockGrip {
-                items.push(item("pad", SceneFrame::World, Shape::Box { half: PAD_HALF }, [PAD_XY[0], PAD_XY[1], PAD_HALF[2]], [0.5, 0.5, 0.5, 1.0]));
+                items.push(item(
+                    "pad",
+                    SceneFrame::World,
+                    Shape::Box { half: PAD_HALF },
+                    [PAD_XY[0], PAD_XY[1], PAD_HALF[2]],
+                    [0.5, 0.5, 0.5, 1.0],
+                ));
                 let t = pad_target(task);
-                items.push(item("target", SceneFrame::World, Shape::Box { half: [BLOCK_HALF, BLOCK_HALF, 0.0005] }, [t.x, t.y, t.z - BLOCK_HALF], [0.1, 0.8, 0.1, 0.4]));
-                items.push(item("block", SceneFrame::Object, Shape::Box { half: [BLOCK_HALF; 3] }, [0.0; 3], [0.8, 0.55, 0.3, 1.0]));
+                items.push(item(
+                    "target",
+                    SceneFrame::World,
+                    Shape::Box { half: [BLOCK_HALF, BLOCK_HALF, 0.0005] },
+                    [t.x, t.y, t.z - BLOCK_HALF],
+                    [0.1, 0.8, 0.1, 0.4],
+                ));
+                items.push(item(
+                    "block",
+                    SceneFrame::Object,
+                    Shape::Box { half: [BLOCK_HALF; 3] },
+                    [0.0; 3],
+                    [0.8, 0.55, 0.3, 1.0],
+                ));
             } else {
-                items.push(item("plate", SceneFrame::World, Shape::Box { half: [0.04, 0.04, 0.005] }, [object_pos.x, object_pos.y, 0.005], [0.5, 0.5, 0.5, 1.0]));
+                items.push(item(
+                    "plate",
+                    SceneFrame::World,
+                    Shape::Box { half: [0.04, 0.04, 0.005] },
+                    [object_pos.x, object_pos.y, 0.005],
+                    [0.5, 0.5, 0.5, 1.0],
+                ));
                 items.push(item(
                     "bolt",
                     SceneFrame::World,
