@@ -971,7 +971,10 @@ fn metadata_map(
     md.insert("robot_model".into(), model.name.into());
     md.insert("gesture_model".into(), m.gesture_model.clone());
     md.insert("control_dt".into(), format!("{}", m.control_dt));
-    md.insert("source_handlog".into(), m.source_handlog.as_ref().map(|p| p.display().to_string()).unwrap_or_default());
+    md.insert(
+        "source_handlog".into(),
+        m.source_handlog.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+    );
     md.insert("source_handlog_sha256".into(), handlog_sha256.unwrap_or_default().to_string());
     if let Some(h) = &m.hand {
         md.insert("hand_layout".into(), h.layout.name().into());

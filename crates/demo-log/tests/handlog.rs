@@ -63,7 +63,10 @@ fn bad_header_cases() {
         "hand.jsonl:1: missing header: line 1 has no \"format\" field (expected \"format\":\"mimicrete.handlog\")"
     );
     assert_eq!(strict_err("[1,2]\n"), "hand.jsonl:1: missing header: line 1 is an array, not a JSON object");
-    assert!(strict_err("hello\n").starts_with("hand.jsonl:1: missing header: line 1 is not a JSON object (invalid JSON:"));
+    assert!(
+        strict_err("hello\n")
+            .starts_with("hand.jsonl:1: missing header: line 1 is not a JSON object (invalid JSON:")
+    );
     assert_eq!(
         strict_err(&HDR.replace("mimicrete.handlog", "other.log")),
         "hand.jsonl:1: unknown format \"other.log\" in header (expected \"mimicrete.handlog\")"
@@ -153,7 +156,10 @@ fn bad_frame_cases() {
         strict_err(&with(&frame_line(0.5, true, 21).replacen("-0.5", "1e999", 1))),
         "hand.jsonl:4: non-finite value: a number overflows to infinity"
     );
-    assert_eq!(strict_err(&with(r#"{"t":Infinity,"tracked":true,"joints":[]}"#)), "hand.jsonl:4: non-finite value (Infinity) in \"t\"");
+    assert_eq!(
+        strict_err(&with(r#"{"t":Infinity,"tracked":true,"joints":[]}"#)),
+        "hand.jsonl:4: non-finite value (Infinity) in \"t\""
+    );
     assert_eq!(
         strict_err(&with(&frame_line(0.001, true, 21))),
         "hand.jsonl:4: time goes backwards: t=0.001 after t=0.01"
@@ -179,7 +185,10 @@ fn bad_frame_cases() {
         strict_err(&with(&frame_line(0.5, true, 21).replace("}", r#","orientations":[[0,0,0,1]]}"#))),
         "hand.jsonl:4: wrong orientation count: 1 orientations, layout mediapipe has 21 joints"
     );
-    assert!(strict_err(&with("{oops")).starts_with("hand.jsonl:4: invalid JSON:"), "a bad line with its newline is not 'truncated'");
+    assert!(
+        strict_err(&with("{oops")).starts_with("hand.jsonl:4: invalid JSON:"),
+        "a bad line with its newline is not 'truncated'"
+    );
     assert_eq!(strict_err(&with("[1]")), "hand.jsonl:4: a frame must be a JSON object, got an array");
 }
 
@@ -189,7 +198,10 @@ fn truncated_last_line() {
     // Cut in the middle of the last frame: no trailing newline and not valid JSON.
     let cut = &full[..full.len() - 20];
     let e = strict_err(cut);
-    assert!(e.starts_with("hand.jsonl:4: truncated last line (no newline at end of file and invalid JSON:"), "{e}");
+    assert!(
+        e.starts_with("hand.jsonl:4: truncated last line (no newline at end of file and invalid JSON:"),
+        "{e}"
+    );
     // A complete last line without its newline is fine.
     let (log, _) = HandLog::parse_str(full.trim_end(), "h", ParseMode::Strict).unwrap();
     assert_eq!(log.frames.len(), 3);
@@ -235,15 +247,26 @@ fn files_report_their_path_and_utf8_errors() {
     let mut bytes = good_text(2).into_bytes();
     bytes.extend_from_slice(b"\xff\xfe\n");
     std::fs::write(&p, &bytes).unwrap();
-    assert_eq!(HandLog::from_path(&p, ParseMode::Strict).unwrap_err().to_string(), format!("{}:4: not UTF-8 text", p.display()));
+    assert_eq!(
+        HandLog::from_path(&p, ParseMode::Strict).unwrap_err().to_string(),
+        format!("{}:4: not UTF-8 text", p.display())
+    );
     let missing = d.join("nope.jsonl");
-    assert!(HandLog::from_path(&missing, ParseMode::Strict).unwrap_err().to_string().starts_with(&format!("{}:1: cannot read:", missing.display())));
+    assert!(
+        HandLog::from_path(&missing, ParseMode::Strict)
+            .unwrap_err()
+            .to_string()
+            .starts_with(&format!("{}:1: cannot read:", missing.display()))
+    );
 }
 
 #[test]
 fn writer_round_trip_and_refusals() {
     let d = tmpdir("handlog-write");
-    let mut log = HandLog { header: hand_header(), frames: (0..50).map(|i| hand_frame(i, HandLayout::MediaPipe)).collect() };
+    let mut log = HandLog {
+        header: hand_header(),
+        frames: (0..50).map(|i| hand_frame(i, HandLayout::MediaPipe)).collect(),
+    };
     log.frames[4].orientations = Some(vec![[0.0, 0.0, 0.0, 1.0]; 21]);
     let p = d.join("h.jsonl");
     log.write_jsonl(&p).unwrap();
@@ -257,7 +280,10 @@ fn writer_round_trip_and_refusals() {
     // Invalid content is refused and nothing is written.
     log.frames[10].joints[2][0] = f64::NAN;
     let q = d.join("bad.jsonl");
-    assert_eq!(log.write_jsonl(&q).unwrap_err().to_string(), format!("{}:12: non-finite value in joint 2", q.display()));
+    assert_eq!(
+        log.write_jsonl(&q).unwrap_err().to_string(),
+        format!("{}:12: non-finite value in joint 2", q.display())
+    );
     assert!(!q.exists() && !partial_path(&q).exists());
     log.frames[10].joints[2][0] = 0.0;
     log.frames[20].t = 0.0;
@@ -266,29 +292,40 @@ fn writer_round_trip_and_refusals() {
 
 fn arb_log() -> impl Strategy<Value = HandLog> {
     let layout = prop::sample::select(HandLayout::ALL.to_vec());
-    (layout, 0usize..12, any::<bool>(), prop::option::of(any::<u64>())).prop_flat_map(|(layout, n, left, seed)| {
-        let n_j = layout.joint_count();
-        let coord = prop_oneof![-10.0f64..10.0, Just(0.0), Just(-0.0), Just(1e-300), Just(f64::MAX)];
-        let frame = (0.0f64..1.0, any::<bool>(), prop::collection::vec([coord.clone(), coord.clone(), coord], n_j), any::<bool>());
-        prop::collection::vec(frame, n).prop_map(move |fs| {
-            let mut t = 0.0;
-            let frames = fs
-                .into_iter()
-                .map(|(dt, tracked, joints, with_o)| {
-                    t += dt;
-                    HandFrame {
-                        t,
-                        tracked,
-                        orientations: with_o.then(|| vec![[0.0, 0.6, 0.0, 0.8]; n_j]),
-                        joints,
-                    }
-                })
-                .collect();
-            let mut header = HandLogHeader::new(layout, Space::Unity, if left { Handedness::Left } else { Handedness::Right });
-            header.episode_seed = seed;
-            HandLog { header, frames }
-        })
-    })
+    (layout, 0usize..12, any::<bool>(), prop::option::of(any::<u64>())).prop_flat_map(
+        |(layout, n, left, seed)| {
+            let n_j = layout.joint_count();
+            let coord = prop_oneof![-10.0f64..10.0, Just(0.0), Just(-0.0), Just(1e-300), Just(f64::MAX)];
+            let frame = (
+                0.0f64..1.0,
+                any::<bool>(),
+                prop::collection::vec([coord.clone(), coord.clone(), coord], n_j),
+                any::<bool>(),
+            );
+            prop::collection::vec(frame, n).prop_map(move |fs| {
+                let mut t = 0.0;
+                let frames = fs
+                    .into_iter()
+                    .map(|(dt, tracked, joints, with_o)| {
+                        t += dt;
+                        HandFrame {
+                            t,
+                            tracked,
+                            orientations: with_o.then(|| vec![[0.0, 0.6, 0.0, 0.8]; n_j]),
+                            joints,
+                        }
+                    })
+                    .collect();
+                let mut header = HandLogHeader::new(
+                    layout,
+                    Space::Unity,
+                    if left { Handedness::Left } else { Handedness::Right },
+                );
+                header.episode_seed = seed;
+                HandLog { header, frames }
+            })
+        },
+    )
 }
 
 proptest! {

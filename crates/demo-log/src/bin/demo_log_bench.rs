@@ -9,7 +9,11 @@ use std::time::Instant;
 use ur3_kin::{HandLayout, Handedness, Space};
 
 fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
-    args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).and_then(|v| v.parse().ok()).unwrap_or(default)
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -33,7 +37,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut messages = 0u64;
     let t0 = Instant::now();
     for e in 0..episodes {
-        let meta = EpisodeMeta { episode: e, seed: e, hand: Some(header.clone()), control_dt: 0.04, ..Default::default() };
+        let meta = EpisodeMeta {
+            episode: e,
+            seed: e,
+            hand: Some(header.clone()),
+            control_dt: 0.04,
+            ..Default::default()
+        };
         let mut w = DemoWriter::create(dir.join(format!("episode_{e:04}.mcap")), &meta)?;
         for i in 0..steps {
             let t = i as f64 * 0.04;

@@ -1,0 +1,236 @@
+"""MCAP demonstrations: load them into numpy arrays, write them, salvage cut ones, inspect them.
+
+The file format (one MCAP file per episode; channels ``/demo/step``, ``/hand/joints``, ``/tf``,
+``/scene``, ``/events``; metadata records ``episode_start`` / ``episode``; the URDF attached) is
+described in ``docs/formats.md``. The work is done by the Rust crate ``demo-log`` through
+``mimicrete._native``; ``inspect`` reads files with the official ``mcap`` Python reader instead, so
+the CLI doubles as an independent check.
+
+    >>> d = mc.demos.load("demos/")          # every *.mcap in the directory, sorted by name
+    >>> d.obs.shape, d.actions.shape, d.episode[:3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete import _native
+
+__all__ = [
+    "Demos",
+    "configure",
+    "inspect",
+    "load",
+    "main",
+    "read",
+    "salvage",
+    "salvage_to",
+]
+
+STEP_TOPIC = "/demo/step"
+
+
+def _writer_class() -> Any:
+    try:
+        return _native.DemoWriter
+    except AttributeError as e:  # the native module was built without demo-log
+        raise ImportError(
+            "mimicrete._native was built without the demo-log bindings "
+            "(crates/pyext needs its demo-log dependency); rebuild with `make native`"
+        ) from e
+
+
+def __getattr__(name: str) -> Any:  # ``DemoWriter``: the native class, looked up lazily
+    if name == "DemoWriter":
+        return _writer_class()
+    raise AttributeError(f"module 'mimicrete.demos' has no attribute {name!r}")
+
+
+@dataclass
+class Demos:
+    """Demonstration steps of one or more episodes, concatenated in file order.
+
+    ``obs`` (N, obs_dim) float32, ``actions`` (N, act_dim) float32, ``rewards`` (N,) float32,
+    ``terminated`` / ``truncated`` (N,) bool, ``episode`` (N,) int64 (index into ``files``),
+    ``files`` the demo paths, ``metas`` each file's ``episode`` metadata record (str -> str).
+    """
+
+    obs: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    episode: np.ndarray
+    files: list[str] = field(default_factory=list)
+    metas: list[dict[str, str]] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.rewards.shape[0])
+
+    def __getitem__(self, key: str) -> Any:  # dict-style access: d["obs"]
+        return getattr(self, key)
+
+    @property
+    def num_episodes(self) -> int:
+        return len(self.files)
+
+    def episode_slices(self) -> list[slice]:
+        """Row range of each episode (episodes with no steps give empty slices)."""
+        counts = np.bincount(self.episode, minlength=len(self.files))
+        ends = np.cumsum(counts)
+        return [slice(int(e - c), int(e)) for c, e in zip(counts, ends, strict=True)]
+
+
+def load(path_or_dir: str | os.PathLike[str]) -> Demos:
+    """Load one demo file, or every ``*.mcap`` in a directory (sorted by name; ``*.partial`` files
+    are skipped), into flat arrays. Raises ``mimicrete.LogFormatError`` for a malformed or cut
+    file (``salvage_to`` repairs a cut one) and ``OSError`` if it cannot be read."""
+    d = _native.demo_load(os.fspath(path_or_dir))
+    return Demos(
+        obs=d["obs"],
+        actions=d["actions"],
+        rewards=d["rewards"],
+        terminated=d["terminated"],
+        truncated=d["truncated"],
+        episode=d["episode"],
+        files=list(d["files"]),
+        metas=list(d["metas"]),
+    )
+
+
+def read(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """One episode: dict obs, actions, rewards, terminated, truncated, t (s) and meta."""
+    return dict(_native.demo_read(os.fspath(path)))
+
+
+def salvage(path: str | os.PathLike[str]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Every complete message of a (possibly cut) demo, and a report (chunks_ok, chunks_lost,
+    messages, bytes_used, complete, stopped_because, ...)."""
+    msgs, report = _native.demo_salvage(os.fspath(path))
+    return list(msgs), dict(report)
+
+
+def salvage_to(path_in: str | os.PathLike[str], path_out: str | os.PathLike[str]) -> dict[str, Any]:
+    """Rewrite what can be recovered from ``path_in`` as a complete demo ``path_out``."""
+    return dict(_native.demo_salvage_to(os.fspath(path_in), os.fspath(path_out)))
+
+
+# ---- inspect -------------------------------------------------------------------------------
+
+
+def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """What is in a demo, read with the official ``mcap`` reader (CRCs checked): channels with
+    schema, encoding and message count, metadata records, attachments, start/end log time,
+    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    from mimicrete import LogFormatError
+
+    p = Path(path)
+    with p.open("rb") as f:
+        try:
+            reader = make_reader(f, validate_crcs=True)
+            summary = reader.get_summary()
+            if summary is None:
+                raise LogFormatError(
+                    f"{p}: no summary section (cut file?); try `mimicrete.demos.salvage_to`"
+                )
+            stats = summary.statistics
+            counts = stats.channel_message_counts if stats else {}
+            channels = []
+            for cid, ch in sorted(summary.channels.items()):
+                schema = summary.schemas.get(ch.schema_id)
+                channels.append(
+                    {
+                        "topic": ch.topic,
+                        "schema": schema.name if schema else "",
+                        "schema_encoding": schema.encoding if schema else "",
+                        "message_encoding": ch.message_encoding,
+                        "messages": int(counts.get(cid, 0)),
+                        "metadata": dict(ch.metadata),
+                    }
+                )
+            metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            attachments = [
+                {"name": a.name, "media_type": a.media_type, "bytes": len(a.data)}
+                for a in reader.iter_attachments()
+            ]
+        except McapError as e:
+            raise LogFormatError(f"{p}: {e}; try `mimicrete.demos.salvage_to`") from e
+    start = int(stats.message_start_time) if stats else 0
+    end = int(stats.message_end_time) if stats else 0
+    ep = metadata.get("episode") or metadata.get("episode_start") or {}
+    steps = next((c["messages"] for c in channels if c["topic"] == STEP_TOPIC), 0)
+    return {
+        "path": str(p),
+        "bytes": p.stat().st_size,
+        "channels": channels,
+        "messages": int(stats.message_count) if stats else 0,
+        "chunks": int(stats.chunk_count) if stats else 0,
+        "start_ns": start,
+        "end_ns": end,
+        "duration_s": (end - start) / 1e9,
+        "steps": steps,
+        "success": {"true": True, "false": False}.get(ep.get("success", ""), None),
+        "finished": "episode" in metadata,
+        "metadata": metadata,
+        "attachments": attachments,
+    }
+
+
+def _print_report(info: dict[str, Any]) -> None:
+    sizes = f"{info['bytes']} bytes, {info['chunks']} chunks, {info['messages']} messages"
+    print(f"{info['path']}  ({sizes})")
+    ep = info["metadata"].get("episode") or info["metadata"].get("episode_start") or {}
+    print(
+        f"  task={ep.get('task', '?')} episode={ep.get('episode', '?')} seed={ep.get('seed', '?')} "
+        f"robot={ep.get('robot_model', '?')} steps={info['steps']} "
+        f"duration={info['duration_s']:.3f} s success={info['success']}"
+        + ("" if info["finished"] else "  [NOT FINISHED: no 'episode' record]")
+    )
+    print("  channels:")
+    width = max((len(c["topic"]) for c in info["channels"]), default=5)
+    for c in info["channels"]:
+        print(
+            f"    {c['topic']:<{width}}  {c['messages']:>7}  {c['schema']} "
+            f"({c['message_encoding']}/{c['schema_encoding']})"
+        )
+    print("  metadata:")
+    for name, md in info["metadata"].items():
+        print(f"    {name}:")
+        for k, v in sorted(md.items()):
+            print(f"      {k} = {v}")
+    print("  attachments:")
+    for a in info["attachments"]:
+        print(f"    {a['name']}  {a['media_type']}  {a['bytes']} bytes")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("files", nargs="+", metavar="FILE.mcap", help="demo file(s) to inspect")
+    parser.add_argument("--json", action="store_true", help="print one JSON object per file")
+
+
+def main(args: argparse.Namespace) -> int:
+    from mimicrete import LogFormatError
+
+    status = 0
+    for f in args.files:
+        try:
+            info = inspect(f)
+        except (LogFormatError, OSError) as e:
+            print(f"error: {e}")
+            status = 1
+            continue
+        if args.json:
+            print(json.dumps(info, sort_keys=True))
+        else:
+            _print_report(info)
+    return status
