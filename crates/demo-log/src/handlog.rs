@@ -500,6 +500,46 @@ impl HandLog {
         HandLog::parse_str(text, &name, mode)
     }
 
+    /// The log with every joint position converted into the robot Base frame through a ur3-kin
+    /// [`Calibration`](ur3_kin::Calibration) (header space becomes `robot_base`). Orientations are
+    /// dropped (a Unity log's are left-handed; nothing downstream uses them).
+    ///
+    /// # Errors
+    /// [`HandLogError`] at line 1 when the calibration is for another space than the log's.
+    pub fn to_robot_base(&self, cal: &ur3_kin::Calibration, name: &str) -> Result<HandLog, HandLogError> {
+        if cal.space != self.header.space {
+            return Err(err(
+                name,
+                1,
+                format!(
+                    "calibration is for space {} but the log is in space {}",
+                    cal.space.name(),
+                    self.header.space.name()
+                ),
+            ));
+        }
+        let frames = self
+            .frames
+            .iter()
+            .map(|f| HandFrame {
+                t: f.t,
+                tracked: f.tracked,
+                joints: f
+                    .joints
+                    .iter()
+                    .map(|p| {
+                        let b = cal.point_to_base(&ur3_kin::nalgebra::Vector3::new(p[0], p[1], p[2]));
+                        [b.x, b.y, b.z]
+                    })
+                    .collect(),
+                orientations: None,
+            })
+            .collect();
+        let mut header = self.header.clone();
+        header.space = Space::RobotBase;
+        Ok(HandLog { header, frames })
+    }
+
     /// Check the log as the strict parser would (joint counts, finite values, time order).
     ///
     /// # Errors

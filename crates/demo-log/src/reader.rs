@@ -65,12 +65,15 @@ fn fmt_err(path: &Path, reason: impl Into<String>) -> DemoError {
 /// with schema [`STEP_SCHEMA_NAME`], has a step that does not parse, or steps that are not 0, 1, 2,
 /// ... with constant obs/action lengths. A cut file is refused: use [`crate::salvage_to`] first.
 pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
-    let mut ep = Episode::default();
-    let mut step_channels: Vec<u16> = Vec::new();
-    let mut step_schemas: Vec<u16> = Vec::new();
-    let mut start_meta: Option<BTreeMap<String, String>> = None;
-    let mut end_meta: Option<BTreeMap<String, String>> = None;
-    let mut saw_footer = false;
+    let mut st = ReadState {
+        name,
+        ep: Episode::default(),
+        step_channels: Vec::new(),
+        step_schemas: Vec::new(),
+        start_meta: None,
+        end_meta: None,
+        saw_footer: false,
+    };
     let top =
         mcap::read::LinearReader::new(buf).map_err(|e| fmt_err(name, format!("not an MCAP file: {e}")))?;
     let damaged = |e: String| {
@@ -80,92 +83,131 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
         )
     };
     for rec in top {
-        let rec = rec.map_err(|e| damaged(e.to_string()))?;
-        let decoded;
-        let records = match rec {
+        match rec.map_err(|e| damaged(e.to_string()))? {
             Record::Chunk { header, data } => {
-                decoded = crate::scan::decode_chunk(&header, &data).map_err(damaged)?;
-                crate::scan::chunk_records(&decoded).map_err(damaged)?
-            }
-            other => vec![other],
-        };
-        for rec in records {
-            match rec {
-                Record::Schema { header, .. } => {
-                    if header.name == STEP_SCHEMA_NAME {
-                        step_schemas.push(header.id);
-                    }
-                }
-                Record::Channel(c) => {
-                    if c.topic == TOPIC_STEP {
-                        if !step_schemas.contains(&c.schema_id) {
-                            return Err(fmt_err(
-                                name,
-                                format!(
-                                    "channel {TOPIC_STEP} does not use schema {STEP_SCHEMA_NAME} (unknown version?)"
-                                ),
-                            ));
+                let decoded = crate::scan::decode_chunk(&header, &data).map_err(damaged)?;
+                let mut err: Option<DemoError> = None;
+                crate::scan::for_each_record(&decoded, |op, body| {
+                    // Messages of other channels are skipped without being parsed or copied.
+                    if op == mcap::records::op::MESSAGE
+                        && let Some((ch, data)) = crate::scan::message_parts(body)
+                    {
+                        if st.step_channels.contains(&ch) {
+                            return st.step(data).map_err(|e| {
+                                let m = e.to_string();
+                                err = Some(e);
+                                m
+                            });
                         }
-                        step_channels.push(c.id);
+                        return Ok(());
                     }
-                }
-                Record::Message { header, data } => {
-                    if !step_channels.contains(&header.channel_id) {
-                        continue;
-                    }
-                    let s: StepIn = serde_json::from_slice(&data).map_err(|e| {
-                        fmt_err(name, format!("step message {} does not parse: {e}", ep.len()))
-                    })?;
-                    if s.step as usize != ep.len() {
-                        return Err(fmt_err(
-                            name,
-                            format!("step {} found where step {} was expected", s.step, ep.len()),
-                        ));
-                    }
-                    if ep.is_empty() {
-                        ep.obs_dim = s.obs.len();
-                        ep.act_dim = s.action.len();
-                    } else if s.obs.len() != ep.obs_dim || s.action.len() != ep.act_dim {
-                        return Err(fmt_err(
-                            name,
-                            format!(
-                                "step {}: obs/action lengths {}/{} differ from {}/{}",
-                                s.step,
-                                s.obs.len(),
-                                s.action.len(),
-                                ep.obs_dim,
-                                ep.act_dim
-                            ),
-                        ));
-                    }
-                    ep.obs.extend_from_slice(&s.obs);
-                    ep.actions.extend_from_slice(&s.action);
-                    ep.rewards.push(s.reward as f32);
-                    ep.terminated.push(s.terminated);
-                    ep.truncated.push(s.truncated);
-                    ep.t.push(s.t);
-                }
-                Record::Metadata(m) => match m.name.as_str() {
-                    "episode" => end_meta = Some(m.metadata),
-                    "episode_start" => start_meta = Some(m.metadata),
-                    _ => {}
-                },
-                Record::Footer(_) => saw_footer = true,
-                _ => {}
+                    let r = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
+                    st.record(r).map_err(|e| {
+                        let m = e.to_string();
+                        err = Some(e);
+                        m
+                    })
+                })
+                .map_err(|e| err.take().unwrap_or_else(|| damaged(e)))?;
             }
+            Record::Message { header, data } => {
+                if st.step_channels.contains(&header.channel_id) {
+                    st.step(&data)?;
+                }
+            }
+            other => st.record(other)?,
         }
     }
-    if !saw_footer {
+    if !st.saw_footer {
         return Err(fmt_err(
             name,
             "incomplete MCAP (no footer); `salvage_to` recovers its complete messages",
         ));
     }
-    if step_channels.is_empty() {
+    if st.step_channels.is_empty() {
         return Err(fmt_err(name, format!("no {TOPIC_STEP} channel: not a mimicrete demo")));
     }
-    ep.meta = end_meta.or(start_meta).unwrap_or_default();
+    let mut ep = st.ep;
+    ep.meta = st.end_meta.or(st.start_meta).unwrap_or_default();
     Ok(ep)
+}
+
+struct ReadState<'p> {
+    name: &'p Path,
+    ep: Episode,
+    step_channels: Vec<u16>,
+    step_schemas: Vec<u16>,
+    start_meta: Option<BTreeMap<String, String>>,
+    end_meta: Option<BTreeMap<String, String>>,
+    saw_footer: bool,
+}
+
+impl ReadState<'_> {
+    fn record(&mut self, rec: Record<'_>) -> Result<(), DemoError> {
+        match rec {
+            Record::Schema { header, .. } => {
+                if header.name == STEP_SCHEMA_NAME {
+                    self.step_schemas.push(header.id);
+                }
+            }
+            Record::Channel(c) => {
+                if c.topic == TOPIC_STEP {
+                    if !self.step_schemas.contains(&c.schema_id) {
+                        return Err(fmt_err(
+                            self.name,
+                            format!(
+                                "channel {TOPIC_STEP} does not use schema {STEP_SCHEMA_NAME} (unknown version?)"
+                            ),
+                        ));
+                    }
+                    if !self.step_channels.contains(&c.id) {
+                        self.step_channels.push(c.id);
+                    }
+                }
+            }
+            Record::Metadata(m) => match m.name.as_str() {
+                "episode" => self.end_meta = Some(m.metadata),
+                "episode_start" => self.start_meta = Some(m.metadata),
+                _ => {}
+            },
+            Record::Footer(_) => self.saw_footer = true,
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, data: &[u8]) -> Result<(), DemoError> {
+        let ep = &mut self.ep;
+        let name = self.name;
+        let s: StepIn = serde_json::from_slice(data)
+            .map_err(|e| fmt_err(name, format!("step message {} does not parse: {e}", ep.len())))?;
+        if s.step as usize != ep.len() {
+            return Err(fmt_err(name, format!("step {} found where step {} was expected", s.step, ep.len())));
+        }
+        if ep.is_empty() {
+            ep.obs_dim = s.obs.len();
+            ep.act_dim = s.action.len();
+        } else if s.obs.len() != ep.obs_dim || s.action.len() != ep.act_dim {
+            return Err(fmt_err(
+                name,
+                format!(
+                    "step {}: obs/action lengths {}/{} differ from {}/{}",
+                    s.step,
+                    s.obs.len(),
+                    s.action.len(),
+                    ep.obs_dim,
+                    ep.act_dim
+                ),
+            ));
+        }
+        ep.obs.extend_from_slice(&s.obs);
+        ep.actions.extend_from_slice(&s.action);
+        ep.rewards.push(s.reward as f32);
+        ep.terminated.push(s.terminated);
+        ep.truncated.push(s.truncated);
+        ep.t.push(s.t);
+        Ok(())
+    }
 }
 
 /// Read one demo file.

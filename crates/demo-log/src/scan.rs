@@ -40,3 +40,36 @@ pub fn chunk_records(decoded: &[u8]) -> Result<Vec<Record<'_>>, String> {
     }
     Ok(v)
 }
+
+/// Walk the records of a decoded chunk without copying: `f(opcode, body)`. All-or-nothing on
+/// framing: a record that runs past the end is an error (reported before `f` sees it).
+pub fn for_each_record<'a>(
+    decoded: &'a [u8],
+    mut f: impl FnMut(u8, &'a [u8]) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut pos = 0usize;
+    while pos < decoded.len() {
+        if decoded.len() - pos < 9 {
+            return Err(format!("record header cut at chunk offset {pos}"));
+        }
+        let op = decoded[pos];
+        let len = u64::from_le_bytes(decoded[pos + 1..pos + 9].try_into().expect("8 bytes"));
+        let start = pos + 9;
+        if len > (decoded.len() - start) as u64 {
+            return Err(format!("record at chunk offset {pos} runs past the chunk"));
+        }
+        let end = start + len as usize;
+        f(op, &decoded[start..end])?;
+        pos = end;
+    }
+    Ok(())
+}
+
+/// A message record's channel id and payload (`None` if the body is too short).
+pub fn message_parts(body: &[u8]) -> Option<(u16, &[u8])> {
+    // channel_id u16, sequence u32, log_time u64, publish_time u64, then data.
+    if body.len() < 22 {
+        return None;
+    }
+    Some((u16::from_le_bytes([body[0], body[1]]), &body[22..]))
+}

@@ -248,6 +248,9 @@ fn a_damaged_chunk_loses_only_itself() {
     let s = salvage_bytes(&buf, std::path::Path::new("damaged.mcap")).unwrap();
     assert_eq!(s.report.chunks_lost, 1);
     assert_eq!(s.messages.len(), total - lost);
+    // The reader refuses the file (CRC checked before any record inside the chunk is trusted).
+    let e = read_demo_bytes(&buf, std::path::Path::new("damaged.mcap")).unwrap_err().to_string();
+    assert!(e.starts_with("damaged.mcap: damaged or incomplete MCAP ("), "{e}");
 }
 
 #[test]

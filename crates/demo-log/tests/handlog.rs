@@ -387,3 +387,30 @@ proptest! {
         let _ = HandLog::parse_str(&text, "p", ParseMode::Lenient);
     }
 }
+
+#[test]
+fn conversion_to_robot_base_uses_the_calibration() {
+    let log = HandLog {
+        header: hand_header(),
+        frames: (0..4).map(|i| hand_frame(i, HandLayout::MediaPipe)).collect(),
+    };
+    let cal = ur3_kin::Calibration::default(); // OpenXR space, the log's
+    let base = log.to_robot_base(&cal, "h").unwrap();
+    assert_eq!(base.header.space, Space::RobotBase);
+    for (f, g) in log.frames.iter().zip(&base.frames) {
+        assert_eq!((f.t, f.tracked), (g.t, g.tracked));
+        for (p, q) in f.joints.iter().zip(&g.joints) {
+            let want = cal.point_to_base(&ur3_kin::nalgebra::Vector3::new(p[0], p[1], p[2]));
+            assert_eq!(*q, [want.x, want.y, want.z]);
+        }
+    }
+    // OpenXR (+Y up) → Base (+Z up): a point 1 m above the origin ends up 1 m higher in Base.
+    let up = cal.point_to_base(&ur3_kin::nalgebra::Vector3::new(0.0, 1.0, 0.0));
+    let zero = cal.point_to_base(&ur3_kin::nalgebra::Vector3::zeros());
+    assert!(((up - zero) - ur3_kin::nalgebra::Vector3::z()).norm() < 1e-12);
+    let e = log.to_robot_base(&ur3_kin::Calibration::identity(), "h.jsonl").unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "h.jsonl:1: calibration is for space robot_base but the log is in space openxr"
+    );
+}
