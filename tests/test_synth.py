@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 
 import numpy as np
@@ -15,7 +14,7 @@ from mimicrete import gestures as g
 from mimicrete import handmodel as hm
 from mimicrete import synth as sy
 
-HAVE_ENVS = importlib.util.find_spec("mimicrete.envs") is not None
+HAVE_ENVS = sy.have_simulator()
 
 
 def _sim_like_scene(task: str, seed: int) -> sy.Scene:

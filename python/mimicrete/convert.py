@@ -365,9 +365,29 @@ class EpisodeResult:
 
 def sim_constants() -> tuple[float, float]:
     """``(CONTROL_DT seconds, MAX_JOINT_STEP radians)`` of the simulator."""
-    from mimicrete import envs
+    from mimicrete import _native
 
-    return float(envs.CONTROL_DT), float(envs.MAX_JOINT_STEP)
+    c = _native.sim_constants()
+    return float(c["CONTROL_DT"]), float(c["MAX_JOINT_STEP"])
+
+
+class SimAdapter:
+    """``mimicrete._native.SimEnv`` with gymnasium's ``reset``/``step`` shapes (no wrappers, no
+    checks beyond the simulator's own: the converter's per-frame budget is a millisecond)."""
+
+    def __init__(self, task: str) -> None:
+        from mimicrete import _native
+
+        self.env = _native.SimEnv(SIM_TASK[task])
+
+    def reset(self, seed: int) -> tuple[np.ndarray, dict[str, Any]]:
+        return self.env.reset(int(seed)), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        return self.env.step(action)
+
+    def snapshot(self) -> dict[str, Any]:
+        return self.env.snapshot()
 
 
 def calibration_of(log: HandLog) -> Any:
@@ -477,8 +497,7 @@ def convert_log(
                     bool(terminated),
                     bool(truncated),
                     tele.smoother.state or "",
-                    q,
-                    fd,
+                    env.snapshot(),
                     events,
                 )
             step += 1
@@ -532,16 +551,14 @@ class Backend:
         self.control_dt, self.max_joint_step = sim_constants()
 
     @staticmethod
-    def make_env(task: str) -> Any:
-        import gymnasium as gym
-
-        import mimicrete.envs  # noqa: F401  (registers the ids)
-
-        return gym.make(f"mimicrete/{SIM_TASK[task]}-v0")
+    def make_env(task: str) -> SimAdapter:
+        return SimAdapter(task)
 
     @staticmethod
     def obs_frame_dim(task: str) -> int:
-        return 18 if task == "screw" else 16
+        from mimicrete import _native
+
+        return int(_native.sim_constants()["tasks"][SIM_TASK[task]]["obs_frame_dim"])
 
     @staticmethod
     def calibration(calib: Any) -> Any:
@@ -599,13 +616,13 @@ class _DemoSink:
         self.w.write_event(t, name, {k: str(v) for k, v in props.items()})
 
     def step(
-        self, step, t, obs, action, reward, terminated, truncated, gesture, q, fd, events
+        self, step, t, obs, action, reward, terminated, truncated, gesture, snap, events
     ) -> None:
-        from mimicrete import kin
+        """One env step; ``snap`` is the simulator's snapshot after it (f64 joints, poses)."""
 
-        frame = np.asarray(obs[-fd:], dtype=np.float64)
-        lay = _obs_fields(self.task)
-        obj = frame[lay["object"]]
+        def pose(p: dict[str, Any]) -> list[float]:
+            return [*map(float, p["t"]), *map(float, p["q"])]
+
         self.w.write_step(
             step,
             t,
@@ -615,9 +632,9 @@ class _DemoSink:
             terminated,
             truncated,
             gesture,
-            [float(x) for x in q],
-            kin.fk(q),
-            [obj[0], obj[1], obj[2], 0.0, 0.0, 0.0, 1.0],
+            [float(x) for x in snap["q"]],
+            pose(snap["tool0"]),
+            pose(snap["object"]),
             events,
         )
 
@@ -632,13 +649,6 @@ def _rate(log: HandLog) -> float:
     d = np.diff(log.t)
     d = d[d > 0]
     return float(1.0 / np.median(d)) if len(d) else 0.0
-
-
-def _obs_fields(task: str) -> dict[str, slice]:
-    """Fields of one observation frame (tile-sim ``Task::obs_frame_dim``)."""
-    from mimicrete.synth import obs_layout
-
-    return obs_layout(task)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -253,14 +253,37 @@ def scene_from_obs(task: str, seed: int, obs: np.ndarray, frame_dim: int) -> Sce
     )
 
 
+def have_simulator() -> bool:
+    """Whether ``mimicrete._native`` was built with the simulator (``tile-sim``) bindings."""
+    from mimicrete import _native
+
+    return hasattr(_native, "SimEnv")
+
+
 def scene_from_env(task: str, seed: int) -> Scene:
     """The scene of episode ``seed`` as the simulator resets it (the one switch for where the
-    demonstrator's knowledge comes from)."""
-    from mimicrete import envs
+    demonstrator's knowledge comes from): positions of the end effector, the object and the
+    target, which a person sees in the VR scene."""
+    from mimicrete import _native
 
-    env = envs.make_env(SIM_TASK[task])
-    obs, _ = env.reset(seed=int(seed))
-    return scene_from_obs(task, seed, obs, envs.obs_frame_dim(SIM_TASK[task]))
+    if not have_simulator():
+        raise RuntimeError(
+            "mimicrete._native was built without the simulator bindings (tile-sim); "
+            "rebuild with `make native`"
+        )
+    env = _native.SimEnv(SIM_TASK[task])
+    env.reset(int(seed))
+    snap = env.snapshot()
+    tcp = np.array(snap["tcp"]["t"], dtype=np.float64)
+    tool0 = np.array(snap["tool0"]["t"], dtype=np.float64)
+    return Scene(
+        task,
+        int(seed),
+        tcp,
+        float(np.linalg.norm(tool0 - tcp)),
+        np.array(snap["object"]["t"], dtype=np.float64),
+        np.array(snap["target"]["t"], dtype=np.float64),
+    )
 
 
 # ----------------------------------------------------------------------------------------------

@@ -7,7 +7,6 @@ others only for parse, gesture and hand frame. Both are in the per-frame distrib
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import tempfile
 import time
@@ -31,7 +30,7 @@ def _pct(xs: list[float]) -> str:
 
 def run(task: str = "suction", episodes: int = 2) -> None:
     """Print per-frame latency of the whole teleoperation path."""
-    have_sim = importlib.util.find_spec("mimicrete.envs") is not None
+    have_sim = sy.have_simulator()
     tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-teleop-"))
     if have_sim:
         backend = cv.Backend()
@@ -135,8 +134,7 @@ def run(task: str = "suction", episodes: int = 2) -> None:
                     bool(term),
                     bool(trunc),
                     tele.smoother.state or "",
-                    q,
-                    fd,
+                    env.snapshot(),
                     [],
                 )
                 t5 = time.perf_counter()
