@@ -258,26 +258,38 @@ pub fn hand_frame(
     if handedness == Handedness::Left {
         xp = -xp;
     }
-    let (ny, nx) = (yp.norm(), xp.norm());
-    if !(ny.is_finite() && nx.is_finite()) {
+    // Lengths and directions computed on max-scaled copies, so huge (finite) coordinates neither
+    // overflow nor lose the frame.
+    let (Some((y, ny)), Some((xu, nx))) = (scaled_unit(&yp), scaled_unit(&xp)) else {
         return Err(KinError::NonFinite("hand joint positions (overflow)"));
-    }
+    };
     if ny < 1e-6 {
         return Err(KinError::DegenerateHand("wrist and middle proximal joint coincide"));
     }
     if nx < 1e-6 {
         return Err(KinError::DegenerateHand("index and middle proximal joints coincide"));
     }
-    let zc = xp.cross(&yp);
-    if zc.norm() < 1e-3 * nx * ny {
+    let zc = xu.cross(&y);
+    let sin = zc.norm();
+    if sin < 1e-3 {
         return Err(KinError::DegenerateHand("wrist, index and middle proximal joints are collinear"));
     }
-    let y = yp / ny;
-    let z = zc.normalize();
+    let z = zc / sin;
     let x = y.cross(&z);
     let r = Matrix3::from_columns(&[x, y, z]);
     let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
     Ok(Pose::from_parts(Translation3::from(w), q))
+}
+
+/// `v / |v|` and `|v|`, computed without overflow; `None` for a zero or non-finite vector.
+fn scaled_unit(v: &Vector3<f64>) -> Option<(Vector3<f64>, f64)> {
+    let s = v.amax();
+    if !(s.is_finite() && s > 0.0) {
+        return if s == 0.0 { Some((Vector3::zeros(), 0.0)) } else { None };
+    }
+    let u = v / s;
+    let n = u.norm();
+    Some((u / n, n * s))
 }
 
 /// The fixed rotation from the hand frame to tool0: columns are tool0's axes in hand coordinates

@@ -187,3 +187,21 @@ fn layout_indices_feed_the_right_joints() {
         }
     }
 }
+
+#[test]
+fn huge_coordinates_keep_an_orthonormal_frame() {
+    // Regression: a wrist 9e153 m away used to overflow |x' × y'| (≈1e308) and give a zero axis.
+    let w = Vector3::new(0.0, 0.0, 9.058229095476689e153);
+    let i = Vector3::new(0.0, -0.7651881055772308, 0.0);
+    let m = Vector3::new(-0.7059428416528244, 0.711898621697605, 0.0);
+    for cal in [Calibration::default(), base_calib()] {
+        let p = hand_to_target(&w, &i, &m, Handedness::Right, &cal).unwrap();
+        let r = p.rotation.to_rotation_matrix().into_inner();
+        assert!((r.transpose() * r - nalgebra::Matrix3::identity()).abs().max() < 1e-12);
+    }
+    // Differences that overflow f64 are a typed error.
+    let far = Vector3::new(f64::MAX, 0.0, 0.0);
+    let m_far = Vector3::new(-f64::MAX, 0.5, 0.0);
+    let r = hand_to_target(&far, &Vector3::new(0.0, 0.3, 0.0), &m_far, Handedness::Right, &base_calib());
+    assert!(matches!(r, Err(KinError::NonFinite(_))), "{r:?}");
+}
