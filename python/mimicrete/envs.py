@@ -1,0 +1,343 @@
+"""Gymnasium environments over the Rust simulator (``tile-sim``).
+
+Ids (registered when this module is imported; see :func:`register_envs`):
+
+* ``mimicrete/TileSuction-v0``: the paper's tile installation with a four-cup suction head.
+* ``mimicrete/BlockGrip-v0``: pick and place a block with a parallel gripper.
+* ``mimicrete/Screw-v0``: grip a nut and screw it down a bolt.
+
+Spaces (all float32): observation ``Box(-inf, inf, (obs_dim,))`` = 5 stacked frames, oldest first,
+zero-padded at episode start (TileSuction frame: 6 joint angles [rad], suction state ±1, cup centre
+[m], target [m], tile centre [m]; Base frame, Z up). Action ``Box(-1, 1, (act_dim,))``: six joint
+motions (× ``MAX_JOINT_STEP`` rad per step, clipped) and the end-effector command (≥0.5 suction /
+close, ≤-0.5 drop / open, otherwise hold); Screw adds the spin command. Rewards are the paper's
+sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate).
+
+Time limit: the simulator itself truncates at 750 steps (``truncated=True``); the ids are
+registered without ``max_episode_steps`` so no ``TimeLimit`` wrapper counts a second time.
+
+``make_vec(env_id, num_envs, seed)`` returns a :class:`gymnasium.vector.VectorEnv` backed by the
+Rust ``VecEnv`` (all worlds stepped in one call across threads, interpreter lock released), with
+``metadata["autoreset_mode"] = AutoresetMode.SAME_STEP``: an env that ends is reset in the same
+call, its row of ``obs`` is the new episode's first observation and ``infos["final_obs"]`` (object
+array, masked by ``infos["_final_obs"]``) holds the terminal one, ``infos["final_info"]`` its info.
+``reset(options={"reset_mask": mask})`` resets only the masked envs.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from mimicrete import _native
+
+TASKS = ("TileSuction", "BlockGrip", "Screw")
+ENV_IDS = tuple(f"mimicrete/{t}-v0" for t in TASKS)
+
+_CONST: dict[str, Any] = _native.sim_constants()
+FRAME_STACK: int = int(_CONST["FRAME_STACK"])
+MAX_EPISODE_STEPS: int = int(_CONST["MAX_EPISODE_STEPS"])
+CONTROL_DT: float = float(_CONST["CONTROL_DT"])
+MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])
+
+
+def task_of(env_id: str) -> str:
+    """``"mimicrete/TileSuction-v0"`` / ``"TileSuction-v0"`` / ``"TileSuction"`` / ``"suction"`` → task name."""
+    name = env_id.split("/")[-1]
+    if name.endswith("-v0"):
+        name = name[: -len("-v0")]
+    aliases = {"suction": "TileSuction", "grip": "BlockGrip", "screw": "Screw"}
+    name = aliases.get(name.lower(), name)
+    if name not in TASKS:
+        raise ValueError(f"unknown env id {env_id!r}: expected one of {', '.join(ENV_IDS)}")
+    return name
+
+
+def _spaces(task: str) -> tuple[spaces.Box, spaces.Box]:
+    dims = _CONST["tasks"][task]
+    obs = spaces.Box(-np.inf, np.inf, shape=(int(dims["obs_dim"]),), dtype=np.float32)
+    act = spaces.Box(-1.0, 1.0, shape=(int(dims["act_dim"]),), dtype=np.float32)
+    return obs, act
+
+
+class MimicreteEnv(gym.Env):
+    """One simulated UR3 task (see the module docstring for spaces and rewards)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": int(round(1.0 / CONTROL_DT))}
+
+    def __init__(self, task: str = "TileSuction", render_mode: str | None = None) -> None:
+        self.task = task_of(task)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.observation_space, self.action_space = _spaces(self.task)
+        self._sim = _native.SimEnv(self.task, 0)
+        self._scene = self._sim.scene()
+
+    @property
+    def sim(self) -> Any:
+        """The underlying ``mimicrete._native.SimEnv`` (snapshots, scene, test teleports)."""
+        return self._sim
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        # The episode seed comes from the gymnasium RNG, so reset(seed=s) fixes the episode and
+        # every later reset() of the same env.
+        episode_seed = int(self.np_random.integers(0, 2**63 - 1))
+        obs = self._sim.reset(episode_seed)
+        self._scene = self._sim.scene()
+        info = {"episode_seed": episode_seed, "picked": False, "installed": False, "fell": False}
+        return obs, info
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        a = np.asarray(action, dtype=np.float32)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("action holds a NaN or an infinity")
+        obs, reward, terminated, truncated, info = self._sim.step(a)
+        return obs, float(reward), bool(terminated), bool(truncated), info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        return render_rgb(self._scene, self._sim.snapshot())
+
+
+class TileSuctionEnv(MimicreteEnv):
+    def __init__(self, render_mode: str | None = None) -> None:
+        super().__init__("TileSuction", render_mode)
+
+
+class BlockGripEnv(MimicreteEnv):
+    def __init__(self, render_mode: str | None = None) -> None:
+        super().__init__("BlockGrip", render_mode)
+
+
+class ScrewEnv(MimicreteEnv):
+    def __init__(self, render_mode: str | None = None) -> None:
+        super().__init__("Screw", render_mode)
+
+
+class MimicreteVecEnv(VectorEnv):
+    """``num_envs`` worlds of one task in the Rust ``VecEnv``; same-step auto-reset."""
+
+    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+
+    def __init__(self, task: str, num_envs: int, seed: int | None = None, num_threads: int | None = None) -> None:
+        self.task = task_of(task)
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
+        self.num_envs = int(num_envs)
+        threads = int(num_threads) if num_threads is not None else 2
+        base = 0 if seed is None else int(seed)
+        self._sim = _native.SimVecEnv(self.task, self.num_envs, base, threads)
+        self.single_observation_space, self.single_action_space = _spaces(self.task)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._seed = seed
+        self._rng = np.random.default_rng(seed)
+
+    @property
+    def sim(self) -> Any:
+        """The underlying ``mimicrete._native.SimVecEnv``."""
+        return self._sim
+
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        options = options or {}
+        mask = options.get("reset_mask")
+        if mask is not None:
+            if seed is not None:
+                raise ValueError("reset with a reset_mask takes no seed (masked envs draw from their own RNG)")
+            m = np.asarray(mask, dtype=bool)
+            if m.shape != (self.num_envs,):
+                raise ValueError(f"reset_mask must have shape ({self.num_envs},), got {m.shape}")
+            return self._sim.reset_mask(m), {}
+        if isinstance(seed, (list, tuple, np.ndarray)):
+            seeds = [int(s) for s in seed]
+            if len(seeds) != self.num_envs or any(s != seeds[0] + i for i, s in enumerate(seeds)):
+                raise ValueError("a seed list must hold num_envs consecutive seeds [s, s+1, ...]")
+            seed = seeds[0]
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+            base = int(seed)
+        else:
+            base = int(self._rng.integers(0, 2**62))
+        return self._sim.reset(base), {}
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        a = np.asarray(actions, dtype=np.float32)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"actions must have shape {self.action_space.shape}, got {a.shape}")
+        obs, rew, term, trunc, final_obs, has_final, picked, installed, fell = self._sim.step(a)
+        ones = np.ones(self.num_envs, dtype=bool)
+        infos: dict[str, Any] = {
+            "picked": picked,
+            "_picked": ones,
+            "installed": installed,
+            "_installed": ones,
+            "fell": fell,
+            "_fell": ones,
+        }
+        if has_final.any():
+            fo = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(has_final):
+                fo[i] = final_obs[i]
+            infos["final_obs"] = fo
+            infos["_final_obs"] = has_final.copy()
+            infos["final_info"] = {
+                "picked": picked,
+                "_picked": has_final.copy(),
+                "installed": installed,
+                "_installed": has_final.copy(),
+                "fell": fell,
+                "_fell": has_final.copy(),
+            }
+            infos["_final_info"] = has_final.copy()
+        return obs, rew, term, trunc, infos
+
+
+def make_vec(env_id: str, num_envs: int, seed: int | None = None, num_threads: int | None = None) -> MimicreteVecEnv:
+    """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` worlds (env i seeded ``seed + i``)."""
+    return MimicreteVecEnv(task_of(env_id), num_envs, seed, num_threads)
+
+
+def _vector_entry(task: str):
+    def make(num_envs: int = 1, seed: int | None = None, num_threads: int | None = None, **_: Any) -> MimicreteVecEnv:
+        return MimicreteVecEnv(task, num_envs, seed, num_threads)
+
+    return make
+
+
+make_tile_suction_vec = _vector_entry("TileSuction")
+make_block_grip_vec = _vector_entry("BlockGrip")
+make_screw_vec = _vector_entry("Screw")
+
+
+def register_envs() -> None:
+    """Register the three ids with gymnasium (idempotent)."""
+    entries = {
+        "TileSuction": ("TileSuctionEnv", "make_tile_suction_vec"),
+        "BlockGrip": ("BlockGripEnv", "make_block_grip_vec"),
+        "Screw": ("ScrewEnv", "make_screw_vec"),
+    }
+    for task, (cls, vec) in entries.items():
+        env_id = f"mimicrete/{task}-v0"
+        if env_id in gym.registry:
+            continue
+        gym.register(
+            id=env_id,
+            entry_point=f"mimicrete.envs:{cls}",
+            vector_entry_point=f"mimicrete.envs:{vec}",
+            max_episode_steps=None,
+        )
+
+
+register_envs()
+
+
+# ---------------------------------------------------------------- rendering (rgb_array)
+
+
+def _quat_mat(q: Any) -> np.ndarray:
+    x, y, z, w = (float(v) for v in q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _frame(item: dict[str, Any], snap: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    fr = item["frame"]
+    if fr == "world":
+        return np.eye(3), np.zeros(3)
+    if fr == "object":
+        p = snap["object"]
+    else:
+        p = snap["links"][int(fr[4:])]
+    return _quat_mat(p["q"]), np.asarray(p["t"], dtype=float)
+
+
+def _hull(pts: np.ndarray) -> np.ndarray:
+    """Convex hull (monotone chain) of 2-D points."""
+    pts = np.unique(np.round(pts, 9), axis=0)
+    if len(pts) <= 2:
+        return pts
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
+
+    def half(seq: np.ndarray) -> list[np.ndarray]:
+        out: list[np.ndarray] = []
+        for p in seq:
+            while len(out) >= 2 and np.cross(out[-1] - out[-2], p - out[-2]) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def render_rgb(scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[int, int] = (640, 320)) -> np.ndarray:
+    """Top (x-y) and side (x-z) orthographic drawing of the scene → ``(H, W, 3)`` uint8."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Polygon
+
+    fig = Figure(figsize=(size[0] / 100, size[1] / 100), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2)
+    views = [(0, 1, "top (x, y)"), (0, 2, "side (x, z)")]
+    for ax, (i, j, title) in zip(axes, views, strict=True):
+        ax.set_title(title, fontsize=8)
+        ax.set_aspect("equal")
+        ax.set_xlim(-0.55, 0.45)
+        ax.set_ylim(-0.15, 0.6) if j == 1 else ax.set_ylim(-0.1, 0.55)
+        ax.tick_params(labelsize=6)
+    for item in scene:
+        if item["name"] == "table":
+            continue
+        rot, org = _frame(item, snap)
+        local_r = _quat_mat(item["rotation"])
+        local_t = np.asarray(item["translation"], dtype=float)
+        color = tuple(item["rgba"][:3])
+        alpha = float(item["rgba"][3])
+        kind = item["kind"]
+        if kind == "capsule":
+            a = rot @ (local_r @ np.asarray(item["a"]) + local_t) + org
+            b = rot @ (local_r @ np.asarray(item["b"]) + local_t) + org
+            width = float(item["radius"]) * 2 * 100 * 1.0
+            for ax, (i, j, _) in zip(axes, views, strict=True):
+                ax.plot([a[i], b[i]], [a[j], b[j]], color=color, lw=max(width, 1.0), solid_capstyle="round", alpha=alpha)
+            continue
+        if kind == "box":
+            h = np.asarray(item["half_extents"], dtype=float)
+        else:
+            r, hh = float(item["radius"]), float(item["half_height"])
+            h = np.array([r, r, hh])
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+        world = (rot @ (local_r @ corners.T + local_t[:, None])).T + org
+        for ax, (i, j, _) in zip(axes, views, strict=True):
+            hull = _hull(world[:, [i, j]])
+            if len(hull) >= 3:
+                ax.add_patch(Polygon(hull, closed=True, facecolor=color, edgecolor="k", lw=0.3, alpha=alpha))
+    axes[1].axhline(0.0, color=(0.45, 0.35, 0.25), lw=2)
+    label = f"step {snap['step']}  held={snap['held']}  picked={snap['picked']}"
+    fig.suptitle(label, fontsize=8)
+    canvas.draw()
+    img = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    return img
