@@ -47,7 +47,8 @@ MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])
 
 
 def task_of(env_id: str) -> str:
-    """``"mimicrete/TileSuction-v0"`` / ``"TileSuction-v0"`` / ``"TileSuction"`` / ``"suction"`` → task name."""
+    """Task name of an env id: ``"mimicrete/TileSuction-v0"``, ``"TileSuction-v0"``,
+    ``"TileSuction"`` or ``"suction"`` → ``"TileSuction"``."""
     name = env_id.split("/")[-1]
     if name.endswith("-v0"):
         name = name[: -len("-v0")]
@@ -131,7 +132,9 @@ class MimicreteVecEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
-    def __init__(self, task: str, num_envs: int, seed: int | None = None, num_threads: int | None = None) -> None:
+    def __init__(
+        self, task: str, num_envs: int, seed: int | None = None, num_threads: int | None = None
+    ) -> None:
         self.task = task_of(task)
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be at least 1, got {num_envs}")
@@ -157,7 +160,9 @@ class MimicreteVecEnv(VectorEnv):
         mask = options.get("reset_mask")
         if mask is not None:
             if seed is not None:
-                raise ValueError("reset with a reset_mask takes no seed (masked envs draw from their own RNG)")
+                raise ValueError(
+                    "reset with a reset_mask takes no seed (masked envs draw from their own RNG)"
+                )
             m = np.asarray(mask, dtype=bool)
             if m.shape != (self.num_envs,):
                 raise ValueError(f"reset_mask must have shape ({self.num_envs},), got {m.shape}")
@@ -174,7 +179,9 @@ class MimicreteVecEnv(VectorEnv):
             base = int(self._rng.integers(0, 2**62))
         return self._sim.reset(base), {}
 
-    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+    def step(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         a = np.asarray(actions, dtype=np.float32)
         if a.shape != self.action_space.shape:
             raise ValueError(f"actions must have shape {self.action_space.shape}, got {a.shape}")
@@ -206,13 +213,17 @@ class MimicreteVecEnv(VectorEnv):
         return obs, rew, term, trunc, infos
 
 
-def make_vec(env_id: str, num_envs: int, seed: int | None = None, num_threads: int | None = None) -> MimicreteVecEnv:
+def make_vec(
+    env_id: str, num_envs: int, seed: int | None = None, num_threads: int | None = None
+) -> MimicreteVecEnv:
     """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` worlds (env i seeded ``seed + i``)."""
     return MimicreteVecEnv(task_of(env_id), num_envs, seed, num_threads)
 
 
 def _vector_entry(task: str):
-    def make(num_envs: int = 1, seed: int | None = None, num_threads: int | None = None, **_: Any) -> MimicreteVecEnv:
+    def make(
+        num_envs: int = 1, seed: int | None = None, num_threads: int | None = None, **_: Any
+    ) -> MimicreteVecEnv:
         return MimicreteVecEnv(task, num_envs, seed, num_threads)
 
     return make
@@ -270,6 +281,10 @@ def _frame(item: dict[str, Any], snap: dict[str, Any]) -> tuple[np.ndarray, np.n
     return _quat_mat(p["q"]), np.asarray(p["t"], dtype=float)
 
 
+def _cross2(u: np.ndarray, v: np.ndarray) -> float:
+    return float(u[0] * v[1] - u[1] * v[0])
+
+
 def _hull(pts: np.ndarray) -> np.ndarray:
     """Convex hull (monotone chain) of 2-D points."""
     pts = np.unique(np.round(pts, 9), axis=0)
@@ -280,7 +295,7 @@ def _hull(pts: np.ndarray) -> np.ndarray:
     def half(seq: np.ndarray) -> list[np.ndarray]:
         out: list[np.ndarray] = []
         for p in seq:
-            while len(out) >= 2 and np.cross(out[-1] - out[-2], p - out[-2]) <= 0:
+            while len(out) >= 2 and _cross2(out[-1] - out[-2], p - out[-2]) <= 0:
                 out.pop()
             out.append(p)
         return out
@@ -289,7 +304,9 @@ def _hull(pts: np.ndarray) -> np.ndarray:
     return np.array(lower[:-1] + upper[:-1])
 
 
-def render_rgb(scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[int, int] = (640, 320)) -> np.ndarray:
+def render_rgb(
+    scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[int, int] = (640, 320)
+) -> np.ndarray:
     """Top (x-y) and side (x-z) orthographic drawing of the scene → ``(H, W, 3)`` uint8."""
     import matplotlib
 
@@ -302,7 +319,7 @@ def render_rgb(scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[in
     canvas = FigureCanvasAgg(fig)
     axes = fig.subplots(1, 2)
     views = [(0, 1, "top (x, y)"), (0, 2, "side (x, z)")]
-    for ax, (i, j, title) in zip(axes, views, strict=True):
+    for ax, (_, j, title) in zip(axes, views, strict=True):
         ax.set_title(title, fontsize=8)
         ax.set_aspect("equal")
         ax.set_xlim(-0.55, 0.45)
@@ -322,7 +339,14 @@ def render_rgb(scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[in
             b = rot @ (local_r @ np.asarray(item["b"]) + local_t) + org
             width = float(item["radius"]) * 2 * 100 * 1.0
             for ax, (i, j, _) in zip(axes, views, strict=True):
-                ax.plot([a[i], b[i]], [a[j], b[j]], color=color, lw=max(width, 1.0), solid_capstyle="round", alpha=alpha)
+                ax.plot(
+                    [a[i], b[i]],
+                    [a[j], b[j]],
+                    color=color,
+                    lw=max(width, 1.0),
+                    solid_capstyle="round",
+                    alpha=alpha,
+                )
             continue
         if kind == "box":
             h = np.asarray(item["half_extents"], dtype=float)
@@ -334,7 +358,9 @@ def render_rgb(scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[in
         for ax, (i, j, _) in zip(axes, views, strict=True):
             hull = _hull(world[:, [i, j]])
             if len(hull) >= 3:
-                ax.add_patch(Polygon(hull, closed=True, facecolor=color, edgecolor="k", lw=0.3, alpha=alpha))
+                ax.add_patch(
+                    Polygon(hull, closed=True, facecolor=color, edgecolor="k", lw=0.3, alpha=alpha)
+                )
     axes[1].axhline(0.0, color=(0.45, 0.35, 0.25), lw=2)
     label = f"step {snap['step']}  held={snap['held']}  picked={snap['picked']}"
     fig.suptitle(label, fontsize=8)
