@@ -294,3 +294,19 @@ def test_urdf_loads_in_ikpy(tmp_path):
     assert len(active) == 6
     full[active] = q
     np.testing.assert_allclose(chain.forward_kinematics(full), kin.fk(q), atol=1e-9)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    arrays(np.float64, (3, 3), elements=st.floats(allow_nan=False, allow_infinity=False)),
+    st.sampled_from(["left", "right"]),
+)
+def test_hand_to_target_any_finite_input(pts, hand):
+    try:
+        t = kin.hand_to_target(pts[0], pts[1], pts[2], handedness=hand)
+    except ValueError:
+        return
+    r = t[:3, :3]
+    np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-9)
+    assert abs(np.linalg.det(r) - 1.0) < 1e-9
+    assert np.all(np.isfinite(t))
