@@ -145,24 +145,20 @@ struct ReadState<'p> {
 impl ReadState<'_> {
     fn record(&mut self, rec: Record<'_>) -> Result<(), DemoError> {
         match rec {
-            Record::Schema { header, .. } => {
-                if header.name == STEP_SCHEMA_NAME {
-                    self.step_schemas.push(header.id);
-                }
+            Record::Schema { header, .. } if header.name == STEP_SCHEMA_NAME => {
+                self.step_schemas.push(header.id);
             }
-            Record::Channel(c) => {
-                if c.topic == TOPIC_STEP {
-                    if !self.step_schemas.contains(&c.schema_id) {
-                        return Err(fmt_err(
-                            self.name,
-                            format!(
-                                "channel {TOPIC_STEP} does not use schema {STEP_SCHEMA_NAME} (unknown version?)"
-                            ),
-                        ));
-                    }
-                    if !self.step_channels.contains(&c.id) {
-                        self.step_channels.push(c.id);
-                    }
+            Record::Channel(c) if c.topic == TOPIC_STEP => {
+                if !self.step_schemas.contains(&c.schema_id) {
+                    return Err(fmt_err(
+                        self.name,
+                        format!(
+                            "channel {TOPIC_STEP} does not use schema {STEP_SCHEMA_NAME} (unknown version?)"
+                        ),
+                    ));
+                }
+                if !self.step_channels.contains(&c.id) {
+                    self.step_channels.push(c.id);
                 }
             }
             Record::Metadata(m) => match m.name.as_str() {

@@ -98,17 +98,14 @@ fn handle_inner(
             });
         }
         Record::Channel(c) => {
-            if !channels.contains_key(&c.id) {
+            if let std::collections::btree_map::Entry::Vacant(v) = channels.entry(c.id) {
                 channel_order.push(c.id);
-                channels.insert(
-                    c.id,
-                    ChannelInfo {
-                        topic: c.topic,
-                        schema_id: c.schema_id,
-                        message_encoding: c.message_encoding,
-                        metadata: c.metadata,
-                    },
-                );
+                v.insert(ChannelInfo {
+                    topic: c.topic,
+                    schema_id: c.schema_id,
+                    message_encoding: c.message_encoding,
+                    metadata: c.metadata,
+                });
             }
         }
         Record::Message { header, data } => {

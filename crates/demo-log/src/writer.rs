@@ -436,7 +436,10 @@ fn origin(xyz: &[f64; 3], rpy: &[f64; 3]) -> ur3_kin::Pose {
 
 /// The URDF joints in chain order: (parent, child, origin xyz, origin rpy, joint index or None
 /// for a fixed joint).
-fn urdf_chain(model: &UrModel) -> Vec<(&'static str, &'static str, [f64; 3], [f64; 3], Option<usize>)> {
+/// (parent, child, origin xyz, origin rpy, revolute joint index).
+type ChainJoint = (&'static str, &'static str, [f64; 3], [f64; 3], Option<usize>);
+
+fn urdf_chain(model: &UrModel) -> Vec<ChainJoint> {
     let mut v: Vec<_> = urdf::joint_origins(model)
         .into_iter()
         .enumerate()
@@ -495,7 +498,7 @@ pub fn robot_link_entities(model: &UrModel) -> Vec<SceneEntity> {
 /// # Errors
 /// [`DemoError::Invalid`] for a negative or non-finite time.
 pub fn log_time_ns(t: f64) -> Result<u64, DemoError> {
-    if !t.is_finite() || t < 0.0 || t > 1.8e10 {
+    if !t.is_finite() || !(0.0..=1.8e10).contains(&t) {
         return Err(DemoError::Invalid(format!(
             "time {t} s is not a finite, non-negative number of seconds"
         )));

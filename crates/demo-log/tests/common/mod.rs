@@ -77,13 +77,7 @@ pub fn step(i: u64, n: u64, obs_dim: usize, act_dim: usize) -> StepRecord {
         t,
         obs: (0..obs_dim).map(|k| ((i as usize * 31 + k) % 97) as f32 * 0.01 - 0.3).collect(),
         action: (0..act_dim).map(|k| ((i as usize + k) % 5) as f32 * 0.25 - 0.5).collect(),
-        reward: if i == 10 {
-            1.0
-        } else if i + 1 == n {
-            1.0
-        } else {
-            0.0
-        },
+        reward: if i == 10 || i + 1 == n { 1.0 } else { 0.0 },
         terminated: i + 1 == n,
         truncated: false,
         gesture: if (i / 15) % 2 == 0 { "hold".into() } else { "suction".into() },
