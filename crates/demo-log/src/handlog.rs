@@ -200,8 +200,9 @@ fn quote_nonfinite_tokens(line: &str) -> Option<String> {
             i += 1;
             continue;
         }
-        let rest = &line[i..];
-        let tok = ["-Infinity", "Infinity", "NaN"].into_iter().find(|t| rest.starts_with(t));
+        // Compare bytes: `i` may sit inside a multi-byte character (found by the fuzzer).
+        let rest = &b[i..];
+        let tok = ["-Infinity", "Infinity", "NaN"].into_iter().find(|t| rest.starts_with(t.as_bytes()));
         if let Some(t) = tok {
             out.push_str(&line[last..i]);
             out.push('"');
@@ -638,5 +639,8 @@ mod tests {
         assert_eq!(quote_nonfinite_tokens("[1, NaN, -Infinity]").unwrap(), r#"[1, "NaN", "-Infinity"]"#);
         assert_eq!(quote_nonfinite_tokens(r#"{"a":"NaN"}"#).unwrap(), r#"{"a":"NaN"}"#);
         assert!(quote_nonfinite_tokens("[1,2]").is_none());
+        // Multi-byte characters next to a token (a fuzzer find: slicing inside a character).
+        assert_eq!(quote_nonfinite_tokens("é NaN ü").unwrap(), "é \"NaN\" ü");
+        assert_eq!(quote_nonfinite_tokens("\u{10348}Infinity").unwrap(), "\u{10348}\"Infinity\"");
     }
 }
