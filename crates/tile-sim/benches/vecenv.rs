@@ -42,10 +42,19 @@ fn main() {
     let args: Vec<String> = std::env::args().filter(|a| !a.starts_with("--")).collect();
     let n: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(64);
     let secs: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3.0);
+    // Optional: a single thread count and task (for profiling), e.g. `-- 64 3 2 TileSuction`.
+    let only_threads: Option<usize> = args.get(3).and_then(|s| s.parse().ok());
+    let only_task = args.get(4).and_then(|s| Task::from_name(s).ok());
     println!("tile-sim VecEnv({n}) random actions, env-steps/s (physics + FK + obs stacking + auto-reset)");
     for task in Task::ALL {
+        if only_task.is_some_and(|t| t != task) {
+            continue;
+        }
         let mut line = format!("RESULT task={}", task.name());
         for threads in [1, 2] {
+            if only_threads.is_some_and(|t| t != threads) {
+                continue;
+            }
             let (sps, eps) = run(task, n, threads, secs);
             println!(
                 "  {:<12} threads={threads}: {:>10.0} env-steps/s  ({eps} episodes ended)",

@@ -37,6 +37,7 @@
 
 mod env;
 pub mod expert;
+mod pool;
 mod vecenv;
 pub mod world;
 

@@ -2,9 +2,14 @@
 //! auto-reset (the terminal observation is kept in `final_obs`).
 
 use crate::env::{Env, StepOutcome, check_action};
+use crate::pool::Pool;
 use crate::{SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::sync::Mutex;
+
+/// Envs per work block handed to a stepping thread.
+const BLOCK: usize = 4;
 
 /// Caller-owned output slices of one [`VecEnv::step`]. Row `i` belongs to env `i`.
 /// `obs`/`final_obs`: `num_envs × obs_dim` (row-major); the others `num_envs`.
@@ -79,21 +84,25 @@ pub struct VecEnv {
     task: Task,
     envs: Vec<Env>,
     num_threads: usize,
+    pool: Pool,
     rng: ChaCha8Rng,
 }
 
 impl VecEnv {
     /// `num_envs` envs (≥ 1) of `task`; env `i` is created with seed `seed + i`; steps use
-    /// `num_threads` threads (clamped to 1..=num_envs; 1 = no extra threads).
+    /// `num_threads` threads (clamped to 1..=num_envs): the caller plus `num_threads − 1`
+    /// persistent worker threads owned by the VecEnv (1 = no extra threads).
     pub fn new(task: Task, num_envs: usize, seed: u64, num_threads: usize) -> Result<VecEnv, SimError> {
         if num_envs == 0 {
             return Err(SimError::InvalidArgument("num_envs must be at least 1".into()));
         }
         let envs = (0..num_envs).map(|i| Env::new(task, seed.wrapping_add(i as u64))).collect();
+        let num_threads = num_threads.clamp(1, num_envs);
         Ok(VecEnv {
             task,
             envs,
-            num_threads: num_threads.clamp(1, num_envs),
+            num_threads,
+            pool: Pool::new(num_threads - 1),
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0F5E_ED00),
         })
     }
@@ -113,6 +122,9 @@ impl VecEnv {
     /// Change the number of stepping threads (clamped to 1..=num_envs).
     pub fn set_num_threads(&mut self, n: usize) {
         self.num_threads = n.clamp(1, self.envs.len());
+        if self.pool.workers() != self.num_threads - 1 {
+            self.pool = Pool::new(self.num_threads - 1);
+        }
     }
 
     /// Borrow env `i` (for snapshots and scenes).
@@ -183,10 +195,12 @@ impl VecEnv {
         for row in actions.chunks(ad) {
             check_action(self.task, row)?;
         }
-        let chunk = n.div_ceil(self.num_threads);
+        // Small blocks handed out dynamically: a thread that gets less CPU (shared machine) just
+        // takes fewer blocks, so the call never waits on a starved thread's fixed share.
+        let chunk = if self.num_threads == 1 { n } else { BLOCK.min(n.div_ceil(self.num_threads)) };
         let StepOut { obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell } =
             out;
-        let mut parts = self
+        let parts = self
             .envs
             .chunks_mut(chunk)
             .zip(actions.chunks(chunk * ad))
@@ -217,16 +231,18 @@ impl VecEnv {
                 p.run(ad, od);
             }
         } else {
-            std::thread::scope(|s| {
-                // Run the first part on this thread, the rest on scoped threads.
-                let first = parts.next();
-                for p in parts {
-                    s.spawn(move || p.run(ad, od));
+            let queue = Mutex::new(parts);
+            let work = || {
+                loop {
+                    // Poisoning cannot happen (Part::run does not panic on valid input); recover anyway.
+                    let next = queue.lock().unwrap_or_else(|e| e.into_inner()).next();
+                    match next {
+                        Some(p) => p.run(ad, od),
+                        None => break,
+                    }
                 }
-                if let Some(p) = first {
-                    p.run(ad, od);
-                }
-            });
+            };
+            self.pool.run(&work);
         }
         Ok(())
     }
