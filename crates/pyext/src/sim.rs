@@ -102,17 +102,28 @@ mod imp {
         Ok(l)
     }
 
-    fn flat_f32(a: &PyArrayLikeDyn<'_, f32, AllowTypeChange>, shape: &[usize], what: &str) -> PyResult<Vec<f32>> {
+    fn flat_f32(
+        a: &PyArrayLikeDyn<'_, f32, AllowTypeChange>,
+        shape: &[usize],
+        what: &str,
+    ) -> PyResult<Vec<f32>> {
         let v = a.as_array();
         if v.shape() != shape {
             let fmt = |s: &[usize]| match s {
                 [a] => format!("({a},)"),
                 _ => format!("({})", s.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")),
             };
-            return Err(PyValueError::new_err(format!("{what} must have shape {}, got {}", fmt(shape), fmt(v.shape()))));
+            return Err(PyValueError::new_err(format!(
+                "{what} must have shape {}, got {}",
+                fmt(shape),
+                fmt(v.shape())
+            )));
         }
         Ok(v.iter().copied().collect())
     }
+
+    /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
+    type StepTuple<'py> = (Bound<'py, PyArray1<f32>>, f32, bool, bool, Bound<'py, PyDict>);
 
     /// One simulated environment. `SimEnv(task, seed=0)`; task "TileSuction" | "BlockGrip" |
     /// "Screw" (or "suction" | "grip" | "screw").
@@ -161,7 +172,7 @@ mod imp {
             &mut self,
             py: Python<'py>,
             action: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
-        ) -> PyResult<(Bound<'py, PyArray1<f32>>, f32, bool, bool, Bound<'py, PyDict>)> {
+        ) -> PyResult<StepTuple<'py>> {
             let ad = self.env.task().act_dim();
             let a = flat_f32(&action, &[ad], "action")?;
             let out = self.env.step(&a, &mut self.obs).map_err(sim_err)?;
@@ -171,7 +182,13 @@ mod imp {
             info.set_item("installed", out.installed)?;
             info.set_item("fell", out.fell)?;
             info.set_item("step", self.env.snapshot().step)?;
-            Ok((Array1::from(self.obs.clone()).into_pyarray(py), out.reward, out.terminated, out.truncated, info))
+            Ok((
+                Array1::from(self.obs.clone()).into_pyarray(py),
+                out.reward,
+                out.terminated,
+                out.truncated,
+                info,
+            ))
         }
 
         /// The current stacked observation `(obs_dim,)`.
@@ -222,7 +239,11 @@ mod imp {
         fn new(task: &str, num_envs: usize, seed: u64, num_threads: usize) -> PyResult<Self> {
             let t = parse_task(task)?;
             let venv = VecEnv::new(t, num_envs, seed, num_threads).map_err(sim_err)?;
-            Ok(SimVecEnv { venv, buf: StepBuffers::new(t, num_envs), actions: vec![0.0; num_envs * t.act_dim()] })
+            Ok(SimVecEnv {
+                venv,
+                buf: StepBuffers::new(t, num_envs),
+                actions: vec![0.0; num_envs * t.act_dim()],
+            })
         }
 
         #[getter]
@@ -266,7 +287,10 @@ mod imp {
             let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
             let m = mask.as_array();
             if m.shape() != [n] {
-                return Err(PyValueError::new_err(format!("mask must have shape ({n},), got {:?}", m.shape())));
+                return Err(PyValueError::new_err(format!(
+                    "mask must have shape ({n},), got {:?}",
+                    m.shape()
+                )));
             }
             let mv: Vec<bool> = m.iter().copied().collect();
             let mut obs = vec![0.0; n * od];
@@ -298,12 +322,11 @@ mod imp {
             {
                 let v = actions.as_array();
                 if v.shape() != [n, ad] {
-                    return Err(PyValueError::new_err(format!(
-                        "actions must have shape ({n}, {ad}), got {:?}",
-                        v.shape()
-                    )
-                    .replace('[', "(")
-                    .replace(']', ")")));
+                    return Err(PyValueError::new_err(
+                        format!("actions must have shape ({n}, {ad}), got {:?}", v.shape())
+                            .replace('[', "(")
+                            .replace(']', ")"),
+                    ));
                 }
                 for (dst, src) in self.actions.iter_mut().zip(v.iter()) {
                     *dst = *src;
@@ -332,10 +355,9 @@ mod imp {
 
         /// Snapshot of env `i` (see `SimEnv.snapshot`).
         fn snapshot<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
-            let env = self
-                .venv
-                .env(i)
-                .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{}", self.venv.num_envs())))?;
+            let env = self.venv.env(i).ok_or_else(|| {
+                PyValueError::new_err(format!("env index {i} out of range 0..{}", self.venv.num_envs()))
+            })?;
             snapshot_dict(py, env)
         }
     }
