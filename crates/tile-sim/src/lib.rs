@@ -15,8 +15,29 @@
 //!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
 //! * The arm links are `kinematic_position_based` bodies placed by `ur3_kin::fk_all` each step, so
 //!   the arm cannot be pushed, but it pushes (and can knock over, sweep off, or crush) the object.
-//! * Measured (this 2-core VM, `cargo bench -p tile-sim --bench vecenv`): see the bench output and
-//!   the lead's closing note; one env step costs a few µs per core including observation stacking.
+//! * Measured on this 2-core VM (`cargo bench -p tile-sim --bench vecenv`, shared with other
+//!   builds, so figures vary ±50 %): one TileSuction env step (FK + Rapier step + rewards + frame
+//!   stacking) is ~37k instructions (callgrind) ≈ 6–8 µs on one core; VecEnv(64) with random
+//!   actions ran at 120–165k env-steps/s on 1 thread. The 2-thread figure depends on how busy the
+//!   other core is (85k with load average 3.5; ~2× the 1-thread figure on an idle machine is the
+//!   ceiling). `VecEnv` keeps `num_threads − 1` persistent workers and hands out blocks of 4 envs
+//!   dynamically, so a starved thread never stalls a step call.
+//!
+//! # Scene layout (Base frame)
+//! * Table top `z = 0`, 1.4 m × 1.4 m, friction 0.6; the UR3 base at the origin.
+//! * Tile: glazed ceramic 0.15 × 0.15 × 0.01 m, 0.5 kg, friction 0.6, lying flat with its centre at
+//!   `(x, 0.32, 0.005)`, `x ~ U[0, 0.15]` per episode (paper §5.1). Grasp point: top-face centre.
+//! * Install pad: fixed 0.2 × 0.2 × 0.04 m box centred at `(−0.22, 0.28)`; target = the centre of
+//!   a tile lying on it, `(−0.22, 0.28, 0.045)`. Tile and target are 0.32–0.36 m from the base axis,
+//!   well inside the UR3's 0.5 m reach with the flange pointing down.
+//! * Episode start: joints [`HOME_Q`] (flange down, cup centre 0.2 m above the table).
+//! * Suction head on tool0: 0.1 × 0.1 × 0.02 m plate and four cups (radius 15 mm) at
+//!   `(±0.045, ±0.045)` spanning tool-z 0.02–0.05 m; the cup centre (TCP) is tool0 + 0.05 m along z.
+//!   A picked tile is held rigidly at the offset it had when picked (kinematic while held).
+//! * Gripper on tool0: body 0.06 × 0.11 × 0.06 m, two fingers sliding along tool-y, TCP at tool0 +
+//!   0.085 m; gap 0–0.085 m at a constant 0.1 m/s. Block: 4 cm wooden cube (45 g).
+//! * Screw: M12 bolt (pitch 1.75 mm) on a plate at `(x, 0.32)`, `x ~ U[0, 0.15]`; the nut rides the
+//!   thread (kinematic), spun at 1 turn/s while gripped with the flange within ~20° of vertical.
 //!
 //! # Action (f32, length [`Task::act_dim`])
 //! `a[0..6]` ∈ [-1, 1]: joint motion, `q_next = clamp(q + clip(a, -1, 1)·MAX_JOINT_STEP, -π, π)`
