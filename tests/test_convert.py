@@ -227,15 +227,71 @@ sim = pytest.mark.skipif(
 @sim
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_convert_installs_and_replays_exactly(tmp_path, task):
+    from mimicrete import demos
+
     paths = sy.synth_hands(task, 3, 0, tmp_path / "logs")
     backend = cv.Backend()
+    results = []
     for i, p in enumerate(paths):
         res = cv.convert_log(
             cv.read_handlog(p), task, tmp_path / "demos", episode_index=i, backend=backend
         )
-        assert res.installed, (p, res.counts)
-        assert res.picked
-        assert cv.replay(task, res.episode_seed, res.actions, backend) == res.rewards
+        assert res.installed and res.picked and not res.fell, (p, res.counts)
+        assert res.counts.unreachable == 0
+        assert res.counts.frames + res.counts.frames_after_end >= res.counts.frames
+        results.append(res)
+    # the demos on disk hold exactly what was stepped, and replaying their actions in a fresh
+    # environment with the episode's seed gives back their rewards bit for bit
+    d = demos.load(tmp_path / "demos")
+    assert d.num_episodes == 3
+    for res, sl, meta in zip(results, d.episode_slices(), d.metas, strict=True):
+        assert int(meta["seed"]) == res.episode_seed and meta["success"] == "true"
+        np.testing.assert_array_equal(d.actions[sl], res.actions)
+        np.testing.assert_array_equal(d.rewards[sl], np.array(res.rewards, dtype=np.float32))
+        replayed = cv.replay(task, res.episode_seed, d.actions[sl], backend)
+        np.testing.assert_array_equal(np.array(replayed, dtype=np.float32), d.rewards[sl])
+        assert d.terminated[sl][-1] and sum(replayed) == 2.0  # pick/grip +1, install +1
+
+
+@sim
+def test_unreachable_targets_are_counted_not_followed(tmp_path):
+    # the same demonstration with the calibration shifted 2 m away: every target is out of reach
+    path = sy.synth_hands("suction", 1, 0, tmp_path / "logs")[0]
+    log = cv.read_handlog(path)
+    log.header["extra"]["calibration"]["translation"] = [2.5, 0.0, 0.6]
+    res = cv.convert_log(log, "suction", None)
+    assert res.counts.unreachable == res.steps > 0  # every step had a target, none reachable
+    assert res.counts.frames_after_end == 0  # the log ran out, the episode did not end
+    assert not res.installed
+    assert np.all(res.actions[:, :6] == 0.0)  # no motion made up
+
+
+@sim
+def test_cli_convert_dir(tmp_path, capsys):
+    import argparse
+
+    sy.synth_hands("grip", 2, 1, tmp_path / "logs")
+    (tmp_path / "logs" / "broken.jsonl").write_text('{"format": "nope"}\n')
+    parser = argparse.ArgumentParser()
+    cv.configure(parser)
+    args = parser.parse_args(
+        [
+            str(tmp_path / "logs"),
+            "--task",
+            "grip",
+            "--out",
+            str(tmp_path / "demos"),
+            "--no-progress",
+        ]
+    )
+    assert cv.main(args) == 1  # one log failed
+    out = capsys.readouterr()
+    assert "broken.jsonl:1: header must be" in out.err
+    assert "2 demos in" in out.out and "2 installed (100.0 %), 1 logs failed" in out.out
+    assert sorted(p.name for p in (tmp_path / "demos").iterdir()) == [
+        "grip_0000.mcap",
+        "grip_0001.mcap",
+    ]
 
 
 @sim

@@ -490,7 +490,7 @@ def convert_log(
             if sink is not None:
                 sink.step(
                     step,
-                    (step + 1) * dt,
+                    t_ctrl - t0,
                     obs,
                     a,
                     float(reward),
