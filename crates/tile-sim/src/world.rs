@@ -413,6 +413,17 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
                 [0.0, 0.0, GRIPPER_BODY_HALF[2]],
                 [0.2, 0.2, 0.2, 1.0],
             ));
+            // Fingers drawn at the open limit; at run time their tool-y offset is
+            // ±(gripper_width / 2 + FINGER_HALF[1]) with the snapshot's `gripper_width`.
+            for (name, sgn) in [("finger_left", 1.0f32), ("finger_right", -1.0)] {
+                items.push(item(
+                    name,
+                    tool,
+                    Shape::Box { half: FINGER_HALF },
+                    [0.0, sgn * (GRIP_MAX_WIDTH / 2.0 + FINGER_HALF[1]), FINGER_Z],
+                    [0.25, 0.25, 0.25, 1.0],
+                ));
+            }
             if task == Task::BlockGrip {
                 items.push(item(
                     "pad",
