@@ -93,8 +93,9 @@ def test_ppo_loss_ratio_one_and_clipping():
     _, (pl, vl, ent) = ppo_loss(actor, critic, obs, u, k, logp, adv, vals, vals + 1.0, 0.2, 0.01)
     assert pl == pytest.approx(-adv.mean().item(), abs=1e-6)  # ratio 1 -> -mean(A)
     assert vl == pytest.approx(1.0, abs=1e-6)  # (returns - values)^2 = 1 per head
-    # entropy: 6 Gaussians of sigma 1/3 (0.5 ln(2 pi e) - ln 3 each) + a 3-way categorical
-    h_gauss = 6 * (0.5 * np.log(2 * np.pi * np.e) - np.log(3))
+    # entropy (ML-Agents): mean over the 6 Gaussians of sigma 1/3 (0.5 ln(2 pi e) - ln 3 each)
+    # + the 3-way categorical's
+    h_gauss = 0.5 * np.log(2 * np.pi * np.e) - np.log(3)
     assert h_gauss < ent < h_gauss + np.log(3) + 1e-6
     # a big positive advantage with old logp far below: ratio clipped at 1 + eps
     lp_old = logp - 5.0

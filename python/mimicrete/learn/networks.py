@@ -80,7 +80,9 @@ class Actor(nn.Module):
 
     @staticmethod
     def _entropy(log_std, logits):
-        ent_c = (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1)
+        """ML-Agents' entropy: the Gaussian's is the *mean* over action dims ("equivalent
+        behavior to TF" in its GaussianDistInstance), plus the categorical branch's."""
+        ent_c = (0.5 + 0.5 * math.log(2 * math.pi) + log_std).mean(-1)
         p = torch.softmax(logits, -1)
         ent_d = -(p * torch.log_softmax(logits, -1)).sum(-1)
         return ent_c + ent_d
