@@ -1,4 +1,4 @@
-"""The paper's experiments as a Ray Tune sweep: Table 3's nine groups x seeds, one training run each.
+"""The paper's experiments as a Ray Tune sweep: Table 3's nine groups x seeds, one run each.
 
 ``python -m mimicrete.experiments`` (what ``make experiments`` runs) does, in order:
 
@@ -145,6 +145,19 @@ def train_one(
         error=None,
     )
     segments = list(meta.get("segments", []))
+    if segments and segments[-1].get("seconds") is None:
+        # the previous attempt was killed (e.g. the sweep was interrupted): its end is estimated
+        # from the last write into the run dir (scalars.csv is appended at every summary)
+        last = max(
+            (
+                p.stat().st_mtime
+                for p in (run_dir / "scalars.csv", run_dir / TRIAL_FILE)
+                if p.exists()
+            ),
+            default=segments[-1]["start"],
+        )
+        segments[-1]["seconds"] = max(0.0, last - segments[-1]["start"])
+        segments[-1]["estimated"] = True
     t0 = time.time()
     segments.append({"start": t0, "seconds": None, "resumed": resume})
     meta["segments"] = segments
@@ -247,13 +260,23 @@ def ensure_demos(demo_dir: Path, episodes: int, seed: int = 0) -> Path:
     n = max(episodes, 60)
     print(f"demos: {demo_dir} has {have} episodes, making {n} (synth-hands + convert)", flush=True)
     rc = cli.main(
-        ["synth-hands", "--task", "suction", "--episodes", str(n), "--seed", str(seed),
-         "--out", str(hand_dir)]
+        [
+            "synth-hands",
+            "--task",
+            "suction",
+            "--episodes",
+            str(n),
+            "--seed",
+            str(seed),
+            "--out",
+            str(hand_dir),
+        ]
     )
     if rc:
         raise RuntimeError(f"mimicrete synth-hands exited {rc}")
-    rc = cli.main(["convert", str(hand_dir), "--task", "suction", "--out", str(demo_dir),
-                   "--no-progress"])
+    rc = cli.main(
+        ["convert", str(hand_dir), "--task", "suction", "--out", str(demo_dir), "--no-progress"]
+    )
     if rc:
         raise RuntimeError(f"mimicrete convert exited {rc}")
     got = count_demo_episodes(demo_dir)
@@ -299,8 +322,9 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
         for path, n in demos_needed_safe(config_dir, groups).items():
             ensure_demos(path, n)
     elif args.demos and not args.skip_demos:
-        ensure_demos(Path(args.demos), max(demos_needed_safe(config_dir, groups).values(),
-                                           default=0))
+        ensure_demos(
+            Path(args.demos), max(demos_needed_safe(config_dir, groups).values(), default=0)
+        )
 
     out = Path(args.out).resolve()
     storage = out / "tune"
@@ -312,7 +336,11 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
     try:
         trainable = tune.with_resources(tune_trainable, {"cpu": args.cpus_per_trial})
         if not args.fresh and tune.Tuner.can_restore(str(exp_dir)):
-            print(f"resuming the sweep in {exp_dir}", flush=True)
+            print(
+                f"resuming the sweep in {exp_dir} (its original groups, seeds and flags apply; "
+                "--fresh starts a new one)",
+                flush=True,
+            )
             tuner = tune.Tuner.restore(
                 str(exp_dir),
                 trainable,
@@ -328,8 +356,9 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
                 run_config=tune.RunConfig(
                     name=args.name,
                     storage_path=str(storage),
-                    failure_config=tune.FailureConfig(max_failures=args.max_failures,
-                                                      fail_fast=False),
+                    failure_config=tune.FailureConfig(
+                        max_failures=args.max_failures, fail_fast=False
+                    ),
                     verbose=0 if args.quiet else 1,
                 ),
             )
@@ -376,15 +405,33 @@ def summarise(grid, elapsed: float, args, groups, seeds) -> dict[str, Any]:
         r = grid[i]
         cfg = r.config or {}
         err = r.error
+        meta = {}
+        if cfg.get("run_root") and cfg.get("group") is not None and cfg.get("seed") is not None:
+            meta = read_trial(Path(cfg["run_root"]) / run_dir_name(cfg["group"], cfg["seed"]))
+        if err is not None:
+            status = "error"
+        elif meta.get("status") == "done" and r.metrics:
+            status = "done"
+        else:
+            status = "unfinished"  # e.g. the sweep was interrupted; rerun the command to resume
         trials.append(
             {
                 "group": cfg.get("group"),
                 "seed": cfg.get("seed"),
-                "status": "error" if err is not None else "done",
+                "status": status,
                 "error": None if err is None else describe_error(err),
-                "metrics": {k: v for k, v in (r.metrics or {}).items()
-                            if k in ("picked_rate", "installed_rate", "mean_episode_length",
-                                     "final_step", "wall_clock_s")},
+                "metrics": {
+                    k: v
+                    for k, v in (r.metrics or {}).items()
+                    if k
+                    in (
+                        "picked_rate",
+                        "installed_rate",
+                        "mean_episode_length",
+                        "final_step",
+                        "wall_clock_s",
+                    )
+                },
                 "trial_path": r.path,
             }
         )
@@ -399,6 +446,7 @@ def summarise(grid, elapsed: float, args, groups, seeds) -> dict[str, Any]:
         "address": args.address,
         "cpus_per_trial": args.cpus_per_trial,
         "errors": sum(t["status"] == "error" for t in trials),
+        "unfinished": sum(t["status"] == "unfinished" for t in trials),
         "trials": trials,
         "command": " ".join(["python -m mimicrete.experiments", *sys.argv[1:]]),
     }
@@ -415,34 +463,62 @@ def build_parser() -> argparse.ArgumentParser:
         description="Table 3's groups x seeds as a Ray Tune sweep, then docs/RESULTS.md.",
     )
     p.add_argument("--groups", default="1-9", help="groups of Table 3, e.g. 1-9 or 1,2,4 (1-9)")
-    p.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS),
-                   help="seeds per group (0 1 2)")
-    p.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
-                   help=f"env steps per trial ({DEFAULT_MAX_STEPS}; the paper: 5000000)")
-    p.add_argument("--config-dir", default=str(repo_root() / "configs"),
-                   help="where group<g>.yaml live (configs/)")
+    p.add_argument(
+        "--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS), help="seeds per group (0 1 2)"
+    )
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        default=DEFAULT_MAX_STEPS,
+        help=f"env steps per trial ({DEFAULT_MAX_STEPS}; the paper: 5000000)",
+    )
+    p.add_argument(
+        "--config-dir",
+        default=str(repo_root() / "configs"),
+        help="where group<g>.yaml live (configs/)",
+    )
     p.add_argument("--demos", help="demo dir for every group (default: each config's demo_path)")
     p.add_argument("--skip-demos", action="store_true", help="do not create missing demos")
     p.add_argument("--num-envs", type=int, help="override env_settings.num_envs")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="config override passed to every trial (repeatable)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="config override passed to every trial (repeatable)",
+    )
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluation episodes (100)")
     p.add_argument("--out", default=DEFAULT_OUT, help=f"run root ({DEFAULT_OUT})")
     p.add_argument("--name", default=DEFAULT_NAME, help=f"Tune experiment name ({DEFAULT_NAME})")
     p.add_argument("--address", help="an existing Ray cluster (e.g. auto or ray://host:10001)")
-    p.add_argument("--num-cpus", type=int, default=os.cpu_count() or 1,
-                   help="CPUs of the local Ray instance (all)")
+    p.add_argument(
+        "--num-cpus",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="CPUs of the local Ray instance (all)",
+    )
     p.add_argument("--cpus-per-trial", type=float, default=1.0, help="CPUs per trial (1)")
     p.add_argument("--max-concurrent", type=int, default=0, help="trials at once (0: by CPUs)")
-    p.add_argument("--max-failures", type=int, default=0,
-                   help="Tune retries of a crashed trial (0; a retry resumes the run dir)")
-    p.add_argument("--retry-errored", action="store_true",
-                   help="on resume, also rerun trials that crashed")
-    p.add_argument("--fresh", action="store_true",
-                   help="start a new Tune experiment even if one can be restored")
+    p.add_argument(
+        "--max-failures",
+        type=int,
+        default=0,
+        help="Tune retries of a crashed trial (0; a retry resumes the run dir)",
+    )
+    p.add_argument(
+        "--retry-errored", action="store_true", help="on resume, also rerun trials that crashed"
+    )
+    p.add_argument(
+        "--fresh",
+        action="store_true",
+        help="start a new Tune experiment even if one can be restored",
+    )
     p.add_argument("--no-report", action="store_true", help="do not write the report")
-    p.add_argument("--report-out", default=str(repo_root() / "docs" / "RESULTS.md"),
-                   help="report path (docs/RESULTS.md; figures go to its dir/figures)")
+    p.add_argument(
+        "--report-out",
+        default=str(repo_root() / "docs" / "RESULTS.md"),
+        help="report path (docs/RESULTS.md; figures go to its dir/figures)",
+    )
     p.add_argument("--quiet", action="store_true", help="less Ray/Tune output")
     return p
 
@@ -459,8 +535,12 @@ def main(argv: list[str] | None = None) -> int:
         from mimicrete import report
 
         out = Path(args.report_out)
-        report.write_report(Path(args.out) / "runs", out, out.parent / "figures",
-                            sweep_file=Path(args.out) / SWEEP_FILE)
+        report.write_report(
+            Path(args.out) / "runs",
+            out,
+            out.parent / "figures",
+            sweep_file=Path(args.out) / SWEEP_FILE,
+        )
         print(f"wrote {out}")
     return 1 if summary["errors"] and summary["errors"] == len(summary["trials"]) else 0
 

@@ -408,8 +408,8 @@ def comparison_lines(stats: dict[int, GroupStats], budget: int | None) -> list[s
             )
             if math.isfinite(st.trend) and st.trend > 0.05:
                 hints.append(
-                    f"its training installed rate was still rising at the cut (+{100 * st.trend:.0f}"
-                    " points over the last 10 % of steps)"
+                    "its training installed rate was still rising at the cut "
+                    f"(+{100 * st.trend:.0f} points over the last 10 % of steps)"
                 )
         if hints:
             s += " Data: " + "; ".join(hints) + "."
@@ -646,7 +646,10 @@ def render(
     # per-run table
     L.append("## Runs")
     L.append("")
-    L.append("| Run | Status | Final step | Wall clock (train + eval) | Steps/s | Picked | Installed | Length |")
+    L.append(
+        "| Run | Status | Final step | Wall clock (train + eval) | Steps/s | Picked | Installed "
+        "| Length |"
+    )
     L.append("|---|---|---|---|---|---|---|---|")
     for r in runs:
         wc = f"{r.wall_clock_s / 60:.1f} min" if r.wall_clock_s else "–"
@@ -698,7 +701,7 @@ def render(
             f"python -m mimicrete.experiments --groups 1-9 --seeds {' '.join(map(str, seeds))}"
             + (f" --max-steps {budget}" if budget else "")
         )
-    L.append("python -m mimicrete.experiments ...   # same command again: resumes an interrupted sweep")
+    L.append("python -m mimicrete.experiments ...   # the same command again resumes it")
     L.append("python -m mimicrete.experiments --address auto ...   # on an existing Ray cluster")
     L.append("python -m mimicrete.report --runs runs/experiments/runs --out docs/RESULTS.md")
     L.append("```")
@@ -733,7 +736,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sweep", help="sweep.json (default: beside --runs, if there)")
     a = p.parse_args(argv)
     out = write_report(
-        Path(a.runs), Path(a.out), Path(a.figures) if a.figures else None,
+        Path(a.runs),
+        Path(a.out),
+        Path(a.figures) if a.figures else None,
         Path(a.sweep) if a.sweep else None,
     )
     print(f"wrote {out}")
