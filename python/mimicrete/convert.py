@@ -98,8 +98,8 @@ class HandLog:
         return self.header["handedness"]
 
 
-def parse_frame(line: str, n: int) -> tuple[float, bool, list]:
-    """One frame line → ``(t, tracked, joints)``; raises ``ValueError(reason)``."""
+def parse_frame(line: str, n: int) -> tuple[float, bool, np.ndarray]:
+    """One frame line → ``(t, tracked, joints (n, 3))``; raises ``ValueError(reason)``."""
     try:
         d = json.loads(line)
     except json.JSONDecodeError as e:
@@ -118,13 +118,20 @@ def parse_frame(line: str, n: int) -> tuple[float, bool, list]:
     if not isinstance(joints, list) or len(joints) != n:
         got = len(joints) if isinstance(joints, list) else type(joints).__name__
         raise ValueError(f"wrong joint count: {got}, layout has {n}")
-    for j, p in enumerate(joints):
+    try:  # fast path: a well-formed frame
+        arr = np.array(joints, dtype=np.float64)
+        if arr.shape == (n, 3) and np.isfinite(arr).all() and arr.dtype == np.float64:
+            if not any(isinstance(v, bool) for p in joints for v in p):
+                return float(t), d["tracked"], arr
+    except (TypeError, ValueError):
+        pass
+    for j, p in enumerate(joints):  # slow path: say what is wrong
         if not isinstance(p, list) or len(p) != 3:
             raise ValueError(f"joint {j} must be [x, y, z], got {p!r}")
         for c, v in enumerate(p):
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise ValueError(f"joint {j} coordinate {'xyz'[c]} is not a finite number: {v!r}")
-    return float(t), d["tracked"], joints
+    raise ValueError("joints must be numbers")  # unreachable for JSON input
 
 
 def read_handlog(path: str | Path) -> HandLog:

@@ -8,6 +8,7 @@ others only for parse, gesture and hand frame. Both are in the per-frame distrib
 from __future__ import annotations
 
 import json
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -50,6 +51,7 @@ def run(task: str = "suction", episodes: int = 2) -> None:
 
     paths = sy.synth_hands(task, episodes, 0, tmp / "logs", scene_fn=scene_fn)
     per_frame: list[float] = []
+    per_frame_cpu: list[float] = []
     stages: dict[str, list[float]] = {
         "parse": [],
         "gesture+frame": [],
@@ -93,6 +95,7 @@ def run(task: str = "suction", episodes: int = 2) -> None:
         step = 0
         done = False
         for line in lines[1:]:
+            c0 = time.thread_time()
             t0 = time.perf_counter()
             t, tracked, joints = cv.parse_frame(line, n)
             arr = np.asarray(joints, dtype=np.float64)
@@ -144,8 +147,10 @@ def run(task: str = "suction", episodes: int = 2) -> None:
                 step += 1
                 done = bool(term or trunc)
                 per_frame.append(t5 - t0)
+                per_frame_cpu.append(time.thread_time() - c0)
             else:
                 per_frame.append(t2 - t0)
+                per_frame_cpu.append(time.thread_time() - c0)
         if writer is not None:
             writer.close(done, tele.counts)
     print(
@@ -153,8 +158,11 @@ def run(task: str = "suction", episodes: int = 2) -> None:
         f"control every {dt * 1000:.0f} ms):"
     )
     print(f"  whole path  {_pct(per_frame)}   budget 11111 µs (90 Hz), goal p99 <= 1000 µs")
+    print(f"  same, CPU time of this thread (excludes waiting for a core): {_pct(per_frame_cpu)}")
     for name, xs in stages.items():
         print(f"  {name:13s} {_pct(xs)}")
+    load = os.getloadavg()[0]
+    print(f"  machine load average {load:.2f} on {os.cpu_count()} cores at the end of the run")
     if env is None:
         print(
             "  NOTE: partial: IK, sim step and record need mimicrete.envs / kin / demos "
