@@ -254,6 +254,19 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
 
 
 @sim
+@pytest.mark.parametrize(
+    ("task", "layout", "hand"),
+    [("suction", "meta_ovr", "left"), ("grip", "mediapipe", "left"), ("screw", "webxr", "right")],
+)
+def test_other_layouts_and_the_left_hand_install(tmp_path, task, layout, hand):
+    path = sy.synth_hands(task, 1, 7, tmp_path, layout=layout, handedness=hand)[0]
+    log = cv.read_handlog(path)
+    assert (log.layout, log.handedness) == (layout, hand)
+    res = cv.convert_log(log, task, None)
+    assert res.installed, res.counts
+
+
+@sim
 def test_unreachable_targets_are_counted_not_followed(tmp_path):
     # the same demonstration with the calibration shifted 2 m away: every target is out of reach
     path = sy.synth_hands("suction", 1, 0, tmp_path / "logs")[0]

@@ -231,3 +231,23 @@ def test_cli_writes_logs(tmp_path, monkeypatch, capsys):
     head, frames = _read(files[0])
     assert head["layout"] == "meta_ovr" and len(frames[0]["joints"]) == 24
     assert "wrote 2 hand logs" in capsys.readouterr().out
+
+
+@pytest.mark.skipif(not HAVE_ENVS, reason="needs mimicrete._native built with the simulator")
+@pytest.mark.parametrize(("task", "tcp_z"), [("suction", 0.05), ("grip", 0.085), ("screw", 0.085)])
+def test_scene_from_env_is_what_the_simulator_resets(task, tcp_z):
+    from mimicrete import _native
+
+    xs = []
+    for seed in range(20):
+        sc = sy.scene_from_env(task, seed)
+        assert sc.episode_seed == seed and sc.task == task
+        assert sc.tcp_z == pytest.approx(tcp_z, abs=1e-6)
+        assert sc.object[1] == pytest.approx(0.32, abs=1e-6)  # tile-sim OBJECT_Y
+        xs.append(sc.object[0])
+        env = _native.SimEnv(sy.SIM_TASK[task])
+        obs = env.reset(seed)
+        frame = obs[-len(obs) // 5 :]
+        np.testing.assert_allclose(frame[sy.obs_layout(task)["object"]], sc.object, atol=1e-6)
+        np.testing.assert_allclose(frame[sy.obs_layout(task)["target"]], sc.target, atol=1e-6)
+    assert 0.0 <= min(xs) < max(xs) <= 0.15  # paper: tile x randomised in [0, 0.15] m
