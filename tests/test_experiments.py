@@ -482,3 +482,23 @@ def test_last_window_and_mean_sd():
     assert report.mean_sd([0.5]) == (0.5, 0.0, 1)
     m, sd, n = report.mean_sd([None, float("nan")])
     assert n == 0 and math.isnan(m)
+
+
+def test_run_dir_keeps_its_budget(tmp_path):
+    """A run dir trained with one budget is not continued with another (the schedules decay
+    over max_steps); nothing in it is touched (in a sweep, Tune lists the error)."""
+    cfg_dir = tmp_path / "configs"
+    _toy_configs(cfg_dir, max_steps=1024, ckpt=512)
+    rd = tmp_path / "runs" / "group1-seed0"
+    rd.mkdir(parents=True)
+    experiments.write_trial(rd, {"group": 1, "seed": 0, "max_steps": 1024, "status": "running"})
+    with pytest.raises(ValueError, match="max_steps 1024"):
+        experiments.train_one(
+            group=1,
+            seed=0,
+            config_dir=str(cfg_dir),
+            run_root=str(tmp_path / "runs"),
+            max_steps=2048,
+        )
+    assert not (rd / "scalars.csv").exists()
+    assert experiments.read_trial(rd)["status"] == "running"

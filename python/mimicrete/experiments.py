@@ -129,6 +129,12 @@ def train_one(
     run_dir = Path(run_root) / run_dir_name(group, seed)
     run_dir.mkdir(parents=True, exist_ok=True)
     meta = read_trial(run_dir)
+    if meta.get("max_steps") not in (None, max_steps):
+        # the schedules decay over max_steps: a run dir cannot change budget half way
+        raise ValueError(
+            f"{run_dir} was trained with max_steps {meta['max_steps']}, this sweep asks for "
+            f"{max_steps}: use another --out"
+        )
     if meta.get("status") == "done" and (eval_episodes <= 0 or (run_dir / "eval.json").exists()):
         return _metrics(run_dir, meta)
 
@@ -180,6 +186,9 @@ def train_one(
             ov.append(f"env_settings.num_envs={num_envs}")
         cfg = config_mod.with_overrides(cfg, ov)
         torch.set_num_threads(max(1, cfg.torch_settings.num_threads))
+        if demos is None and cfg.demo_path and not Path(cfg.demo_path).is_absolute():
+            # Tune runs a trial in its own working dir: a relative demo_path means the repo's
+            demos = str(repo_root() / cfg.demo_path)
         tr = train_mod.train(cfg, run_dir, demos=demos, resume=resume, progress=False)
         meta["final_step"] = int(tr.step)
         plots.learning_curves(run_dir)
@@ -318,13 +327,15 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
         if not _config_path(str(config_dir), g).exists():
             # a missing config is not fatal for the sweep: that group's trials crash and are listed
             print(f"warning: {_config_path(str(config_dir), g)} does not exist", file=sys.stderr)
-    if not args.skip_demos and not args.demos:
-        for path, n in demos_needed_safe(config_dir, groups).items():
-            ensure_demos(path, n)
-    elif args.demos and not args.skip_demos:
-        ensure_demos(
-            Path(args.demos), max(demos_needed_safe(config_dir, groups).values(), default=0)
-        )
+    if not args.skip_demos:
+        need = demos_needed_safe(config_dir, groups)
+        if args.demos:
+            need = {Path(args.demos): max(need.values(), default=0)} if need else {}
+        for path, n in need.items():
+            try:
+                ensure_demos(path, n)
+            except Exception as e:  # noqa: BLE001 - the groups that need them crash, reported
+                print(f"warning: could not make demos in {path}: {e}", file=sys.stderr)
 
     out = Path(args.out).resolve()
     storage = out / "tune"
