@@ -650,14 +650,18 @@ def main(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         print("error: --episodes must be >= 1", file=sys.stderr)
         return 2
-    paths = synth_hands(
-        args.task,
-        args.episodes,
-        args.seed,
-        args.out,
-        layout=args.layout,
-        handedness=args.handedness,
-        progress=True,
-    )
+    try:
+        paths = synth_hands(
+            args.task,
+            args.episodes,
+            args.seed,
+            args.out,
+            layout=args.layout,
+            handedness=args.handedness,
+            progress=True,
+        )
+    except (RuntimeError, OSError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     print(f"wrote {len(paths)} hand logs to {args.out}")
     return 0
