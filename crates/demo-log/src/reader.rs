@@ -74,24 +74,43 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
         end_meta: None,
         saw_footer: false,
     };
-    let top =
-        mcap::read::LinearReader::new(buf).map_err(|e| fmt_err(name, format!("not an MCAP file: {e}")))?;
+    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+    if buf.len() < 2 * MAGIC.len() || &buf[..MAGIC.len()] != MAGIC {
+        return Err(fmt_err(name, "not an MCAP file (bad magic)"));
+    }
     let damaged = |e: String| {
         fmt_err(
             name,
             format!("damaged or incomplete MCAP ({e}); `salvage_to` recovers its complete messages"),
         )
     };
-    for rec in top {
-        match rec.map_err(|e| damaged(e.to_string()))? {
-            Record::Chunk { header, data } => {
+    let mut pos = MAGIC.len();
+    loop {
+        if buf.len() - pos < 9 {
+            return Err(damaged(format!("cut at byte {pos}, before the footer")));
+        }
+        let op = buf[pos];
+        let len = u64::from_le_bytes(buf[pos + 1..pos + 9].try_into().expect("8 bytes"));
+        let start = pos + 9;
+        if len > (buf.len() - start) as u64 {
+            return Err(damaged(format!("record at byte {pos} runs past the end of the file")));
+        }
+        let end = start + len as usize;
+        let body = &buf[start..end];
+        pos = end;
+        match op {
+            mcap::records::op::CHUNK => {
+                let Record::Chunk { header, data } = crate::scan::parse_checked(op, body).map_err(damaged)?
+                else {
+                    return Err(damaged("chunk record does not parse".into()));
+                };
                 let decoded = crate::scan::decode_chunk(&header, &data).map_err(damaged)?;
                 let mut err: Option<DemoError> = None;
                 crate::scan::for_each_record(&decoded, |op, body| {
                     // Messages of other channels are skipped without being parsed or copied.
-                    if op == mcap::records::op::MESSAGE
-                        && let Some((ch, data)) = crate::scan::message_parts(body)
-                    {
+                    if op == mcap::records::op::MESSAGE {
+                        let (ch, data) =
+                            crate::scan::message_parts(body).ok_or("message record too short")?;
                         if st.step_channels.contains(&ch) {
                             return st.step(data).map_err(|e| {
                                 let m = e.to_string();
@@ -101,7 +120,10 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
                         }
                         return Ok(());
                     }
-                    let r = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
+                    if !crate::scan::is_parsed_kind(op) {
+                        return Ok(());
+                    }
+                    let r = crate::scan::parse_checked(op, body)?;
                     st.record(r).map_err(|e| {
                         let m = e.to_string();
                         err = Some(e);
@@ -110,12 +132,26 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
                 })
                 .map_err(|e| err.take().unwrap_or_else(|| damaged(e)))?;
             }
-            Record::Message { header, data } => {
-                if st.step_channels.contains(&header.channel_id) {
-                    st.step(&data)?;
+            mcap::records::op::MESSAGE => {
+                let (ch, data) = crate::scan::message_parts(body)
+                    .ok_or_else(|| damaged("message record too short".into()))?;
+                if st.step_channels.contains(&ch) {
+                    st.step(data)?;
                 }
             }
-            other => st.record(other)?,
+            mcap::records::op::FOOTER => {
+                crate::scan::parse_checked(op, body).map_err(damaged)?;
+                if &buf[pos..] != MAGIC {
+                    return Err(damaged("no end magic after the footer".into()));
+                }
+                st.saw_footer = true;
+                break;
+            }
+            k if crate::scan::is_parsed_kind(k) => {
+                let r = crate::scan::parse_checked(op, body).map_err(damaged)?;
+                st.record(r)?;
+            }
+            _ => {}
         }
     }
     if !st.saw_footer {

@@ -197,7 +197,12 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
         };
         let body_end = body_end as usize;
         let body = &buf[body_start..body_end];
-        let parsed = mcap::parse_record(op, body);
+        if !crate::scan::is_parsed_kind(op) {
+            pos = body_end;
+            out.report.bytes_used = pos as u64;
+            continue;
+        }
+        let parsed = crate::scan::parse_checked(op, body);
         match parsed {
             Ok(Record::Chunk { header, data }) => {
                 let decoded = crate::scan::decode_chunk(&header, &data);
