@@ -524,10 +524,10 @@ def render(
         L.append(
             f"- Wall clock per run: mean {np.mean(walls) / 60:.1f} min, min "
             f"{min(walls) / 60:.1f}, max {max(walls) / 60:.1f} (total {sum(walls) / 3600:.2f} "
-            "CPU-trial hours)"
+            "trial-hours)"
             + (
                 f"; the whole sweep took {sweep['sweep_wall_clock_s'] / 3600:.2f} h on "
-                f"{sweep.get('num_cpus')} CPUs, {sweep.get('cpus_per_trial')} per trial."
+                f"{sweep.get('num_cpus')} CPU(s), {sweep.get('cpus_per_trial')} per trial."
                 if sweep and sweep.get("sweep_wall_clock_s")
                 else "."
             )
