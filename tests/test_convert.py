@@ -320,3 +320,21 @@ def test_acceptance_60_episodes_install_rate(tmp_path, task):
         for i, p in enumerate(paths)
     )
     assert ok >= 57  # ≥ 95 %
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), hand=st.sampled_from(["left", "right"]))
+def test_bound_hand_to_target_equals_the_public_function(seed, hand):
+    from mimicrete import handmodel as hm
+    from mimicrete import kin
+
+    rng = np.random.default_rng(seed)
+    calib = sy.Calibration(hm.random_rotation(rng), rng.normal(size=3), rng.uniform(0.5, 2.0))
+    j = hm.hand_joints(hm.GESTURE_SHAPES["fixed"], hm.random_rotation(rng), rng.normal(size=3))
+    f = cv.bound_hand_to_target(calib)
+    np.testing.assert_array_equal(
+        f(j[1], j[7], j[12], hand), kin.hand_to_target(j[1], j[7], j[12], hand, calib)
+    )
+    np.testing.assert_allclose(
+        f(j[1], j[7], j[12], hand), sy.tool0_from_hand(j[1], j[7], j[12], hand, calib), atol=1e-9
+    )

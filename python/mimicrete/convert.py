@@ -301,7 +301,7 @@ class Teleop:
         self.smoother = smoother or gest.GestureSmoother(n=7, k=5)
         self.frame_idx = hm.FRAME_JOINTS[self.layout]
         self.filter = OneEuro(min_cutoff=1.0, beta=2.0)
-        self.hand_to_target = hand_to_target or _native_hand_to_target
+        self.hand_to_target = hand_to_target or bound_hand_to_target(calibration)
         self.target: np.ndarray | None = None
         self.counts = Counts()
 
@@ -345,6 +345,23 @@ def _native_hand_to_target(wrist, index_proximal, middle_proximal, handedness, c
     return kin.hand_to_target(
         wrist, index_proximal, middle_proximal, handedness=handedness, calibration=calibration
     )
+
+
+def bound_hand_to_target(calibration: Any) -> Any:
+    """``mc.kin.hand_to_target`` with the calibration converted and checked once, not per frame
+    (the per-frame path then only crosses into Rust). Same results as the public function."""
+    from mimicrete import _native, kin
+
+    try:
+        mat, scale, space = kin._calib(calibration)
+        native = _native.kin_hand_to_target
+    except AttributeError:  # bindings without the split entry point: the public function
+        return _native_hand_to_target
+
+    def h2t(wrist, index_proximal, middle_proximal, handedness, _calibration=None):
+        return native(wrist, index_proximal, middle_proximal, handedness, mat, scale, space)
+
+    return h2t
 
 
 # ----------------------------------------------------------------------------------------------
@@ -430,7 +447,12 @@ def convert_log(
     seed = int(log.header.get("episode_seed") or 0)
     calib = calibration_of(log)
     tele = Teleop(
-        task, log.layout, log.handedness, backend.calibration(calib), model, backend.hand_to_target
+        task,
+        log.layout,
+        log.handedness,
+        backend.calibration(calib),
+        model,
+        backend.hand_to_target_for(backend.calibration(calib)),
     )
     env = backend.make_env(task)
     obs, _ = env.reset(seed=seed)
@@ -571,6 +593,11 @@ class Backend:
     def calibration(calib: Any) -> Any:
         """Our :class:`mimicrete.synth.Calibration` → what ``kin.hand_to_target`` takes."""
         return calib
+
+    @staticmethod
+    def hand_to_target_for(calibration: Any) -> Any:
+        """The hand → tool0 function for one calibration (bound once, used per frame)."""
+        return bound_hand_to_target(calibration)
 
     @staticmethod
     def hand_to_target(wrist, index_proximal, middle_proximal, handedness, calibration):

@@ -492,8 +492,12 @@ class FastRbfSvc:
         self.dual = np.asarray(dual, dtype=np.float64)
         self.intercept = np.asarray(intercept, dtype=np.float64)
         self.classes = [str(c) for c in classes]
-        starts = np.concatenate([[0], np.cumsum(n_support)])
-        self.ranges = [(int(starts[i]), int(starts[i + 1])) for i in range(len(n_support))]
+        starts = np.concatenate([[0], np.cumsum(n_support)]).astype(np.int64)
+        self.starts = starts[:-1]
+        n = len(self.classes)
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]  # libsvm's pair order
+        self.pi = np.array([i for i, _ in pairs], dtype=np.int64)
+        self.pj = np.array([j for _, j in pairs], dtype=np.int64)
 
     @staticmethod
     def from_pipeline(pipe: Any) -> FastRbfSvc | None:
@@ -520,21 +524,11 @@ class FastRbfSvc:
         x = (np.asarray(features, dtype=np.float64) - self.mean) / self.scale
         d2 = self.sv_sq - 2.0 * (self.sv @ x) + x @ x
         k = np.exp(-self.gamma * np.maximum(d2, 0.0))
-        n = len(self.classes)
-        votes = np.zeros(n, dtype=np.int64)
-        p = 0
-        for i in range(n):
-            si, ei = self.ranges[i]
-            for j in range(i + 1, n):
-                sj, ej = self.ranges[j]
-                dec = (
-                    self.dual[j - 1, si:ei] @ k[si:ei]
-                    + self.dual[i, sj:ej] @ k[sj:ej]
-                    + self.intercept[p]
-                )
-                votes[i if dec > 0 else j] += 1
-                p += 1
-        return votes
+        # part[r, c]: row r of the dual coefficients against class c's support vectors
+        part = np.add.reduceat(self.dual * k, self.starts, axis=1)
+        dec = part[self.pj - 1, self.pi] + part[self.pi, self.pj] + self.intercept
+        winners = np.where(dec > 0, self.pi, self.pj)
+        return np.bincount(winners, minlength=len(self.classes))
 
     def predict_one(self, features: np.ndarray) -> str:
         """The class of one feature vector."""

@@ -70,7 +70,7 @@ def run(task: str = "suction", episodes: int = 2) -> None:
                 header["layout"],
                 header["handedness"],
                 backend.calibration(calib),
-                hand_to_target=backend.hand_to_target,
+                hand_to_target=backend.hand_to_target_for(backend.calibration(calib)),
             )
             env = backend.make_env(task)
             obs, _ = env.reset(seed=header["episode_seed"])
