@@ -8,7 +8,7 @@ STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
 RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
-.PHONY: help setup native train test test-rs test-py bench lint fmt experiments clean
+.PHONY: help setup native demos train test test-rs test-py bench lint fmt experiments clean
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
@@ -29,7 +29,17 @@ $(NATIVE_STAMP): $(STAMP) $(RUST_SRC)
 
 native: $(NATIVE_STAMP) ## build mimicrete._native into .venv (maturin develop --release)
 
-train: $(NATIVE_STAMP) ## the main job end to end: synthetic hands -> demos -> train -> eval -> plots
+HANDS := data/hands/suction
+DEMOS := demos/suction
+
+$(DEMOS)/.done: $(NATIVE_STAMP)
+	$(VENV)/bin/mimicrete synth-hands --task suction --episodes 60 --seed 0 --out $(HANDS)
+	$(VENV)/bin/mimicrete convert $(HANDS) --task suction --out $(DEMOS)
+	touch $@
+
+demos: $(DEMOS)/.done ## 60 scripted hand demonstrations -> MCAP demos in demos/suction
+
+train: $(DEMOS)/.done ## the main job end to end: synthetic hands -> demos -> train -> eval -> plots
 	$(PY) train.py
 
 test-rs: ## Rust tests of every crate

@@ -1,1 +1,10 @@
-import sys; from mimicrete.cli import main; sys.exit(main(['train', *sys.argv[1:]]))
+"""`python train.py [FLAGS]` is `mimicrete train [FLAGS]`: with no flags it trains the paper's best
+configuration (configs/group3.yaml) on the demos in demos/suction, evaluates it and writes plots.
+`make train` makes those demos first (synth-hands + convert)."""
+
+import sys
+
+from mimicrete.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main(["train", *sys.argv[1:]]))
