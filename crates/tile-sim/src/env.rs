@@ -119,6 +119,8 @@ pub struct Env {
     object_start: Vector,
     target: Pose,
     hist: Vec<f32>,
+    skipped_steps: u64,
+    skip_idle_physics: bool,
 }
 
 impl Env {
@@ -148,6 +150,8 @@ impl Env {
             object_start: Vector::ZERO,
             target: Pose::IDENTITY,
             hist: vec![0.0; task.obs_dim()],
+            skipped_steps: 0,
+            skip_idle_physics: true,
         };
         env.reset_with(first);
         env
@@ -367,7 +371,22 @@ impl Env {
                 b.set_next_kinematic_position(p);
             }
         }
-        self.world.step();
+        let idle = self.physics_idle();
+        if self.skip_idle_physics && idle {
+            // Nothing dynamic can move this step: place the kinematic bodies where the step
+            // would have put them and skip the solver (exact: a sleeping, untouched body does not
+            // move in Rapier either).
+            self.skipped_steps += 1;
+            for (_, b) in self.world.bodies.iter_mut() {
+                if b.is_kinematic() {
+                    let p = *b.next_position();
+                    b.set_position(p, false);
+                    b.set_next_kinematic_position(p);
+                }
+            }
+        } else {
+            self.world.step();
+        }
         self.step_idx += 1;
         self.evaluate(&mut out);
         out.picked = self.picked;
@@ -378,6 +397,81 @@ impl Env {
         self.done = out.terminated || out.truncated;
         self.push_frame();
         out
+    }
+
+    /// Whether any arm/finger collider, swept from its current to its next pose, comes within
+    /// [`SKIP_MARGIN`] of the object's bounding box.
+    fn arm_near_object(&self) -> bool {
+        let bodies = &self.world.bodies;
+        let colliders = &self.world.colliders;
+        let Some(obj) = bodies.get(self.h.object) else { return true };
+        let aabb_of = |pose: &Pose, c: ColliderHandle| {
+            colliders.get(c).map(|col| {
+                let local = col.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
+                col.shape().compute_aabb(&(*pose * local))
+            })
+        };
+        let mut obj_box: Option<Aabb> = None;
+        for &c in obj.colliders() {
+            if let Some(a) = aabb_of(obj.position(), c) {
+                obj_box = Some(obj_box.map_or(a, |o| o.merged(&a)));
+            }
+        }
+        let Some(obj_box) = obj_box.map(|a| a.loosened(SKIP_MARGIN)) else { return true };
+        let fingers = self.h.fingers.as_ref().map(|f| f.as_slice()).unwrap_or(&[]);
+        for h in self.h.links.iter().chain(fingers) {
+            let Some(b) = bodies.get(*h) else { continue };
+            for &c in b.colliders() {
+                let (Some(a0), Some(a1)) = (aabb_of(b.position(), c), aabb_of(b.next_position(), c)) else {
+                    continue;
+                };
+                if a0.merged(&a1).intersects(&obj_box) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Decide this step's physics: wake a sleeping object the arm is about to reach (in every
+    /// mode, so contacts always act on an awake body), and return true when the step could not
+    /// move anything: the only dynamic body (the object) is kinematic (held, or the nut) or asleep
+    /// with the arm away from it.
+    fn physics_idle(&mut self) -> bool {
+        let Some(obj) = self.world.bodies.get(self.h.object) else { return false };
+        if !obj.is_dynamic() {
+            return true;
+        }
+        if !obj.is_sleeping() {
+            return false;
+        }
+        if self.arm_near_object() {
+            self.world.wake_up(self.h.object, true);
+            return false;
+        }
+        true
+    }
+
+    /// Diagnostics: turn the idle-physics skip on (default) or off (every step runs the solver).
+    pub fn set_skip_idle_physics(&mut self, on: bool) {
+        self.skip_idle_physics = on;
+    }
+
+    /// Env steps whose physics was skipped by the idle test (diagnostics, benchmarks).
+    pub fn skipped_steps(&self) -> u64 {
+        self.skipped_steps
+    }
+
+    /// Let go of the held object: it becomes dynamic at its current pose, moving with the
+    /// velocity the grasp point has during this step's arm motion (angular velocity zero).
+    fn release_object(&mut self) {
+        let target = (self.tool0 * self.hold_offset).translation;
+        self.set_object_kinematic(false);
+        if let Some(b) = self.world.bodies.get_mut(self.h.object) {
+            let v = (target - b.position().translation) / CONTROL_DT;
+            b.set_linvel(v, true);
+            b.set_angvel(Vector::ZERO, true);
+        }
     }
 
     fn set_object_kinematic(&mut self, kinematic: bool) {
@@ -395,7 +489,7 @@ impl Env {
         }
         if self.held && !self.suction_on {
             self.held = false;
-            self.set_object_kinematic(false);
+            self.release_object();
         }
         if !self.held && self.suction_on {
             let tile = self.object_pose();
@@ -448,7 +542,7 @@ impl Env {
             if self.held {
                 self.held = false;
                 if self.task == Task::BlockGrip {
-                    self.set_object_kinematic(false);
+                    self.release_object();
                 }
             }
         }
@@ -659,6 +753,9 @@ impl Env {
     }
 }
 
+/// Distance (m) within which an arm collider's swept box must come to the resting object's box
+/// for the physics step to run (5 × the contact prediction distance).
+pub const SKIP_MARGIN: f32 = 0.02;
 /// Pick threshold: cup centre to grasp point (paper §5.1), m.
 pub const PICK_DIST: f32 = 0.04;
 /// Install threshold: tile centre to target (paper §5.1), m.
