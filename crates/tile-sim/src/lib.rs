@@ -15,13 +15,18 @@
 //!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
 //! * The arm links are `kinematic_position_based` bodies placed by `ur3_kin::fk_all` each step, so
 //!   the arm cannot be pushed, but it pushes (and can knock over, sweep off, or crush) the object.
+//! * Idle steps skip the solver: when the only dynamic body (the object) is held/kinematic, or
+//!   asleep with every arm collider (swept over the step) more than 2 cm from it, the kinematic
+//!   bodies are placed directly and `PhysicsWorld::step` is not called (Rapier would not move
+//!   anything either; a sleeping object is woken as soon as the arm comes within 2 cm, in every
+//!   mode). `Env::set_skip_idle_physics(false)` turns this off; a test checks that expert
+//!   episodes end identically either way.
 //! * Measured on this 2-core VM (`cargo bench -p tile-sim --bench vecenv`, shared with other
-//!   builds, so figures vary ±50 %): one TileSuction env step (FK + Rapier step + rewards + frame
-//!   stacking) is ~37k instructions (callgrind) ≈ 6–8 µs on one core; VecEnv(64) with random
-//!   actions ran at 120–165k env-steps/s on 1 thread. The 2-thread figure depends on how busy the
-//!   other core is (85k with load average 3.5; ~2× the 1-thread figure on an idle machine is the
-//!   ceiling). `VecEnv` keeps `num_threads − 1` persistent workers and hands out blocks of 4 envs
-//!   dynamically, so a starved thread never stalls a step call.
+//!   engineers' builds at load average 3–5, so figures vary ±50 %): a TileSuction step that runs
+//!   the solver (FK + Rapier + rewards + frame stacking) is ~37k instructions (callgrind) ≈ 6–8 µs;
+//!   VecEnv(64) with uniform random actions, where most steps are idle, see the bench output (the
+//!   lead's closing note has the figures). `VecEnv` keeps `num_threads − 1` persistent workers and
+//!   hands out blocks of 4 envs dynamically, so a starved thread never stalls a step call.
 //!
 //! # Scene layout (Base frame)
 //! * Table top `z = 0`, 1.4 m × 1.4 m, friction 0.6; the UR3 base at the origin.
