@@ -1,0 +1,69 @@
+"""The trainer on the Rust-backed TileSuction-v0 (skipped when the native simulator is not built):
+a short BC-warm-started run, evaluation, and the ONNX policy on real observations."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from mimicrete.learn import config, evaluate
+from mimicrete.learn import train as tr_mod
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+def _need_sim():
+    native = pytest.importorskip("mimicrete._native")
+    if not hasattr(native, "SimVecEnv"):
+        pytest.skip("mimicrete._native was built without the simulator")
+    pytest.importorskip("mimicrete.envs")
+
+
+def test_short_run_on_tile_suction(tmp_path):
+    _need_sim()
+    from mimicrete.learn.scripted_demos import scripted_demos
+
+    demos = scripted_demos(6, seed=100)
+    assert set(np.unique(demos["actions"][:, 6])) <= {-1.0, 0.0, 1.0}
+    assert demos["terminated"].sum() == 6  # every scripted episode installs
+    np.savez(tmp_path / "d.npz", **demos)
+    cfg = config.load(tr_mod.find_config_dir() / "group4.yaml")
+    cfg = config.with_overrides(
+        cfg,
+        [
+            "behavior.hyperparameters.buffer_size=1024",
+            "behavior.hyperparameters.batch_size=256",
+            "behavior.network_settings.hidden_units=32",
+            "behavior.network_settings.num_layers=2",
+            "behavior.reward_signals.gail.network_settings.hidden_units=32",
+            "behavior.behavioral_cloning.pretrain_steps=20",
+            "behavior.demo_episodes=6",
+            "behavior.max_steps=2048",
+            "behavior.summary_freq=1024",
+            "behavior.checkpoint_interval=1024",
+            "env_settings.num_envs=8",
+        ],
+    )
+    run = tmp_path / "run"
+    tr = tr_mod.train(cfg, run, demos=str(tmp_path / "d.npz"), progress=False)
+    assert tr.step == 2048 and tr.signals == ["extrinsic", "gail"]
+    res = evaluate.evaluate_run(run, 8)
+    assert res["episodes"] == 8 and 1 <= res["mean_episode_length"] <= 750
+    assert json.loads((run / "eval.json").read_text())["env_id"] == "TileSuction-v0"
+    # the exported ONNX runs to the same actions on real observations
+    import onnxruntime as ort
+
+    sess = ort.InferenceSession(str(run / "policy.onnx"), providers=["CPUExecutionProvider"])
+    obs = demos["obs"][:200]
+    (out,) = sess.run(["actions"], {"obs": obs})
+    with torch.no_grad():
+        ref = tr.actor.deterministic(torch.from_numpy(obs)).numpy()
+    np.testing.assert_allclose(out[:, :6], ref[:, :6], atol=1e-5)
+    np.testing.assert_array_equal(out[:, 6], ref[:, 6])
