@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
 use tile_sim::{StepBuffers, Task, VecEnv};
 
-fn run(task: Task, n: usize, threads: usize, seconds: f64) -> (f64, u64) {
+fn run(task: Task, n: usize, threads: usize, seconds: f64) -> (f64, u64, f64) {
     let mut env = VecEnv::new(task, n, 0, threads).expect("vecenv");
     let mut obs = vec![0.0; n * task.obs_dim()];
     env.reset(Some(0), &mut obs).expect("reset");
@@ -35,7 +35,10 @@ fn run(task: Task, n: usize, threads: usize, seconds: f64) -> (f64, u64) {
         }
         steps += 50 * n as u64;
     }
-    (steps as f64 / t0.elapsed().as_secs_f64(), episodes)
+    let rate = steps as f64 / t0.elapsed().as_secs_f64();
+    let skipped: u64 = (0..n).filter_map(|i| env.env(i)).map(|e| e.skipped_steps()).sum();
+    let total = steps + 20 * n as u64;
+    (rate, episodes, skipped as f64 / total as f64)
 }
 
 fn main() {
@@ -55,11 +58,12 @@ fn main() {
             if only_threads.is_some_and(|t| t != threads) {
                 continue;
             }
-            let (sps, eps) = run(task, n, threads, secs);
+            let (sps, eps, idle) = run(task, n, threads, secs);
             println!(
-                "  {:<12} threads={threads}: {:>10.0} env-steps/s  ({eps} episodes ended)",
+                "  {:<12} threads={threads}: {:>10.0} env-steps/s  ({eps} episodes ended, solver skipped on {:.0} % of steps)",
                 task.name(),
-                sps
+                sps,
+                100.0 * idle
             );
             line.push_str(&format!(" threads{threads}={sps:.0}"));
         }
