@@ -50,7 +50,12 @@ test-py: $(NATIVE_STAMP) ## Python tests
 
 test: test-rs test-py ## all tests (what CI runs)
 
-bench: $(NATIVE_STAMP) ## print every benchmark
+BENCH_STAMP := $(VENV)/.bench.stamp
+$(BENCH_STAMP): $(STAMP) requirements/bench.txt
+	$(PIP) install --quiet -r requirements/bench.txt -c requirements/constraints.txt
+	touch $@
+
+bench: $(NATIVE_STAMP) $(BENCH_STAMP) ## print every benchmark (installs the peers: mujoco, ikpy, SB3)
 	$(PY) -m mimicrete.bench
 
 lint: $(STAMP) ## fmt, clippy, ruff

@@ -10,6 +10,9 @@ from __future__ import annotations
 from mimicrete import _native
 from mimicrete._native import IkError, LogFormatError, MimicreteError, SimError
 
+# Registers mimicrete/TileSuction-v0, BlockGrip-v0 and Screw-v0 with gymnasium on import.
+from mimicrete import envs  # noqa: E402,F401
+
 __version__: str = _native.__version__
 
 __all__ = ["IkError", "LogFormatError", "MimicreteError", "SimError", "__version__"]
