@@ -7,11 +7,9 @@ demonstrator), ``convert`` (hand log -> demo), ``learn`` (BC + GAIL + PPO traine
 
 from __future__ import annotations
 
-from mimicrete import _native
+# `envs` registers mimicrete/TileSuction-v0, BlockGrip-v0 and Screw-v0 with gymnasium on import.
+from mimicrete import _native, envs  # noqa: F401
 from mimicrete._native import IkError, LogFormatError, MimicreteError, SimError
-
-# Registers mimicrete/TileSuction-v0, BlockGrip-v0 and Screw-v0 with gymnasium on import.
-from mimicrete import envs  # noqa: E402,F401
 
 __version__: str = _native.__version__
 

@@ -13,7 +13,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "convert": ("mimicrete.convert", "hand logs -> MCAP demonstrations (one file per episode)"),
     "gesture": ("mimicrete.gestures", "train / evaluate the SVM gesture models"),
     "train": ("mimicrete.learn.train", "train a policy with BC + GAIL + PPO from a YAML config"),
-    "eval": ("mimicrete.learn.evaluate", "evaluate a run: picked rate, installed rate, episode length"),
+    "eval": ("mimicrete.learn.evaluate", "evaluate a run: picked/installed rate, episode length"),
     "inspect": ("mimicrete.demos", "show what is in an MCAP demo"),
 }
 
