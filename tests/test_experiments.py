@@ -23,8 +23,6 @@ from hypothesis import strategies as st
 
 from mimicrete import experiments, report
 
-ray = pytest.importorskip("ray", reason="requirements/experiments.txt not installed")
-
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -115,6 +113,7 @@ def _csv_steps(run_dir: Path) -> list[int]:
 def test_sweep_trial_dirs_crash_report(tmp_path):
     """2 groups x 2 seeds train and evaluate in their own run dirs; a third group with a bad
     config crashes and is listed, with its error, in sweep.json and in the report."""
+    pytest.importorskip("ray", reason="requirements/experiments.txt not installed")
     cfg_dir, out = tmp_path / "configs", tmp_path / "exp"
     _toy_configs(cfg_dir, max_steps=2048, ckpt=1024, bad_group=3)
     results = tmp_path / "docs" / "RESULTS.md"
@@ -166,6 +165,7 @@ def test_interrupted_sweep_resumes(tmp_path):
     group 2 (bigger nets: slow enough to be cut) has a checkpoint; the same command then restores
     the Tune experiment, does not retrain group 1, and continues group 2 from its checkpoint
     (the trainer's --resume) to the full budget."""
+    pytest.importorskip("ray", reason="requirements/experiments.txt not installed")
     cfg_dir, out = tmp_path / "configs", tmp_path / "exp"
     budget = 12288
     _toy_configs(cfg_dir, max_steps=budget, ckpt=1024, slow_group2=True)
