@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mimicrete import LogFormatError
 from mimicrete import convert as cv
 from mimicrete import synth as sy
 
@@ -40,10 +41,15 @@ def _log(tmp_path, task="suction", seed=0, layout="openxr", handedness="right"):
 # ---------------------------------------------------------------- parsing
 
 
-def test_read_handlog_roundtrip(tmp_path):
+class _NoSim(cv.Backend):
+    def __init__(self) -> None:  # never reaches the simulator: the log is rejected first
+        self.control_dt, self.max_joint_step = 0.04, 0.04
+
+
+def test_load_log_roundtrip(tmp_path):
     path = _log(tmp_path, layout="webxr")
-    log = cv.read_handlog(path)
-    assert log.layout == "webxr" and log.handedness == "right"
+    log = cv.load_log(path)
+    assert log.header["layout"] == "webxr" and log.header["handedness"] == "right"
     assert log.joints.shape[1:] == (25, 3)
     assert len(log.t) == len(log.tracked) == len(log.joints)
     assert np.all(np.diff(log.t) > 0)
@@ -67,16 +73,16 @@ GOOD = json.dumps({"t": 0.0, "tracked": True, "joints": [[0.0, 0.0, 0.0]] * 21})
 @pytest.mark.parametrize(
     ("lines", "match"),
     [
-        ([], r":1: empty file"),
-        (["{"], r":1: header is not JSON"),
-        ([json.dumps({"format": "x"})], r":1: header must be"),
-        ([HEADER.replace("mediapipe", "kinect")], r":1: unknown hand layout 'kinect'"),
-        ([HEADER.replace('"m"', '"cm"')], r":1: units must be m"),
+        ([], r":1: missing header: the file is empty"),
+        (["{"], r":1: missing header: line 1 is not a JSON object"),
+        ([json.dumps({"format": "x"})], r':1: unknown format "x" in header'),
+        ([HEADER.replace("mediapipe", "kinect")], r':1: header: unknown layout "kinect"'),
+        ([HEADER.replace('"m"', '"cm"')], r':1: header: unknown units "cm"'),
         ([HEADER], r":2: no frames"),
         ([HEADER, GOOD, GOOD.replace("0.0,", "-1.0,", 1)], r":3: time goes backwards"),
         (
             [HEADER, GOOD, json.dumps({"t": 1, "tracked": True, "joints": [[0, 0, 0]] * 20})],
-            r":3: wrong joint count: 20, layout has 21",
+            r":3: wrong joint count: 20 joints, layout mediapipe has 21",
         ),
         ([HEADER, '{"t": 1, "tracked": 1, "joints": []}'], r":2: \"tracked\" must be a bool"),
         (
@@ -85,20 +91,20 @@ GOOD = json.dumps({"t": 0.0, "tracked": True, "joints": [[0.0, 0.0, 0.0]] * 21})
                 GOOD,
                 '{"t": 2, "tracked": true, "joints": ' + str([[0, 0, 0]] * 20 + [[0, 0]]) + "}",
             ],
-            r":3: joint 20 must be \[x, y, z\], got \[0, 0\]",
+            r":3: joint 20 must be \[x, y, z\], got 2 numbers",
         ),
         (
             [HEADER, GOOD.replace("0.0]", "NaN]", 1)],
-            r":2: joint 0 coordinate z is not a finite number: nan",
+            r":2: non-finite value \(NaN\) in joint 0 coordinate z",
         ),
-        ([HEADER, GOOD, '{"t": 3, "tracked": true'], r":3: not JSON"),
+        ([HEADER, GOOD, '{"t": 3, "tracked": true'], r":3: invalid JSON"),
     ],
 )
-def test_read_handlog_errors_name_file_and_line(tmp_path, lines, match):
+def test_convert_errors_name_file_and_line(tmp_path, lines, match):
     path = tmp_path / "bad.jsonl"
     path.write_text("\n".join(lines) + ("\n" if lines else ""))
-    with pytest.raises(cv.HandLogError, match=match) as e:
-        cv.read_handlog(path)
+    with pytest.raises(LogFormatError, match=match) as e:
+        cv.convert_log(path, "suction", None, backend=_NoSim())
     assert str(e.value).startswith(f"{path}:")
 
 
@@ -207,14 +213,9 @@ def test_task_names_and_logged_task_mismatch(tmp_path):
     assert cv.canonical_task("block_grip") == "grip"
     with pytest.raises(ValueError, match="unknown task"):
         cv.canonical_task("weld")
-    log = cv.read_handlog(_log(tmp_path, task="suction"))
-
-    class _NoSim(cv.Backend):
-        def __init__(self) -> None:  # never reaches the simulator: the mismatch is found first
-            self.control_dt, self.max_joint_step = 0.04, 0.04
-
+    path = _log(tmp_path, task="suction")
     with pytest.raises(ValueError, match="hand log is for task 'suction'"):
-        cv.convert_log(log, "grip", None, backend=_NoSim())
+        cv.convert_log(path, "grip", None, backend=_NoSim())
 
 
 # ---------------------------------------------------------------- end to end (needs the bindings)
@@ -233,9 +234,7 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
     backend = cv.Backend()
     results = []
     for i, p in enumerate(paths):
-        res = cv.convert_log(
-            cv.read_handlog(p), task, tmp_path / "demos", episode_index=i, backend=backend
-        )
+        res = cv.convert_log(p, task, tmp_path / "demos", episode_index=i, backend=backend)
         assert res.installed and res.picked and not res.fell, (p, res.counts)
         assert res.counts.unreachable == 0
         assert res.counts.frames + res.counts.frames_after_end >= res.counts.frames
@@ -260,9 +259,9 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
 )
 def test_other_layouts_and_the_left_hand_install(tmp_path, task, layout, hand):
     path = sy.synth_hands(task, 1, 7, tmp_path, layout=layout, handedness=hand)[0]
-    log = cv.read_handlog(path)
-    assert (log.layout, log.handedness) == (layout, hand)
-    res = cv.convert_log(log, task, None)
+    log = cv.load_log(path)
+    assert (log.header["layout"], log.header["handedness"]) == (layout, hand)
+    res = cv.convert_log(log, task, None, source=path)
     assert res.installed, res.counts
 
 
@@ -270,9 +269,9 @@ def test_other_layouts_and_the_left_hand_install(tmp_path, task, layout, hand):
 def test_unreachable_targets_are_counted_not_followed(tmp_path):
     # the same demonstration with the calibration shifted 2 m away: every target is out of reach
     path = sy.synth_hands("suction", 1, 0, tmp_path / "logs")[0]
-    log = cv.read_handlog(path)
+    log = cv.load_log(path)
     log.header["extra"]["calibration"]["translation"] = [2.5, 0.0, 0.6]
-    res = cv.convert_log(log, "suction", None)
+    res = cv.convert_log(log, "suction", None, source=path)
     assert res.counts.unreachable == res.steps > 0  # every step had a target, none reachable
     assert res.counts.frames_after_end == 0  # the log ran out, the episode did not end
     assert not res.installed
@@ -299,7 +298,7 @@ def test_cli_convert_dir(tmp_path, capsys):
     )
     assert cv.main(args) == 1  # one log failed
     out = capsys.readouterr()
-    assert "broken.jsonl:1: header must be" in out.err
+    assert 'broken.jsonl:1: unknown format "nope" in header' in out.err
     assert "2 demos in" in out.out and "2 installed (100.0 %), 1 logs failed" in out.out
     assert sorted(p.name for p in (tmp_path / "demos").iterdir()) == [
         "grip_0000.mcap",
@@ -314,9 +313,7 @@ def test_acceptance_60_episodes_install_rate(tmp_path, task):
     paths = sy.synth_hands(task, 60, 0, tmp_path / "logs")
     backend = cv.Backend()
     ok = sum(
-        cv.convert_log(
-            cv.read_handlog(p), task, tmp_path / "demos", episode_index=i, backend=backend
-        ).installed
+        cv.convert_log(p, task, tmp_path / "demos", episode_index=i, backend=backend).installed
         for i, p in enumerate(paths)
     )
     assert ok >= 57  # ≥ 95 %

@@ -2,7 +2,8 @@
 
 ``mimicrete convert HANDLOG_OR_DIR --task suction --out DIR`` runs every hand log through:
 
-1. parse (JSON Lines, ``file:line: reason`` on bad input);
+1. parse, once up front, by the project's one hand-log parser (:func:`mimicrete.handlog.parse`,
+   Rust ``demo-log``; ``mimicrete.LogFormatError`` with ``file:line: reason`` on bad input);
 2. gesture per frame (the task's SVM, :mod:`mimicrete.gestures`) and a hysteresis smoother, so a
    single misread frame never changes the end-effector command;
 3. the hand frame: the wrist / index-proximal / middle-proximal joints, low-pass filtered with a
@@ -26,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,9 +35,10 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import MimicreteError
+from mimicrete import LogFormatError, MimicreteError, handlog
 from mimicrete import gestures as gest
 from mimicrete import handmodel as hm
+from mimicrete.handlog import HandLogData
 
 #: Hand-log task → simulator task id.
 SIM_TASK: dict[str, str] = {"suction": "TileSuction", "grip": "BlockGrip", "screw": "Screw"}
@@ -60,124 +63,6 @@ COMMANDS: dict[str, tuple[float, float]] = {
     "opening_stopped": (-1.0, 0.0),
     "fixed_stopped": (0.0, 0.0),
 }
-
-
-class HandLogError(ValueError):
-    """A malformed hand log; the message is ``file:line: reason``."""
-
-
-# ----------------------------------------------------------------------------------------------
-# Parsing
-# ----------------------------------------------------------------------------------------------
-
-
-@dataclass
-class HandLog:
-    """A parsed hand log.
-
-    Attributes:
-        header: the header object (line 1).
-        t: ``(T,)`` seconds.
-        tracked: ``(T,)`` bool.
-        joints: ``(T, N, 3)`` in ``header["layout"]`` order and ``header["space"]``.
-        path: where it came from.
-    """
-
-    header: dict[str, Any]
-    t: np.ndarray
-    tracked: np.ndarray
-    joints: np.ndarray
-    path: str = ""
-
-    @property
-    def layout(self) -> str:
-        return self.header["layout"]
-
-    @property
-    def handedness(self) -> str:
-        return self.header["handedness"]
-
-
-def parse_frame(line: str, n: int) -> tuple[float, bool, np.ndarray]:
-    """One frame line → ``(t, tracked, joints (n, 3))``; raises ``ValueError(reason)``."""
-    try:
-        d = json.loads(line)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"not JSON: {e.msg} at column {e.colno}") from None
-    if not isinstance(d, dict):
-        raise ValueError(f"a frame must be a JSON object, got {type(d).__name__}")
-    for key in ("t", "tracked", "joints"):
-        if key not in d:
-            raise ValueError(f'frame has no "{key}"')
-    t = d["t"]
-    if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t):
-        raise ValueError(f'"t" must be a finite number, got {t!r}')
-    if not isinstance(d["tracked"], bool):
-        raise ValueError(f'"tracked" must be a bool, got {d["tracked"]!r}')
-    joints = d["joints"]
-    if not isinstance(joints, list) or len(joints) != n:
-        got = len(joints) if isinstance(joints, list) else type(joints).__name__
-        raise ValueError(f"wrong joint count: {got}, layout has {n}")
-    try:  # fast path: a well-formed frame
-        arr = np.array(joints, dtype=np.float64)
-        if arr.shape == (n, 3) and np.isfinite(arr).all() and arr.dtype == np.float64:
-            if not any(isinstance(v, bool) for p in joints for v in p):
-                return float(t), d["tracked"], arr
-    except (TypeError, ValueError):
-        pass
-    for j, p in enumerate(joints):  # slow path: say what is wrong
-        if not isinstance(p, list) or len(p) != 3:
-            raise ValueError(f"joint {j} must be [x, y, z], got {p!r}")
-        for c, v in enumerate(p):
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise ValueError(f"joint {j} coordinate {'xyz'[c]} is not a finite number: {v!r}")
-    raise ValueError("joints must be numbers")  # unreachable for JSON input
-
-
-def read_handlog(path: str | Path) -> HandLog:
-    """Parse a hand log (strict: the first bad line raises :class:`HandLogError`)."""
-    path = str(path)
-    with open(path, encoding="utf-8") as f:
-        lines = f.read().splitlines()
-    if not lines:
-        raise HandLogError(f"{path}:1: empty file (no header)")
-    try:
-        header = json.loads(lines[0])
-    except json.JSONDecodeError as e:
-        raise HandLogError(f"{path}:1: header is not JSON: {e.msg}") from None
-    if not isinstance(header, dict) or header.get("format") != "mimicrete.handlog":
-        raise HandLogError(f'{path}:1: header must be an object with "format": "mimicrete.handlog"')
-    if header.get("version") != 1:
-        raise HandLogError(f"{path}:1: unsupported version {header.get('version')!r} (reads 1)")
-    try:
-        layout = hm.check_layout(str(header.get("layout")))
-    except ValueError as e:
-        raise HandLogError(f"{path}:1: {e}") from None
-    if header.get("handedness") not in ("left", "right"):
-        raise HandLogError(f"{path}:1: handedness must be left or right")
-    if header.get("units", "m") != "m":
-        raise HandLogError(f"{path}:1: units must be m, got {header.get('units')!r}")
-    header["layout"] = layout
-    n = hm.LAYOUT_JOINTS[layout]
-    ts, tr, js = [], [], []
-    prev = -math.inf
-    for lineno, line in enumerate(lines[1:], start=2):
-        if not line.strip():
-            continue
-        try:
-            t, tracked, joints = parse_frame(line, n)
-            if t < prev:
-                raise ValueError(f"time goes backwards: t={t} after t={prev}")
-            arr = np.asarray(joints, dtype=np.float64)
-        except (ValueError, TypeError) as e:
-            raise HandLogError(f"{path}:{lineno}: {e}") from None
-        prev = t
-        ts.append(t)
-        tr.append(tracked)
-        js.append(arr)
-    if not ts:
-        raise HandLogError(f"{path}:2: no frames")
-    return HandLog(header, np.array(ts), np.array(tr, dtype=bool), np.array(js), path)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -414,7 +299,7 @@ class SimAdapter:
         return self.env.snapshot()
 
 
-def calibration_of(log: HandLog) -> Any:
+def calibration_of(log: HandLogData) -> Any:
     """The calibration a log was recorded with (``extra.calibration``), else the default for its
     space."""
     from mimicrete.synth import Calibration
@@ -428,28 +313,51 @@ def calibration_of(log: HandLog) -> Any:
     return Calibration(space="openxr" if space in ("openxr", "webxr") else space)
 
 
+def load_log(path: str | os.PathLike[str]) -> HandLogData:
+    """Parse a hand log for conversion: :func:`mimicrete.handlog.parse` (strict), and at least
+    one frame. Raises ``mimicrete.LogFormatError`` (``file:line: reason``)."""
+    log = handlog.parse(path, "strict")
+    _require_frames(log, os.fspath(path))
+    return log
+
+
+def _require_frames(log: HandLogData, source: str) -> None:
+    if len(log) == 0:
+        raise LogFormatError(f"{source}:2: no frames")
+
+
 def convert_log(
-    log: HandLog,
+    log: HandLogData | str | os.PathLike[str],
     task: str,
     out_dir: str | Path | None,
     *,
+    source: str | os.PathLike[str] | None = None,
     episode_index: int = 0,
     model: gest.GestureModel | None = None,
     backend: Backend | None = None,
 ) -> EpisodeResult:
     """Run one hand log through the pipeline and the simulator; write its MCAP demo into
-    ``out_dir`` (``None``: simulate only)."""
+    ``out_dir`` (``None``: simulate only).
+
+    ``log`` is a hand-log path (parsed by :func:`load_log`) or an already parsed
+    :class:`mimicrete.handlog.HandLogData`; ``source`` names it (messages, the demo's file name and
+    metadata; default: the path, else ``"handlog"``)."""
+    if not isinstance(log, HandLogData):
+        source = source if source is not None else log
+        log = load_log(log)
+    source = os.fspath(source) if source is not None else "handlog"
+    _require_frames(log, source)
     backend = backend or Backend()
     task = canonical_task(task)
     logged = log.header.get("task")
     if logged is not None and canonical_task(str(logged)) != task:
-        raise ValueError(f"{log.path}: hand log is for task {logged!r}, converting as {task!r}")
+        raise ValueError(f"{source}: hand log is for task {logged!r}, converting as {task!r}")
     seed = int(log.header.get("episode_seed") or 0)
     calib = calibration_of(log)
     tele = Teleop(
         task,
-        log.layout,
-        log.handedness,
+        log.header["layout"],
+        log.header["handedness"],
         backend.calibration(calib),
         model,
         backend.hand_to_target_for(backend.calibration(calib)),
@@ -464,8 +372,8 @@ def convert_log(
     sink = None
     out_path = None
     if out_dir is not None:
-        out_path = Path(out_dir) / (Path(log.path).name.split(".")[0] + ".mcap")
-        sink = backend.open_writer(out_path, task, seed, episode_index, log, tele.model)
+        out_path = Path(out_dir) / (Path(source).name.split(".")[0] + ".mcap")
+        sink = backend.open_writer(out_path, task, seed, episode_index, log, tele.model, source)
     t0 = float(log.t[0])
     k = 0  # frames consumed
     n = len(log.t)
@@ -541,7 +449,7 @@ def convert_log(
     if sink is not None:
         sink.close(installed, counts)
     return EpisodeResult(
-        str(log.path),
+        source,
         str(out_path) if out_path else None,
         seed,
         step,
@@ -615,16 +523,31 @@ class Backend:
             raise ArithmeticError(str(e)) from None
 
     def open_writer(
-        self, path: Path, task: str, seed: int, episode: int, log: HandLog, model
+        self,
+        path: Path,
+        task: str,
+        seed: int,
+        episode: int,
+        log: HandLogData,
+        model,
+        source: str = "handlog",
     ) -> Any:
-        return _DemoSink(path, task, seed, episode, log, model, self.control_dt)
+        return _DemoSink(path, task, seed, episode, log, model, self.control_dt, source)
 
 
 class _DemoSink:
     """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer)."""
 
     def __init__(
-        self, path: Path, task: str, seed: int, episode: int, log: HandLog, model, control_dt: float
+        self,
+        path: Path,
+        task: str,
+        seed: int,
+        episode: int,
+        log: HandLogData,
+        model,
+        control_dt: float,
+        source: str,
     ) -> None:
         from mimicrete import demos
 
@@ -634,7 +557,7 @@ class _DemoSink:
             "task": SIM_TASK[task],
             "seed": int(seed),
             "robot_model": "ur3",
-            "source_handlog": str(log.path),
+            "source_handlog": str(source),
             "gesture_model": f"svm-{model.task} ({'/'.join(model.classes)})",
             "control_dt": float(control_dt),
             "hand": {k: log.header[k] for k in ("layout", "space", "handedness")},
@@ -679,7 +602,7 @@ class _DemoSink:
         self.w.abandon()
 
 
-def _rate(log: HandLog) -> float:
+def _rate(log: HandLogData) -> float:
     d = np.diff(log.t)
     d = d[d > 0]
     return float(1.0 / np.median(d)) if len(d) else 0.0
@@ -738,11 +661,10 @@ def main(args: argparse.Namespace) -> int:
     failed = 0
     for i, path in enumerate(tqdm(logs, desc="convert", unit="log", disable=args.no_progress)):
         try:
-            log = read_handlog(path)
             res = convert_log(
-                log, args.task, args.out, episode_index=i, model=model, backend=backend
+                path, args.task, args.out, episode_index=i, model=model, backend=backend
             )
-        except (HandLogError, ValueError) as e:
+        except (LogFormatError, ValueError) as e:
             failed += 1
             tqdm.write(f"error: {e}", file=sys.stderr)
             continue
