@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mimicrete import LogFormatError
+from mimicrete import LogFormatError, kin
 from mimicrete import convert as cv
 from mimicrete import synth as sy
 
@@ -159,8 +159,7 @@ def test_teleop_targets_follow_the_plan_and_gestures_command(tmp_path, task, han
         task,
         "openxr",
         handedness,
-        sy.Calibration(),
-        hand_to_target=lambda w, i, m, h, c: sy.tool0_from_hand(w, i, m, h, c),
+        kin.Calibration(),
     )
     errs, ang, cmds = [], [], []
     for k in range(len(ep.t)):
@@ -190,8 +189,7 @@ def test_teleop_holds_target_through_untracked_frames():
         "suction",
         "openxr",
         "right",
-        sy.Calibration(),
-        hand_to_target=lambda w, i, m, h, c: sy.tool0_from_hand(w, i, m, h, c),
+        kin.Calibration(),
     )
     for k in range(100):
         tele.push(float(ep.t[k]), True, ep.joints[k])
@@ -323,15 +321,11 @@ def test_acceptance_60_episodes_install_rate(tmp_path, task):
 @given(seed=st.integers(0, 2**32 - 1), hand=st.sampled_from(["left", "right"]))
 def test_bound_hand_to_target_equals_the_public_function(seed, hand):
     from mimicrete import handmodel as hm
-    from mimicrete import kin
 
     rng = np.random.default_rng(seed)
-    calib = sy.Calibration(hm.random_rotation(rng), rng.normal(size=3), rng.uniform(0.5, 2.0))
+    calib = kin.Calibration(hm.random_rotation(rng), rng.normal(size=3), rng.uniform(0.5, 2.0))
     j = hm.hand_joints(hm.GESTURE_SHAPES["fixed"], hm.random_rotation(rng), rng.normal(size=3))
     f = cv.bound_hand_to_target(calib)
     np.testing.assert_array_equal(
         f(j[1], j[7], j[12], hand), kin.hand_to_target(j[1], j[7], j[12], hand, calib)
-    )
-    np.testing.assert_allclose(
-        f(j[1], j[7], j[12], hand), sy.tool0_from_hand(j[1], j[7], j[12], hand, calib), atol=1e-9
     )

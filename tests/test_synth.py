@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from mimicrete import gestures as g
 from mimicrete import handmodel as hm
+from mimicrete import kin
 from mimicrete import synth as sy
 
 HAVE_ENVS = sy.have_simulator()
@@ -63,42 +64,49 @@ def _rot_from(seed: int) -> np.ndarray:
 )
 def test_hand_pose_inverts_hand_to_target(seed, hand, scale, space, shape):
     rng = np.random.default_rng(seed)
-    calib = sy.Calibration(hm.random_rotation(rng), rng.normal(size=3), scale, space)
+    calib = kin.Calibration(hm.random_rotation(rng), rng.normal(size=3), scale, space)
     tool0 = np.eye(4)
     tool0[:3, :3] = hm.random_rotation(rng)
     tool0[:3, 3] = rng.uniform(-0.4, 0.4, size=3)
     rot, wrist = sy.hand_pose_for_tool0(tool0, hand, calib)
     j = hm.hand_joints(hm.GESTURE_SHAPES[shape], rot, wrist, rng.uniform(0.8, 1.2), hand)
-    back = sy.tool0_from_hand(j[1], j[7], j[12], hand, calib)
+    back = kin.hand_to_target(j[1], j[7], j[12], hand, calib)
     np.testing.assert_allclose(back, tool0, atol=1e-9)
     np.testing.assert_allclose(
-        calib.point_to_base(calib.point_from_base(tool0[:3, 3])), tool0[:3, 3], atol=1e-12
+        kin.points_to_base(sy.points_from_base(tool0[:3, 3], calib), calib),
+        tool0[:3, 3],
+        atol=1e-12,
     )
 
 
 def test_default_calibration_matches_ur3_kin_doc():
     # ur3-kin Calibration::default(): a hand 0.4 m in front of and 0.4 m below the head maps to
     # (0.3, 0, 0.2) in Base.
-    np.testing.assert_allclose(sy.Calibration().point_to_base([0.0, -0.4, -0.4]), [0.3, 0.0, 0.2])
+    np.testing.assert_allclose(
+        kin.points_to_base([0.0, -0.4, -0.4], kin.Calibration()), [0.3, 0.0, 0.2]
+    )
 
 
-def test_tool0_matches_native_hand_to_target():
-    kin = pytest.importorskip("mimicrete.kin")
-    if not hasattr(kin, "hand_to_target"):
-        pytest.skip("mc.kin.hand_to_target not bound yet")
+def test_header_calibration_keeps_its_format():
+    # what hand logs have always stored under extra.calibration (readers of old logs rely on it)
+    ep = sy.synth_episode(_sim_like_scene("suction", 1), 0)
+    stored = json.loads(json.dumps(ep.header["extra"]["calibration"]))
+    assert stored == {
+        "rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        "translation": [-0.1, 0.0, 0.6],
+        "scale": 1.0,
+        "space": "openxr",
+    }
+    assert kin.Calibration.from_dict(stored).to_dict() == stored
     rng = np.random.default_rng(4)
     for hand in ("right", "left"):
-        for _ in range(20):
-            j = hm.hand_joints(
-                hm.GESTURE_SHAPES["opening"],
-                hm.random_rotation(rng),
-                rng.normal(scale=0.3, size=3),
-                1.0,
-                hand,
-            )
-            ours = sy.tool0_from_hand(j[1], j[7], j[12], hand, sy.Calibration())
-            theirs = kin.hand_to_target(j[1], j[7], j[12], handedness=hand)
-            np.testing.assert_allclose(np.asarray(theirs), ours, atol=1e-9)
+        j = hm.hand_joints(
+            hm.GESTURE_SHAPES["opening"], hm.random_rotation(rng), rng.normal(size=3), 1.0, hand
+        )
+        np.testing.assert_array_equal(
+            kin.hand_to_target(j[1], j[7], j[12], hand, kin.Calibration.from_dict(stored)),
+            kin.hand_to_target(j[1], j[7], j[12], hand),  # ur3-kin's own default
+        )
 
 
 def _read(path):
@@ -140,8 +148,8 @@ def test_handlog_format_and_layouts(tmp_path, layout):
     # the frame joints are where the calibration says tool0 is
     fw, fi, fm = hm.FRAME_JOINTS[layout]
     j0 = np.array(frames[0]["joints"])
-    calib = sy.Calibration.from_dict(head["extra"]["calibration"])
-    t0 = sy.tool0_from_hand(j0[fw], j0[fi], j0[fm], "right", calib)
+    calib = kin.Calibration.from_dict(head["extra"]["calibration"])
+    t0 = kin.hand_to_target(j0[fw], j0[fi], j0[fm], "right", calib)
     scene = head["extra"]["scene"]
     tcp0 = t0[:3, 3] + t0[:3, 2] * scene["tcp_z"]
     assert np.linalg.norm(tcp0 - np.array(scene["tcp"])) < 0.006

@@ -162,7 +162,7 @@ class Teleop:
         task: ``suction``, ``grip`` or ``screw``.
         layout: joint order of the frames.
         handedness: ``left`` / ``right``.
-        calibration: headset space → Base (:class:`mimicrete.synth.Calibration`).
+        calibration: headset space → Base (:class:`mimicrete.kin.Calibration`).
         model: the gesture model (default: the shipped one for the task).
         hand_to_target: ``f(wrist, index_proximal, middle_proximal, handedness, calib) -> (4, 4)``
             (default: ``mimicrete.kin.hand_to_target`` with the calibration converted).
@@ -302,7 +302,7 @@ class SimAdapter:
 def calibration_of(log: HandLogData) -> Any:
     """The calibration a log was recorded with (``extra.calibration``), else the default for its
     space."""
-    from mimicrete.synth import Calibration
+    from mimicrete.kin import Calibration
 
     extra = log.header.get("extra") or {}
     if isinstance(extra, dict) and isinstance(extra.get("calibration"), dict):
@@ -499,7 +499,7 @@ class Backend:
 
     @staticmethod
     def calibration(calib: Any) -> Any:
-        """Our :class:`mimicrete.synth.Calibration` → what ``kin.hand_to_target`` takes."""
+        """The log's :class:`mimicrete.kin.Calibration` → what ``kin.hand_to_target`` takes."""
         return calib
 
     @staticmethod

@@ -145,34 +145,67 @@ def ik_batch(
     return _native.kin_ik_batch(t, s, model, int(threads), tol)
 
 
+def _default_calibration() -> tuple[np.ndarray, float, str]:
+    """ur3-kin's ``Calibration::default()``: ``base_from_space`` (4, 4), scale, space name."""
+    m, scale, space = _native.kin_default_calibration()
+    return np.asarray(m, dtype=np.float64), float(scale), str(space)
+
+
+_DEFAULT_BASE_FROM_SPACE, _DEFAULT_SCALE, _DEFAULT_SPACE = _default_calibration()
+
+
 @dataclass
 class Calibration:
     """Tracking space → robot Base: ``p_base = rotation · (scale · to_flu(p)) + translation``.
 
     ``to_flu`` is the fixed axis change of ``space`` to right-handed Z-up axes (forward, left, up):
     OpenXR/WebXR ``(−z, −x, y)``, Unity (left-handed) ``(z, −x, y)``, ``robot_base`` identity.
-    The default (OpenXR LOCAL space, operator behind the robot facing Base +X) maps a hand 0.4 m in
-    front of and below the head to (0.3, 0, 0.2) m in Base.
+    The defaults are ur3-kin's ``Calibration::default()`` (read from the crate, not restated here):
+    OpenXR LOCAL space, operator behind the robot facing Base +X, so a hand 0.4 m in front of and
+    below the head maps to (0.3, 0, 0.2) m in Base.
+
+    Hand-log headers store it under ``extra.calibration`` as :meth:`to_dict` gives it.
     """
 
-    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
-    translation: np.ndarray = field(default_factory=lambda: np.array([-0.1, 0.0, 0.6]))
-    scale: float = 1.0
-    space: str = "openxr"
+    rotation: np.ndarray = field(default_factory=lambda: _DEFAULT_BASE_FROM_SPACE[:3, :3].copy())
+    translation: np.ndarray = field(default_factory=lambda: _DEFAULT_BASE_FROM_SPACE[:3, 3].copy())
+    scale: float = _DEFAULT_SCALE
+    space: str = _DEFAULT_SPACE
+
+    def __post_init__(self) -> None:
+        self.rotation = np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
+        self.translation = np.asarray(self.translation, dtype=np.float64).reshape(3)
 
     def matrix(self) -> np.ndarray:
         """``base_from_space`` as ``(4, 4)``."""
         m = np.eye(4)
-        m[:3, :3] = np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
-        m[:3, 3] = np.asarray(self.translation, dtype=np.float64).reshape(3)
+        m[:3, :3] = self.rotation
+        m[:3, 3] = self.translation
         return m
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form ``{rotation (3×3 lists), translation, scale, space}`` (the hand-log
+        header's ``extra.calibration``)."""
+        return {
+            "rotation": self.rotation.tolist(),
+            "translation": self.translation.tolist(),
+            "scale": float(self.scale),
+            "space": self.space,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Calibration:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            np.array(d["rotation"]), np.array(d["translation"]), float(d["scale"]), d["space"]
+        )
 
 
 def _calib(c: Any) -> tuple[np.ndarray | None, float, str]:
     """Accept None (default), a Calibration-like object (``rotation``/``translation``/``scale``/
     ``space`` attributes, or ``base_from_space`` (4, 4)) or a dict with those keys."""
-    if c is None:
-        return None, 1.0, "openxr"
+    if c is None:  # ur3-kin's default (the transform is filled in on the Rust side)
+        return None, _DEFAULT_SCALE, _DEFAULT_SPACE
     get = c.get if isinstance(c, dict) else (lambda k, d=None: getattr(c, k, d))
     scale = float(get("scale", 1.0))
     space = str(get("space", "openxr"))

@@ -20,8 +20,9 @@ How a motion is made:
 4. TCP → tool0 (the flange, ``tcp_z`` above the TCP along the tool axis) → the hand: tool0's pose
    is what ``hand_to_target`` makes of the wrist / index-proximal / middle-proximal joints through
    the calibration (``ur3_kin::hand``: tool0.x = hand.y, tool0.y = hand.x, tool0.z = −hand.z,
-   origin at the wrist; headset OpenXR space → Base by :class:`Calibration`), so the hand pose is
-   that map inverted, and the parametric hand (:mod:`mimicrete.handmodel`) adds the fingers.
+   origin at the wrist; headset OpenXR space → Base by :class:`mimicrete.kin.Calibration`), so the
+   hand pose is that map inverted (:func:`hand_pose_for_tool0`; the forward map is only ever
+   ur3-kin's), and the parametric hand (:mod:`mimicrete.handmodel`) adds the fingers.
 """
 
 from __future__ import annotations
@@ -29,13 +30,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from mimicrete import handmodel as hm
+from mimicrete import kin
+from mimicrete.kin import Calibration
 
 TASKS: tuple[str, ...] = ("suction", "grip", "screw")
 #: Simulator task names (``tile-sim`` ``Task``).
@@ -54,12 +57,6 @@ SHAPE_OF: dict[str, str] = {
     "fixed_stopped": "fixed",
 }
 
-#: OpenXR (+Y up, −Z forward, +X right) → forward-left-up (ur3_kin ``Space::to_flu``).
-AXES_TO_FLU: dict[str, np.ndarray] = {
-    "openxr": np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
-    "webxr": np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
-    "robot_base": np.eye(3),
-}
 #: Columns are tool0's axes in hand-frame coordinates (ur3_kin ``tool_from_hand_rotation``).
 TOOL_FROM_HAND = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 #: tool0 pointing straight down, tool X along Base X (tile-sim ``expert::tool_down``).
@@ -67,111 +64,38 @@ TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
 
 
 # ----------------------------------------------------------------------------------------------
-# Calibration (mirrors ur3_kin::hand::Calibration)
+# Inverting ur3-kin's hand → tool0 map (the forward map is mimicrete.kin.hand_to_target)
 # ----------------------------------------------------------------------------------------------
 
 
-@dataclass
-class Calibration:
-    """Headset space → robot Base: ``p_base = R · (scale · to_flu(p)) + t``.
-
-    The default is ur3-kin's ``Calibration::default()``: OpenXR LOCAL space, operator behind the
-    robot facing Base +X, ``t = (−0.1, 0, 0.6)``, no rotation, scale 1.
-    """
-
-    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
-    translation: np.ndarray = field(default_factory=lambda: np.array([-0.1, 0.0, 0.6]))
-    scale: float = 1.0
-    space: str = "openxr"
-
-    def __post_init__(self) -> None:
-        if self.space not in AXES_TO_FLU:
-            raise ValueError(f"space must be one of {sorted(AXES_TO_FLU)}, got {self.space!r}")
-        self.rotation = np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
-        self.translation = np.asarray(self.translation, dtype=np.float64).reshape(3)
-
-    def _lin(self) -> np.ndarray:
-        return self.rotation @ AXES_TO_FLU[self.space]
-
-    def point_to_base(self, p: np.ndarray) -> np.ndarray:
-        """Headset-space points ``(..., 3)`` → Base."""
-        return self.scale * np.asarray(p) @ self._lin().T + self.translation
-
-    def point_from_base(self, p: np.ndarray) -> np.ndarray:
-        """Base points ``(..., 3)`` → headset space."""
-        return (np.asarray(p) - self.translation) @ self._lin() / self.scale
-
-    def rotation_from_base(self, r: np.ndarray) -> np.ndarray:
-        """A frame's rotation ``(…, 3, 3)`` in Base → the same frame in headset space."""
-        return self._lin().T @ r
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form (stored in hand-log headers under ``extra.calibration``)."""
-        return {
-            "rotation": self.rotation.tolist(),
-            "translation": self.translation.tolist(),
-            "scale": self.scale,
-            "space": self.space,
-        }
-
-    @staticmethod
-    def from_dict(d: dict[str, Any]) -> Calibration:
-        """Inverse of :meth:`to_dict`."""
-        return Calibration(
-            np.array(d["rotation"]), np.array(d["translation"]), float(d["scale"]), d["space"]
-        )
+def _affine(calib: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(A (3, 3), b (3,))`` with ``p_base = A · p + b``, read off ur3-kin's own point map
+    (:func:`mimicrete.kin.points_to_base`) so that axis conventions live only in the crate."""
+    pts = kin.points_to_base(np.vstack([np.zeros(3), np.eye(3)]), calib)
+    return (pts[1:] - pts[0]).T, pts[0]
 
 
-def tool0_from_hand(
-    wrist: np.ndarray,
-    index_proximal: np.ndarray,
-    middle_proximal: np.ndarray,
-    handedness: str,
-    calib: Calibration,
-) -> np.ndarray:
-    """Numpy statement of ur3-kin's ``hand_to_target`` (tool0 pose ``(4, 4)`` in Base), used to
-    plan and to cross-check the Rust one."""
-    w, i, m = (
-        calib.point_to_base(np.asarray(p, dtype=np.float64))
-        for p in (wrist, index_proximal, middle_proximal)
-    )
-    yp = m - w
-    xp = m - i
-    if handedness == "left":
-        xp = -xp
-    ny = float(np.sqrt(yp @ yp))
-    z = _cross3(xp, yp)
-    nz = float(np.sqrt(z @ z))
-    if not (ny > 1e-9 and nz > 1e-12):
-        raise ValueError("degenerate hand: wrist, index and middle proximal are collinear")
-    y = yp / ny
-    z = z / nz
-    x = _cross3(y, z)
-    t = np.eye(4)
-    t[:3, :3] = np.stack([x, y, z], axis=1) @ TOOL_FROM_HAND
-    t[:3, 3] = w
-    return t
-
-
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two 3-vectors (cheaper than ``np.cross`` on single vectors)."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+def points_from_base(points: np.ndarray, calib: Any) -> np.ndarray:
+    """Base points ``(..., 3)`` → the calibration's (headset) space: the inverse of
+    :func:`mimicrete.kin.points_to_base`."""
+    a, b = _affine(calib)
+    return (np.asarray(points, dtype=np.float64) - b) @ np.linalg.inv(a).T
 
 
 def hand_pose_for_tool0(
-    tool0: np.ndarray, handedness: str, calib: Calibration
+    tool0: np.ndarray, handedness: str, calib: Any
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Invert :func:`tool0_from_hand`: the hand-model wrist rotation (columns: the hand frame of
-    :mod:`mimicrete.handmodel` in headset space) and wrist position that give ``tool0``
-    (``(4, 4)`` or a batch ``(n, 4, 4)`` → ``(…, 3, 3)``, ``(…, 3)``)."""
+    """Invert :func:`mimicrete.kin.hand_to_target`: the hand-model wrist rotation (columns: the
+    hand frame of :mod:`mimicrete.handmodel` in headset space) and wrist position that give
+    ``tool0`` (``(4, 4)`` or a batch ``(n, 4, 4)`` → ``(…, 3, 3)``, ``(…, 3)``)."""
     tool0 = np.asarray(tool0, dtype=np.float64)
     r_hand_base = tool0[..., :3, :3] @ TOOL_FROM_HAND.T
     # ur3-kin negates x' for a left hand: its frame is ours · diag(-1, 1, -1)
     if handedness == "left":
         r_hand_base = r_hand_base @ np.diag([-1.0, 1.0, -1.0])
-    return calib.rotation_from_base(r_hand_base), calib.point_from_base(tool0[..., :3, 3])
+    a, _ = _affine(calib)
+    rot_base_from_space = a / np.linalg.norm(a[:, 0])  # a = scale · rotation
+    return rot_base_from_space.T @ r_hand_base, points_from_base(tool0[..., :3, 3], calib)
 
 
 def _rot_batch(axis: int, angle: np.ndarray) -> np.ndarray:
