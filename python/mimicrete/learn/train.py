@@ -111,7 +111,9 @@ def load_demos(path: str, episodes: int | None) -> dict[str, np.ndarray]:
     if episodes is not None:
         uniq = np.unique(ep)
         if len(uniq) < episodes:
-            raise ValueError(f"{path}: {len(uniq)} demo episodes, the config asks for {episodes}")
+            raise config_mod.ConfigError(
+                f"{path}: {len(uniq)} demo episodes, the config asks for {episodes}"
+            )
         keep = np.isin(ep, uniq[:episodes])
         d = {k: np.asarray(v)[keep] for k, v in d.items()}
     return d
@@ -748,7 +750,13 @@ def main(args: argparse.Namespace) -> int:
         cfg = config_mod.with_overrides(cfg, overrides)
     run_dir = Path(args.run_dir or f"runs/{cfg_path.stem}-seed{cfg.env_settings.seed}")
     t0 = time.perf_counter()
-    tr = train(cfg, run_dir, demos=args.demos, resume=args.resume, progress=not args.no_progress)
+    try:
+        tr = train(
+            cfg, run_dir, demos=args.demos, resume=args.resume, progress=not args.no_progress
+        )
+    except (FileNotFoundError, config_mod.ConfigError) as e:  # demos, checkpoint, too few demos
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     print(f"trained {tr.step} steps in {time.perf_counter() - t0:.0f} s -> {run_dir}")
     from . import plots
 
