@@ -17,23 +17,9 @@ from mimicrete import synth as sy
 HAVE_SIM = sy.have_simulator()
 
 
-def _scene(task: str, seed: int) -> sy.Scene:
-    if HAVE_SIM:
-        return sy.scene_from_env(task, seed)
-    x = float(np.random.default_rng(seed).uniform(0.0, 0.15))
-    return sy.Scene(
-        task,
-        seed,
-        np.array([0.0, 0.25, 0.2]),
-        0.05,
-        np.array([x, 0.32, 0.005]),
-        np.array([-0.22, 0.28, 0.045]),
-    )
-
-
-def _log(tmp_path, task="suction", seed=0, layout="openxr", handedness="right"):
+def _log(tmp_path, scene_fn, task="suction", seed=0, layout="openxr", handedness="right"):
     paths = sy.synth_hands(
-        task, 1, seed, tmp_path, layout=layout, handedness=handedness, scene_fn=_scene
+        task, 1, seed, tmp_path, layout=layout, handedness=handedness, scene_fn=scene_fn
     )
     return paths[0]
 
@@ -46,8 +32,8 @@ class _NoSim(cv.Backend):
         self.control_dt, self.max_joint_step = 0.04, 0.04
 
 
-def test_load_log_roundtrip(tmp_path):
-    path = _log(tmp_path, layout="webxr")
+def test_load_log_roundtrip(tmp_path, scene_fn):
+    path = _log(tmp_path, scene_fn, layout="webxr")
     log = cv.load_log(path)
     assert log.header["layout"] == "webxr" and log.header["handedness"] == "right"
     assert log.joints.shape[1:] == (25, 3)
@@ -152,8 +138,8 @@ def test_one_euro_smooths_jitter_and_follows_motion():
 
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 @pytest.mark.parametrize("handedness", ["right", "left"])
-def test_teleop_targets_follow_the_plan_and_gestures_command(tmp_path, task, handedness):
-    scene = _scene(task, 3)
+def test_teleop_targets_follow_the_plan_and_gestures_command(task, handedness, scene_fn):
+    scene = scene_fn(task, 3)
     ep = sy.synth_episode(scene, 2, handedness=handedness)
     tele = cv.Teleop(
         task,
@@ -182,8 +168,8 @@ def test_teleop_targets_follow_the_plan_and_gestures_command(tmp_path, task, han
         assert (1.0, 1.0) in cmds and (1.0, -1.0) not in cmds
 
 
-def test_teleop_holds_target_through_untracked_frames():
-    scene = _scene("suction", 1)
+def test_teleop_holds_target_through_untracked_frames(scene_fn):
+    scene = scene_fn("suction", 1)
     ep = sy.synth_episode(scene, 0)
     tele = cv.Teleop(
         "suction",
@@ -206,12 +192,12 @@ def test_teleop_holds_target_through_untracked_frames():
     assert tele.counts.degenerate == 1
 
 
-def test_task_names_and_logged_task_mismatch(tmp_path):
+def test_task_names_and_logged_task_mismatch(tmp_path, scene_fn):
     assert cv.canonical_task("TileSuction") == "suction"
     assert cv.canonical_task("block_grip") == "grip"
     with pytest.raises(ValueError, match="unknown task"):
         cv.canonical_task("weld")
-    path = _log(tmp_path, task="suction")
+    path = _log(tmp_path, scene_fn, task="suction")
     with pytest.raises(ValueError, match="hand log is for task 'suction'"):
         cv.convert_log(path, "grip", None, backend=_NoSim())
 

@@ -18,38 +18,6 @@ from mimicrete import synth as sy
 HAVE_ENVS = sy.have_simulator()
 
 
-def _sim_like_scene(task: str, seed: int) -> sy.Scene:
-    """A scene laid out as tile-sim lays it out (object y 0.32, x uniform in [0, 0.15], pad
-    target at (-0.22, 0.28)); used where the simulator's bindings are not needed."""
-    x = float(np.random.default_rng(seed).uniform(0.0, 0.15))
-    if task == "suction":
-        return sy.Scene(
-            task,
-            seed,
-            np.array([0.0, 0.25, 0.2]),
-            0.05,
-            np.array([x, 0.32, 0.005]),
-            np.array([-0.22, 0.28, 0.045]),
-        )
-    if task == "grip":
-        return sy.Scene(
-            task,
-            seed,
-            np.array([0.0, 0.25, 0.17]),
-            0.085,
-            np.array([x, 0.32, 0.02]),
-            np.array([-0.22, 0.28, 0.06]),
-        )
-    return sy.Scene(
-        task,
-        seed,
-        np.array([0.0, 0.25, 0.17]),
-        0.085,
-        np.array([x, 0.32, 0.073]),
-        np.array([x, 0.32, 0.06775]),
-    )
-
-
 def _rot_from(seed: int) -> np.ndarray:
     return hm.random_rotation(np.random.default_rng(seed))
 
@@ -87,9 +55,9 @@ def test_default_calibration_matches_ur3_kin_doc():
     )
 
 
-def test_header_calibration_keeps_its_format():
+def test_header_calibration_keeps_its_format(sim_like_scene):
     # what hand logs have always stored under extra.calibration (readers of old logs rely on it)
-    ep = sy.synth_episode(_sim_like_scene("suction", 1), 0)
+    ep = sy.synth_episode(sim_like_scene("suction", 1), 0)
     stored = json.loads(json.dumps(ep.header["extra"]["calibration"]))
     assert stored == {
         "rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
@@ -115,8 +83,8 @@ def _read(path):
 
 
 @pytest.mark.parametrize("layout", ["openxr", "webxr", "meta_ovr", "mediapipe"])
-def test_handlog_format_and_layouts(tmp_path, layout):
-    paths = sy.synth_hands("suction", 2, 7, tmp_path, layout=layout, scene_fn=_sim_like_scene)
+def test_handlog_format_and_layouts(tmp_path, layout, sim_like_scene):
+    paths = sy.synth_hands("suction", 2, 7, tmp_path, layout=layout, scene_fn=sim_like_scene)
     assert [p.name for p in paths] == ["suction_0000.handlog.jsonl", "suction_0001.handlog.jsonl"]
     head, frames = _read(paths[0])
     assert head["format"] == "mimicrete.handlog" and head["version"] == 1
@@ -156,18 +124,18 @@ def test_handlog_format_and_layouts(tmp_path, layout):
     assert t0[:3, 2] @ np.array([0, 0, -1.0]) > np.cos(np.radians(5))  # tool points down
 
 
-def test_same_seed_same_files_other_seed_other_files(tmp_path):
-    a = sy.synth_hands("grip", 2, 3, tmp_path / "a", scene_fn=_sim_like_scene)
-    b = sy.synth_hands("grip", 2, 3, tmp_path / "b", scene_fn=_sim_like_scene)
-    c = sy.synth_hands("grip", 2, 4, tmp_path / "c", scene_fn=_sim_like_scene)
+def test_same_seed_same_files_other_seed_other_files(tmp_path, sim_like_scene):
+    a = sy.synth_hands("grip", 2, 3, tmp_path / "a", scene_fn=sim_like_scene)
+    b = sy.synth_hands("grip", 2, 3, tmp_path / "b", scene_fn=sim_like_scene)
+    c = sy.synth_hands("grip", 2, 4, tmp_path / "c", scene_fn=sim_like_scene)
     for pa, pb, pc in zip(a, b, c, strict=True):
         assert pa.read_bytes() == pb.read_bytes()
         assert pa.read_bytes() != pc.read_bytes()
 
 
 @pytest.mark.parametrize("task", sy.TASKS)
-def test_motion_is_human_and_reaches_the_object(task):
-    scene = _sim_like_scene(task, 11)
+def test_motion_is_human_and_reaches_the_object(task, sim_like_scene):
+    scene = sim_like_scene(task, 11)
     ep = sy.synth_episode(scene, 5)
     tcp = ep.tool0[:, :3, 3] + ep.tool0[:, :3, 2] * scene.tcp_z
     dt = 1 / 90
@@ -192,8 +160,8 @@ def test_motion_is_human_and_reaches_the_object(task):
 
 
 @pytest.mark.parametrize("task", sy.TASKS)
-def test_gestures_follow_the_task_through_in_between_shapes(task):
-    scene = _sim_like_scene(task, 2)
+def test_gestures_follow_the_task_through_in_between_shapes(task, sim_like_scene):
+    scene = sim_like_scene(task, 2)
     ep = sy.synth_episode(scene, 1)
     model = g.load_default("screw" if task == "screw" else "grip")
     raw = model.predict(ep.joints, "right")
@@ -214,9 +182,9 @@ def test_gestures_follow_the_task_through_in_between_shapes(task):
     assert all(np.linalg.norm(f - g.features_3d(e)) > 0.2 for e in ends)
 
 
-def test_cli_writes_logs(tmp_path, monkeypatch, capsys):
+def test_cli_writes_logs(tmp_path, monkeypatch, capsys, sim_like_scene):
     if not HAVE_ENVS:  # until the simulator's bindings exist, the sim's layout stands in
-        monkeypatch.setattr(sy, "scene_from_env", _sim_like_scene)
+        monkeypatch.setattr(sy, "scene_from_env", sim_like_scene)
     parser = argparse.ArgumentParser()
     sy.configure(parser)
     args = parser.parse_args(

@@ -532,26 +532,7 @@ class Backend:
         model,
         source: str = "handlog",
     ) -> Any:
-        return _DemoSink(path, task, seed, episode, log, model, self.control_dt, source)
-
-
-class _DemoSink:
-    """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer)."""
-
-    def __init__(
-        self,
-        path: Path,
-        task: str,
-        seed: int,
-        episode: int,
-        log: HandLogData,
-        model,
-        control_dt: float,
-        source: str,
-    ) -> None:
-        from mimicrete import demos
-
-        path.parent.mkdir(parents=True, exist_ok=True)
+        """A writer for one episode's MCAP demo at ``path`` (its metadata from the log)."""
         meta = {
             "episode": int(episode),
             "task": SIM_TASK[task],
@@ -559,11 +540,20 @@ class _DemoSink:
             "robot_model": "ur3",
             "source_handlog": str(source),
             "gesture_model": f"svm-{model.task} ({'/'.join(model.classes)})",
-            "control_dt": float(control_dt),
+            "control_dt": float(self.control_dt),
             "hand": {k: log.header[k] for k in ("layout", "space", "handedness")},
             "extra": {"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
         }
-        self.task = task
+        return _DemoSink(path, meta)
+
+
+class _DemoSink:
+    """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer)."""
+
+    def __init__(self, path: Path, meta: dict[str, Any]) -> None:
+        from mimicrete import demos
+
+        path.parent.mkdir(parents=True, exist_ok=True)
         self.w = demos.DemoWriter(str(path), meta)
 
     def hand(self, t: float, joints: np.ndarray, tracked: bool, hand_t: float) -> None:

@@ -221,6 +221,36 @@ def _calib(c: Any) -> tuple[np.ndarray | None, float, str]:
     return _shaped(m, "calibration.base_from_space", (4, 4), "(4, 4)"), scale, space
 
 
+def _hand_call(
+    native: Any,
+    wrist: Any,
+    index_proximal: Any,
+    middle_proximal: Any,
+    handedness: str,
+    calibration: Any,
+    batch: bool,
+) -> Any:
+    """Check the three joints (``(3,)`` each, or ``(N, 3)`` each with ``batch``), convert the
+    calibration and call the native hand → target entry point."""
+    m, scale, space = _calib(calibration)
+    if batch:
+        w = _shaped(wrist, "wrist", (None, 3), "(N, 3)")
+        shape: tuple[int | None, ...] = (w.shape[0], 3)
+        text = f"({w.shape[0]}, 3)"
+    else:
+        shape, text = (3,), "(3,)"
+        w = _shaped(wrist, "wrist", shape, text)
+    return native(
+        w,
+        _shaped(index_proximal, "index_proximal", shape, text),
+        _shaped(middle_proximal, "middle_proximal", shape, text),
+        handedness,
+        m,
+        scale,
+        space,
+    )
+
+
 def hand_to_target(
     wrist: Any,
     index_proximal: Any,
@@ -234,15 +264,14 @@ def hand_to_target(
     Raises:
         ValueError: degenerate hand (coincident or collinear joints), NaN/inf, bad shape.
     """
-    m, scale, space = _calib(calibration)
-    return _native.kin_hand_to_target(
-        _shaped(wrist, "wrist", (3,), "(3,)"),
-        _shaped(index_proximal, "index_proximal", (3,), "(3,)"),
-        _shaped(middle_proximal, "middle_proximal", (3,), "(3,)"),
+    return _hand_call(
+        _native.kin_hand_to_target,
+        wrist,
+        index_proximal,
+        middle_proximal,
         handedness,
-        m,
-        scale,
-        space,
+        calibration,
+        batch=False,
     )
 
 
@@ -255,17 +284,14 @@ def hand_to_target_batch(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hand_to_target` for ``(N, 3)`` arrays: ``(T (N, 4, 4), ok (N,))``; rows with a
     degenerate or non-finite hand have ``ok`` False and an identity ``T``."""
-    m, scale, space = _calib(calibration)
-    w = _shaped(wrist, "wrist", (None, 3), "(N, 3)")
-    n = w.shape[0]
-    return _native.kin_hand_to_target_batch(
-        w,
-        _shaped(index_proximal, "index_proximal", (n, 3), f"({n}, 3)"),
-        _shaped(middle_proximal, "middle_proximal", (n, 3), f"({n}, 3)"),
+    return _hand_call(
+        _native.kin_hand_to_target_batch,
+        wrist,
+        index_proximal,
+        middle_proximal,
         handedness,
-        m,
-        scale,
-        space,
+        calibration,
+        batch=True,
     )
 
 

@@ -331,10 +331,60 @@ def _tremor(n: int, dt: float, rng: np.random.Generator, person: Person) -> np.n
     return out + person.sway_mm * 1e-3 * _slow_noise(n, dt, rng)
 
 
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+def _approach_and_grasp(
+    m: Motion,
+    above: np.ndarray,
+    *,
+    approach: tuple[float, float],
+    settle: tuple[float, float],
+    grasp_at: Any,
+    settled: tuple[float, float],
+    close: hm.HandShape,
+    grasp: tuple[float, float],
+) -> None:
+    """Reach ``approach`` (m, uniform range) above ``above``, settle, descend precisely to
+    ``grasp_at()`` (called only then, so its draws come after the settle's), settle, close the
+    hand, hold ``grasp`` seconds while the end effector closes. Ranges are drawn from ``m.rng``."""
+    rng = m.rng
+    m.reach(above + _UP * rng.uniform(*approach), "approach")
+    m.hold(rng.uniform(*settle), "settle")
+    m.reach(grasp_at(), "descend", precise=True)
+    m.hold(rng.uniform(*settled), "settle")
+    m.gesture(close, rng.uniform(0.2, 0.5), "close")
+    m.hold(rng.uniform(*grasp), "grasp")
+
+
+def _carry_and_place(
+    m: Motion,
+    target: np.ndarray,
+    *,
+    held_below: float,
+    carry: tuple[float, float],
+    lower: tuple[float, float],
+    release_shape: hm.HandShape,
+    release: tuple[float, float],
+) -> None:
+    """Lift, carry to ``carry`` above ``target`` (plus ``held_below``, how far the object's
+    centre hangs below the TCP), settle, lower precisely to ``lower`` above it, place, open the
+    hand, hold ``release`` seconds, retreat upwards."""
+    rng = m.rng
+    m.reach(m.here + _UP * rng.uniform(0.08, 0.12), "lift")
+    m.reach(target + _UP * (held_below + rng.uniform(*carry)), "carry")
+    m.hold(rng.uniform(0.3, 0.6), "settle")
+    m.reach(target + _UP * (held_below + rng.uniform(*lower)), "lower", precise=True)
+    m.hold(rng.uniform(0.5, 0.9), "place")
+    m.gesture(release_shape, rng.uniform(0.2, 0.5), "release")
+    m.hold(rng.uniform(*release), "release")
+    m.reach(m.here + _UP * 0.08, "retreat")
+
+
 def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     """The TCP path and gestures of one demonstration of ``scene.task``."""
     task = scene.task
-    up = np.array([0.0, 0.0, 1.0])
+    up = _UP
     cls_open = "opening_stopped" if task == "screw" else "opening"
     cls_close = "closing_fixed" if task == "screw" else "closing"
     shp = {c: hm.GESTURE_SHAPES[SHAPE_OF[c]] for c in SHAPE_OF}
@@ -344,43 +394,56 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     if task == "suction":
         grasp = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
         clearance = rng.uniform(0.008, 0.016)
-        m.reach(grasp + up * rng.uniform(0.06, 0.10), "approach")
-        m.hold(rng.uniform(0.3, 0.7), "settle")
-        m.reach(grasp + up * clearance, "descend", precise=True)
-        m.hold(rng.uniform(0.5, 0.9), "settle")
-        m.gesture(shp[cls_close], rng.uniform(0.2, 0.5), "close")
-        m.hold(rng.uniform(0.5, 0.9), "grasp")
-        tile_below_tcp = clearance + obj[2]  # tile centre to cup centre while held
-        m.reach(m.here + up * rng.uniform(0.08, 0.12), "lift")
-        m.reach(tgt + up * (tile_below_tcp + rng.uniform(0.06, 0.10)), "carry")
-        m.hold(rng.uniform(0.3, 0.6), "settle")
-        m.reach(tgt + up * (tile_below_tcp + rng.uniform(0.0, 0.006)), "lower", precise=True)
-        m.hold(rng.uniform(0.5, 0.9), "place")
-        m.gesture(shp[cls_open], rng.uniform(0.2, 0.5), "release")
-        m.hold(rng.uniform(0.3, 0.6), "release")
-        m.reach(m.here + up * 0.08, "retreat")
+        _approach_and_grasp(
+            m,
+            grasp,
+            approach=(0.06, 0.10),
+            settle=(0.3, 0.7),
+            grasp_at=lambda: grasp + up * clearance,
+            settled=(0.5, 0.9),
+            close=shp[cls_close],
+            grasp=(0.5, 0.9),
+        )
+        _carry_and_place(
+            m,
+            tgt,
+            held_below=clearance + obj[2],  # tile centre to cup centre while held
+            carry=(0.06, 0.10),
+            lower=(0.0, 0.006),
+            release_shape=shp[cls_open],
+            release=(0.3, 0.6),
+        )
     elif task == "grip":
-        m.reach(obj + up * rng.uniform(0.08, 0.12), "approach")
-        m.hold(rng.uniform(0.3, 0.7), "settle")
-        m.reach(obj + up * rng.uniform(-0.003, 0.003), "descend", precise=True)
-        m.hold(rng.uniform(0.6, 1.0), "settle")
-        m.gesture(shp[cls_close], rng.uniform(0.2, 0.5), "close")
-        m.hold(rng.uniform(0.9, 1.3), "grasp")  # fingers close at 0.1 m/s
-        m.reach(m.here + up * rng.uniform(0.08, 0.12), "lift")
-        m.reach(tgt + up * rng.uniform(0.07, 0.10), "carry")
-        m.hold(rng.uniform(0.3, 0.6), "settle")
-        m.reach(tgt + up * rng.uniform(0.002, 0.006), "lower", precise=True)
-        m.hold(rng.uniform(0.5, 0.9), "place")
-        m.gesture(shp[cls_open], rng.uniform(0.2, 0.5), "release")
-        m.hold(rng.uniform(0.6, 1.0), "release")
-        m.reach(m.here + up * 0.08, "retreat")
+        _approach_and_grasp(
+            m,
+            obj,
+            approach=(0.08, 0.12),
+            settle=(0.3, 0.7),
+            grasp_at=lambda: obj + up * rng.uniform(-0.003, 0.003),
+            settled=(0.6, 1.0),
+            close=shp[cls_close],
+            grasp=(0.9, 1.3),  # fingers close at 0.1 m/s
+        )
+        _carry_and_place(
+            m,
+            tgt,
+            held_below=0.0,
+            carry=(0.07, 0.10),
+            lower=(0.002, 0.006),
+            release_shape=shp[cls_open],
+            release=(0.6, 1.0),
+        )
     elif task == "screw":
-        m.reach(obj + up * rng.uniform(0.07, 0.10), "approach")
-        m.hold(rng.uniform(0.4, 0.8), "settle")
-        m.reach(obj.copy(), "descend", precise=True)
-        m.hold(rng.uniform(0.7, 1.1), "settle")
-        m.gesture(shp[cls_close], rng.uniform(0.2, 0.5), "close")
-        m.hold(rng.uniform(0.9, 1.3), "grasp")
+        _approach_and_grasp(
+            m,
+            obj,
+            approach=(0.07, 0.10),
+            settle=(0.4, 0.8),
+            grasp_at=obj.copy,
+            settled=(0.7, 1.1),
+            close=shp[cls_close],
+            grasp=(0.9, 1.3),
+        )
         m.gesture(shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten")
         # keep tightening, following the nut down, until it sits at the target (seen in VR)
         seconds = rng.uniform(4.5, 5.5)

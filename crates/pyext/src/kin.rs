@@ -59,6 +59,11 @@ fn pose_to_array(p: &Pose) -> Array2<f64> {
     Array2::from_shape_fn((4, 4), |(r, c)| h[(r, c)])
 }
 
+/// Homogeneous matrices → one `(N, 4, 4)` array.
+fn stack_homogeneous(hs: &[Matrix4<f64>]) -> Array3<f64> {
+    Array3::from_shape_fn((hs.len(), 4, 4), |(i, r, c)| hs[i][(r, c)])
+}
+
 fn options(tol: Option<f64>) -> PyResult<IkOptions> {
     let mut o = IkOptions::default();
     if let Some(t) = tol {
@@ -123,18 +128,13 @@ fn kin_fk_batch<'py>(
     if a.iter().any(|x| !x.is_finite()) {
         return Err(PyValueError::new_err("q holds a NaN or an infinity"));
     }
-    let n = a.shape()[0];
-    let mut out = Array3::<f64>::zeros((n, 4, 4));
-    for i in 0..n {
-        let qi: Joints = std::array::from_fn(|k| a[[i, k]]);
-        let h = ur3_kin::fk(m, &qi).to_homogeneous();
-        for r in 0..4 {
-            for c in 0..4 {
-                out[[i, r, c]] = h[(r, c)];
-            }
-        }
-    }
-    Ok(out.into_pyarray(py))
+    let hs: Vec<Matrix4<f64>> = (0..a.shape()[0])
+        .map(|i| {
+            let qi: Joints = std::array::from_fn(|k| a[[i, k]]);
+            ur3_kin::fk(m, &qi).to_homogeneous()
+        })
+        .collect();
+    Ok(stack_homogeneous(&hs).into_pyarray(py))
 }
 
 /// Every DH frame (Base, after joint 1, …, tool0): (7, 4, 4).
@@ -146,17 +146,8 @@ fn kin_fk_all<'py>(
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
     let m = model(model_name)?;
     let q = joints_from(q.as_array(), "q")?;
-    let f = ur3_kin::fk_all(m, &q);
-    let mut out = Array3::<f64>::zeros((7, 4, 4));
-    for (i, p) in f.iter().enumerate() {
-        let h = p.to_homogeneous();
-        for r in 0..4 {
-            for c in 0..4 {
-                out[[i, r, c]] = h[(r, c)];
-            }
-        }
-    }
-    Ok(out.into_pyarray(py))
+    let hs: Vec<Matrix4<f64>> = ur3_kin::fk_all(m, &q).iter().map(Pose::to_homogeneous).collect();
+    Ok(stack_homogeneous(&hs).into_pyarray(py))
 }
 
 /// Geometric Jacobian at tool0 in Base: (6, 6), rows linear then angular.
@@ -350,24 +341,20 @@ fn kin_hand_to_target_batch<'py>(
             return Err(shape_err(name, &format!("({n}, 3)"), a.shape()));
         }
     }
-    let mut out = Array3::<f64>::zeros((n, 4, 4));
     let mut ok = Array1::<bool>::from_elem(n, false);
-    for k in 0..n {
-        let v = |a: &ArrayView2<'_, f64>| Vector3::new(a[[k, 0]], a[[k, 1]], a[[k, 2]]);
-        let h = match ur3_kin::hand_to_target(&v(&w), &v(&i), &v(&mp), hd, &cal) {
-            Ok(t) => {
-                ok[k] = true;
-                t.to_homogeneous()
+    let hs: Vec<Matrix4<f64>> = (0..n)
+        .map(|k| {
+            let v = |a: &ArrayView2<'_, f64>| Vector3::new(a[[k, 0]], a[[k, 1]], a[[k, 2]]);
+            match ur3_kin::hand_to_target(&v(&w), &v(&i), &v(&mp), hd, &cal) {
+                Ok(t) => {
+                    ok[k] = true;
+                    t.to_homogeneous()
+                }
+                Err(_) => Matrix4::identity(),
             }
-            Err(_) => Matrix4::identity(),
-        };
-        for r in 0..4 {
-            for c in 0..4 {
-                out[[k, r, c]] = h[(r, c)];
-            }
-        }
-    }
-    Ok((out.into_pyarray(py), ok.into_pyarray(py)))
+        })
+        .collect();
+    Ok((stack_homogeneous(&hs).into_pyarray(py), ok.into_pyarray(py)))
 }
 
 /// A point (3,) or points (N, 3) from `space` into the robot Base frame.
