@@ -39,6 +39,11 @@ fn joints_from(v: ArrayView1<'_, f64>, what: &str) -> PyResult<Joints> {
     Ok(std::array::from_fn(|i| v[i]))
 }
 
+/// The model and the joint vector `q` (6,) of a single-configuration call.
+fn model_and_q(model_name: &str, q: &PyReadonlyArray1<'_, f64>) -> PyResult<(&'static UrModel, Joints)> {
+    Ok((model(model_name)?, joints_from(q.as_array(), "q")?))
+}
+
 fn vec3_from(v: ArrayView1<'_, f64>, what: &str) -> PyResult<Vector3<f64>> {
     if v.len() != 3 {
         return Err(shape_err(what, "(3,)", v.shape()));
@@ -108,8 +113,7 @@ fn kin_fk<'py>(
     q: PyReadonlyArray1<'py, f64>,
     model_name: &str,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let m = model(model_name)?;
-    let q = joints_from(q.as_array(), "q")?;
+    let (m, q) = model_and_q(model_name, &q)?;
     Ok(pose_to_array(&ur3_kin::fk(m, &q)).into_pyarray(py))
 }
 
@@ -144,8 +148,7 @@ fn kin_fk_all<'py>(
     q: PyReadonlyArray1<'py, f64>,
     model_name: &str,
 ) -> PyResult<Bound<'py, PyArray3<f64>>> {
-    let m = model(model_name)?;
-    let q = joints_from(q.as_array(), "q")?;
+    let (m, q) = model_and_q(model_name, &q)?;
     let hs: Vec<Matrix4<f64>> = ur3_kin::fk_all(m, &q).iter().map(Pose::to_homogeneous).collect();
     Ok(stack_homogeneous(&hs).into_pyarray(py))
 }
@@ -157,8 +160,7 @@ fn kin_jacobian<'py>(
     q: PyReadonlyArray1<'py, f64>,
     model_name: &str,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let m = model(model_name)?;
-    let q = joints_from(q.as_array(), "q")?;
+    let (m, q) = model_and_q(model_name, &q)?;
     let j = ur3_kin::jacobian(m, &q);
     Ok(Array2::from_shape_fn((6, 6), |(r, c)| j[(r, c)]).into_pyarray(py))
 }
