@@ -224,24 +224,13 @@ class Teleop:
         return COMMANDS[g] if g is not None else (0.0, 0.0)
 
 
-def _native_hand_to_target(wrist, index_proximal, middle_proximal, handedness, calibration):
-    from mimicrete import kin
-
-    return kin.hand_to_target(
-        wrist, index_proximal, middle_proximal, handedness=handedness, calibration=calibration
-    )
-
-
 def bound_hand_to_target(calibration: Any) -> Any:
     """``mc.kin.hand_to_target`` with the calibration converted and checked once, not per frame
     (the per-frame path then only crosses into Rust). Same results as the public function."""
     from mimicrete import _native, kin
 
-    try:
-        mat, scale, space = kin._calib(calibration)
-        native = _native.kin_hand_to_target
-    except AttributeError:  # bindings without the split entry point: the public function
-        return _native_hand_to_target
+    mat, scale, space = kin._calib(calibration)
+    native = _native.kin_hand_to_target
 
     def h2t(wrist, index_proximal, middle_proximal, handedness, _calibration=None):
         return native(wrist, index_proximal, middle_proximal, handedness, mat, scale, space)
@@ -358,9 +347,9 @@ def convert_log(
         task,
         log.header["layout"],
         log.header["handedness"],
-        backend.calibration(calib),
+        calib,
         model,
-        backend.hand_to_target_for(backend.calibration(calib)),
+        backend.hand_to_target_for(calib),
     )
     env = backend.make_env(task)
     obs, _ = env.reset(seed=seed)
@@ -498,20 +487,9 @@ class Backend:
         return int(_native.sim_constants()["tasks"][SIM_TASK[task]]["obs_frame_dim"])
 
     @staticmethod
-    def calibration(calib: Any) -> Any:
-        """The log's :class:`mimicrete.kin.Calibration` → what ``kin.hand_to_target`` takes."""
-        return calib
-
-    @staticmethod
     def hand_to_target_for(calibration: Any) -> Any:
         """The hand → tool0 function for one calibration (bound once, used per frame)."""
         return bound_hand_to_target(calibration)
-
-    @staticmethod
-    def hand_to_target(wrist, index_proximal, middle_proximal, handedness, calibration):
-        return _native_hand_to_target(
-            wrist, index_proximal, middle_proximal, handedness, calibration
-        )
 
     @staticmethod
     def ik(target: np.ndarray, seed: np.ndarray) -> np.ndarray:

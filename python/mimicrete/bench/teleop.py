@@ -72,8 +72,8 @@ def run(task: str = "suction", episodes: int = 2) -> None:
                 task,
                 header["layout"],
                 header["handedness"],
-                backend.calibration(calib),
-                hand_to_target=backend.hand_to_target_for(backend.calibration(calib)),
+                calib,
+                hand_to_target=backend.hand_to_target_for(calib),
             )
             env = backend.make_env(task)
             obs, _ = env.reset(seed=header["episode_seed"])
@@ -91,13 +91,7 @@ def run(task: str = "suction", episodes: int = 2) -> None:
                 str(path),
             )
         else:
-            tele = cv.Teleop(
-                task,
-                header["layout"],
-                header["handedness"],
-                calib,
-                hand_to_target=cv.bound_hand_to_target(calib),
-            )
+            tele = cv.Teleop(task, header["layout"], header["handedness"], calib)
             dt, max_step, env, writer = 0.04, 0.04, None, None
         t_first = None
         step = 0
