@@ -70,8 +70,8 @@ TAG_PICKED = "Environment/Picked Rate"
 TAG_GAIL_LOSS = "Losses/GAIL Loss"
 
 # Agreement rule for the generated comparison text.
-RATE_TOL = 0.10  # absolute, or 2 seed standard deviations if larger
-LENGTH_TOL = 0.20  # relative to the paper's length, or 2 seed standard deviations if larger
+RATE_TOL = 0.10  # absolute, or 2 standard errors of the seed mean if larger
+LENGTH_TOL = 0.20  # relative to the paper's length, or 2 standard errors if larger
 
 WHY_MARK = "<!-- WHY: human-written explanation goes here -->"
 
@@ -303,7 +303,7 @@ def agrees(ours: tuple[float, float, int], paper: float, *, rate: bool) -> bool 
     m, sd, n = ours
     if n == 0:
         return None
-    tol = max(RATE_TOL if rate else LENGTH_TOL * paper, 2 * sd)
+    tol = max(RATE_TOL if rate else LENGTH_TOL * paper, 2 * sd / math.sqrt(n))  # 2 SE
     return abs(m - paper) <= tol
 
 
@@ -562,8 +562,9 @@ def render(
     L.append("## Where we agree and where we differ (generated from the numbers)")
     L.append("")
     L.append(
-        f"Rule: a rate agrees when |ours − paper| ≤ max({100 * RATE_TOL:.0f} points, 2 seed SDs); "
-        f"an episode length when within max({100 * LENGTH_TOL:.0f} % of the paper's, 2 seed SDs)."
+        f"Rule: a rate agrees when |ours − paper| ≤ max({100 * RATE_TOL:.0f} points, 2 standard "
+        "errors of our seed mean); an episode length when within max("
+        f"{100 * LENGTH_TOL:.0f} % of the paper's, 2 standard errors)."
     )
     L.append("")
     L.extend(comparison_lines(stats, budget) or ["- No evaluated runs yet."])
@@ -605,6 +606,12 @@ def render(
     L.append(
         "`Losses/GAIL Loss` averaged over the summaries logged in each run's last 100,000 steps, "
         "then mean ± SD over seeds."
+        + (
+            f" Our runs ({_steps(budget)} steps) are shorter than 100k: the window is the whole"
+            " run."
+            if budget and budget <= GAIL_WINDOW
+            else ""
+        )
     )
     L.append("")
     L.append("| Group | n | GAIL loss (ours) | GAIL loss (paper) |")
