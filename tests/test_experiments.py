@@ -161,7 +161,7 @@ def test_sweep_trial_dirs_crash_report(tmp_path):
 
 
 def test_interrupted_sweep_resumes(tmp_path):
-    """One CPU: trials run one after another. SIGINT the sweep (Ctrl-C) once group 1 is done and
+    """One CPU: trials run one after another. Interrupt the sweep (Ctrl-C) once group 1 is done and
     group 2 (bigger nets: slow enough to be cut) has a checkpoint; the same command then restores
     the Tune experiment, does not retrain group 1, and continues group 2 from its checkpoint
     (the trainer's --resume) to the full budget."""
@@ -186,7 +186,12 @@ def test_interrupted_sweep_resumes(tmp_path):
             done0 = experiments.read_trial(rd0).get("status") == "done"
             ck1 = list((rd1 / "checkpoints").glob("step_*.pt")) if rd1.exists() else []
             if done0 and ck1 and experiments.read_trial(rd1).get("status") == "running":
+                # Ctrl-C twice: Tune saves its state on the first, the second skips its
+                # graceful wait (which could let the running trial finish) and shuts Ray down
                 proc.send_signal(signal.SIGINT)
+                time.sleep(1.0)
+                if proc.poll() is None:
+                    proc.send_signal(signal.SIGINT)
                 interrupted = True
                 break
             time.sleep(0.05)
@@ -197,8 +202,7 @@ def test_interrupted_sweep_resumes(tmp_path):
     assert interrupted, "the sweep ended before it could be interrupted:\n" + log[-3000:]
     meta1 = experiments.read_trial(rd1)
     assert meta1["status"] != "done", log[-3000:]
-    sweep = json.loads((out / "sweep.json").read_text())
-    assert {(t["group"], t["status"]) for t in sweep["trials"]} == {(1, "done"), (2, "unfinished")}
+    assert proc.returncode == 130 and "interrupted" in log, log[-3000:]
     ck_before = max(int(p.stem.split("_")[1]) for p in (rd1 / "checkpoints").glob("step_*.pt"))
     assert 0 < ck_before < budget
     mtime0 = (rd0 / "scalars.csv").stat().st_mtime

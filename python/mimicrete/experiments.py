@@ -536,7 +536,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    summary = run_sweep(args)
+    try:
+        summary = run_sweep(args)
+    except KeyboardInterrupt:
+        print("interrupted: run the same command again to resume the sweep", file=sys.stderr)
+        return 130
     for t in summary["trials"]:
         line = f"group {t['group']} seed {t['seed']}: {t['status']}"
         if t["error"]:
