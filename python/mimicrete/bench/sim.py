@@ -89,6 +89,43 @@ def _pusher(seconds: float) -> float | None:
     return r
 
 
+def _call_overhead(seconds: float) -> None:
+    """Cost of crossing into Rust per batched call: a raw ``_native.SimVecEnv(1).step`` (one env's
+    physics plus conversion), the same through the gymnasium wrapper, and the Rust-side step of that
+    one env timed inside the same loop by stepping VecEnv(64) and dividing, so the difference is
+    the binding's share."""
+    from mimicrete import _native, envs
+
+    act1 = np.zeros((1, 7), np.float32)
+    raw = _native.SimVecEnv("TileSuction", 1, 0, 1)
+    raw.reset(0)
+    wrapped = envs.make_vec("TileSuction-v0", 1, seed=0, num_threads=1)
+    wrapped.reset(seed=0)
+    big = _native.SimVecEnv("TileSuction", 64, 0, 1)
+    big.reset(0)
+    act64 = np.zeros((64, 7), np.float32)
+
+    def per_call(fn, a) -> float:
+        k, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds / 3:
+            for _ in range(100):
+                fn(a)
+            k += 100
+        return (time.perf_counter() - t0) / k * 1e6
+
+    raw_us = per_call(raw.step, act1)
+    wrap_us = per_call(wrapped.step, act1)
+    per_env_us = per_call(big.step, act64) / 64
+    print("Per batched call (µs), one env, zero actions:")
+    print(f"   raw _native.SimVecEnv.step          : {raw_us:8.1f}")
+    print(f"   gymnasium VectorEnv wrapper         : {wrap_us:8.1f}")
+    print(f"   one env-step inside VecEnv(64)/64   : {per_env_us:8.1f}")
+    print(
+        f"   binding overhead per call (raw - one env-step): {raw_us - per_env_us:6.1f} µs;"
+        f" wrapper adds {wrap_us - raw_us:.1f} µs"
+    )
+
+
 def run() -> None:
     seconds = float(os.environ.get("MIMICRETE_BENCH_SIM_SECONDS", "3"))
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
@@ -116,4 +153,5 @@ def run() -> None:
         pm = float(np.median(peer))
         print(f"   {peer_name}: {pm:>10.0f}")
         print(f"   ratio (ours, 2 threads / Pusher-v5 sync16): {o2 / pm:.1f}x   (goal >= 15x)")
+    _call_overhead(seconds)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
