@@ -8,7 +8,7 @@ STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
 RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
-.PHONY: help setup native demos train test test-rs test-py bench lint fmt experiments clean
+.PHONY: help setup native demos experiments train test test-rs test-py bench lint fmt experiments clean
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
@@ -45,7 +45,17 @@ train: $(DEMOS)/.done ## the main job end to end: synthetic hands -> demos -> tr
 test-rs: ## Rust tests of every crate
 	cargo test --workspace --release --locked
 
-test-py: $(NATIVE_STAMP) ## Python tests
+EXP_STAMP := $(VENV)/.experiments.stamp
+EXPERIMENTS_ARGS ?=
+
+$(EXP_STAMP): $(STAMP) requirements/experiments.txt
+	$(PIP) install --quiet -r requirements/experiments.txt -c requirements/constraints.txt
+	touch $@
+
+experiments: $(NATIVE_STAMP) $(EXP_STAMP) ## Table 3 x 3 seeds on Ray Tune (resumable), then docs/RESULTS.md; flags via EXPERIMENTS_ARGS
+	$(PY) -m mimicrete.experiments $(EXPERIMENTS_ARGS)
+
+test-py: $(NATIVE_STAMP) $(EXP_STAMP) ## Python tests
 	$(PY) -m pytest tests -q
 
 test: test-rs test-py ## all tests (what CI runs)
