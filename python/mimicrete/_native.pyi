@@ -1,0 +1,432 @@
+"""Type stubs for ``mimicrete._native``, the pyo3 module built from ``crates/pyext``.
+
+Written by hand from ``crates/pyext/src/{errors,kin,sim,demo}.rs`` and checked against the built
+module by ``tests/test_stubs.py`` (``python -m mypy.stubtest mimicrete._native``).
+
+Array arguments typed ``NDArray[np.float64]`` must really be float64 numpy arrays (the bindings
+borrow them without conversion); arguments typed ``ArrayLike`` are converted (to float32 or bool).
+Units: metres, radians, seconds; quaternions are ``[x, y, z, w]``.
+"""
+
+import os
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Final, Literal, TypedDict, final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+_StrPath = str | os.PathLike[str]
+_F64 = NDArray[np.float64]
+_F32 = NDArray[np.float32]
+_Bool = NDArray[np.bool_]
+
+__version__: str
+
+__all__ = [
+    "__version__",
+    "MimicreteError",
+    "IkError",
+    "SimError",
+    "LogFormatError",
+    "kin_models",
+    "kin_dh",
+    "kin_fk",
+    "kin_fk_batch",
+    "kin_fk_all",
+    "kin_jacobian",
+    "kin_ik",
+    "kin_ik_gn",
+    "kin_ik_all",
+    "kin_ik_batch",
+    "kin_hand_to_target",
+    "kin_hand_to_target_batch",
+    "kin_points_to_base",
+    "kin_default_calibration",
+    "kin_urdf",
+    "SimEnv",
+    "SimVecEnv",
+    "SimExpert",
+    "sim_constants",
+    "DemoWriter",
+    "demo_parse_handlog",
+    "demo_parse_handlog_str",
+    "demo_write_handlog",
+    "demo_read",
+    "demo_load",
+    "demo_salvage",
+    "demo_salvage_to",
+    "DEMO_FORMAT_VERSION",
+    "HANDLOG_VERSION",
+]
+
+# ---------------------------------------------------------------------------------------------
+# Exceptions (errors.rs)
+
+class MimicreteError(Exception):
+    """Base class of every mimicrete error."""
+
+class IkError(MimicreteError):
+    """Inverse kinematics found no solution."""
+
+class SimError(MimicreteError):
+    """The simulator refused an input or state."""
+
+class LogFormatError(MimicreteError):
+    """A hand log or demo file is malformed (the message names file, line and reason)."""
+
+# ---------------------------------------------------------------------------------------------
+# Kinematics (kin.rs). `model_name` is one of `kin_models()`; poses are (4, 4) homogeneous
+# matrices in the robot Base frame.
+
+def kin_models() -> list[str]:
+    """Names of the supported models."""
+
+def kin_dh(model_name: str) -> dict[str, float]:
+    """DH parameters: d1, a2, a3, d4, d5, d6 (m) and reach (m)."""
+
+def kin_fk(q: _F64, model_name: str) -> _F64:
+    """FK: q (6,) rad → tool0 in Base (4, 4)."""
+
+def kin_fk_batch(q: _F64, model_name: str) -> _F64:
+    """FK of many configurations: q (N, 6) → (N, 4, 4)."""
+
+def kin_fk_all(q: _F64, model_name: str) -> _F64:
+    """Every DH frame (Base, after joint 1, …, tool0): (7, 4, 4)."""
+
+def kin_jacobian(q: _F64, model_name: str) -> _F64:
+    """Geometric Jacobian at tool0 in Base: (6, 6), rows linear then angular."""
+
+def kin_ik(t: _F64, seed: _F64 | None, model_name: str, tol: float | None = None) -> _F64:
+    """IK nearest the seed: T (4, 4), seed (6,) or None → q (6,). Raises IkError / ValueError."""
+
+def kin_ik_gn(
+    t: _F64, seed: _F64, model_name: str, tol: float | None = None, max_iters: int = 100
+) -> _F64:
+    """Gauss-Newton alone from a seed: T (4, 4), seed (6,) → q (6,)."""
+
+def kin_ik_all(t: _F64, model_name: str, q6_ref: float = 0.0) -> _F64:
+    """Every closed-form solution: T (4, 4) → (k, 6), k ≤ 8 (k = 0 when unreachable)."""
+
+def kin_ik_batch(
+    ts: _F64, seeds: _F64 | None, model_name: str, threads: int = 0, tol: float | None = None
+) -> tuple[_F64, _Bool]:
+    """Batched IK: Ts (N, 4, 4), seeds (N, 6) or None → (q (N, 6), ok (N,)); failed rows NaN."""
+
+def kin_hand_to_target(
+    wrist: _F64,
+    index_proximal: _F64,
+    middle_proximal: _F64,
+    handedness: str,
+    base_from_space: _F64 | None,
+    scale: float,
+    space: str,
+) -> _F64:
+    """Hand joints (3,) each, in `space` → tool0 target (4, 4) in Base."""
+
+def kin_hand_to_target_batch(
+    wrist: _F64,
+    index_proximal: _F64,
+    middle_proximal: _F64,
+    handedness: str,
+    base_from_space: _F64 | None,
+    scale: float,
+    space: str,
+) -> tuple[_F64, _Bool]:
+    """(N, 3) each → (T (N, 4, 4), ok (N,)); degenerate frames give ok False and identity T."""
+
+def kin_points_to_base(
+    points: _F64, base_from_space: _F64 | None, scale: float, space: str
+) -> _F64:
+    """Points (N, 3) in `space` → (N, 3) in the robot Base frame."""
+
+def kin_default_calibration() -> tuple[_F64, float, str]:
+    """The default calibration: (base_from_space (4, 4), scale, space name)."""
+
+def kin_urdf(model_name: str) -> str:
+    """The URDF text of a model, written from its DH table."""
+
+# ---------------------------------------------------------------------------------------------
+# Simulator (sim.rs). Tasks: "TileSuction" | "BlockGrip" | "Screw" (or "suction" | "grip" |
+# "screw"). Observations and actions are float32.
+
+class _PoseRec(TypedDict):
+    t: list[float]
+    q: list[float]
+
+class _Snapshot(TypedDict):
+    task: str
+    q: list[float]
+    tool0: _PoseRec
+    tcp: _PoseRec
+    object: _PoseRec
+    target: _PoseRec
+    suction_on: bool
+    held: bool
+    gripper_width: float
+    spin: int
+    spin_angle: float
+    step: int
+    episode_seed: int
+    picked: bool
+    done: bool
+    links: list[_PoseRec]
+
+class _StepInfo(TypedDict):
+    picked: bool
+    held: bool
+    installed: bool
+    fell: bool
+    step: int
+
+class _TaskDims(TypedDict):
+    obs_frame_dim: int
+    obs_dim: int
+    act_dim: int
+
+class _SimConstants(TypedDict):
+    FRAME_STACK: int
+    MAX_EPISODE_STEPS: int
+    CONTROL_DT: float
+    MAX_JOINT_STEP: float
+    PHYSICS_SUBSTEPS: int
+    PICK_DIST: float
+    INSTALL_DIST: float
+    HOME_Q: list[float]
+    tasks: dict[str, _TaskDims]
+
+@final
+class SimEnv:
+    """One simulated environment: ``SimEnv(task, seed=0)``."""
+
+    def __new__(cls, task: str, seed: int = 0) -> SimEnv: ...
+    @property
+    def task(self) -> str: ...
+    @property
+    def obs_dim(self) -> int: ...
+    @property
+    def obs_frame_dim(self) -> int: ...
+    @property
+    def act_dim(self) -> int: ...
+    def reset(self, seed: int | None = None) -> _F32:
+        """Start an episode (None: next seed from the env's RNG) → obs (obs_dim,)."""
+    def step(self, action: ArrayLike) -> tuple[_F32, float, bool, bool, _StepInfo]:
+        """action (act_dim,) → (obs, reward, terminated, truncated, info)."""
+    def observation(self) -> _F32:
+        """The current stacked observation (obs_dim,)."""
+    def snapshot(self) -> _Snapshot:
+        """State for demo recording (poses: t metres, q quaternion [x, y, z, w], Base frame)."""
+    def scene(self) -> list[dict[str, Any]]:
+        """Scene items: name, frame, kind (box | cylinder | capsule) and its sizes, translation,
+        rotation [x, y, z, w], rgba."""
+    def set_joints(self, q: _F64) -> None:
+        """Test/tool API: teleport the arm to joint angles q (6,) rad."""
+    def set_object_pose(
+        self,
+        t: tuple[float, float, float] | list[float],
+        q: tuple[float, float, float, float] | list[float],
+    ) -> None:
+        """Test/tool API: teleport the object to translation t (3,) and quaternion q (4,)."""
+
+@final
+class SimVecEnv:
+    """N environments stepped in one call with the interpreter lock released, same-step
+    auto-reset: ``SimVecEnv(task, num_envs, seed=0, num_threads=2)``; env i gets seed + i."""
+
+    def __new__(
+        cls, task: str, num_envs: int, seed: int = 0, num_threads: int = 2
+    ) -> SimVecEnv: ...
+    @property
+    def task(self) -> str: ...
+    @property
+    def num_envs(self) -> int: ...
+    @property
+    def num_threads(self) -> int: ...
+    @property
+    def obs_dim(self) -> int: ...
+    @property
+    def act_dim(self) -> int: ...
+    def reset(self, seed: int | None = None) -> _F32:
+        """Reset all envs → obs (num_envs, obs_dim)."""
+    def reset_mask(self, mask: ArrayLike) -> _F32:
+        """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
+    def step(
+        self, actions: ArrayLike
+    ) -> tuple[_F32, _F32, _Bool, _Bool, _F32, _Bool, _Bool, _Bool, _Bool]:
+        """actions (num_envs, act_dim) → (obs, reward, terminated, truncated, final_obs,
+        has_final, picked, installed, fell); obs (num_envs, obs_dim), the rest (num_envs,)
+        except final_obs (num_envs, obs_dim)."""
+    def snapshot(self, i: int) -> _Snapshot:
+        """Snapshot of env i (see ``SimEnv.snapshot``)."""
+
+@final
+class SimExpert:
+    """The scripted expert for one env: ``SimExpert(task)``; ``reset()`` at each episode start."""
+
+    def __new__(cls, task: str) -> SimExpert: ...
+    def reset(self) -> None: ...
+    def act(self, env: SimEnv) -> _F32:
+        """Action (act_dim,) for env's current state."""
+
+def sim_constants() -> _SimConstants:
+    """Simulator constants and per-task dims."""
+
+# ---------------------------------------------------------------------------------------------
+# Demonstrations and hand logs (demo.rs)
+
+DEMO_FORMAT_VERSION: Final[int]
+HANDLOG_VERSION: Final[int]
+
+class _ParseReport(TypedDict):
+    frame_lines: int
+    kept: int
+    untracked_skipped: int
+    invalid_skipped: int
+    skipped: list[tuple[int, str]]
+
+class _HandLog(TypedDict):
+    header: dict[str, Any]
+    t: _F64
+    tracked: _Bool
+    joints: _F64
+    orientations: _F64 | None
+    report: _ParseReport
+
+class _WriteStats(TypedDict):
+    path: Path
+    steps: int
+    messages: int
+    chunks: int
+    bytes: int
+
+class _DemoEpisode(TypedDict):
+    obs: _F32
+    actions: _F32
+    rewards: _F32
+    terminated: _Bool
+    truncated: _Bool
+    t: _F64
+    meta: dict[str, str]
+
+class _DemoDataset(TypedDict):
+    obs: _F32
+    actions: _F32
+    rewards: _F32
+    terminated: _Bool
+    truncated: _Bool
+    episode: NDArray[np.int64]
+    files: list[str]
+    metas: list[dict[str, str]]
+
+class _SalvagedMessage(TypedDict):
+    topic: str
+    schema_name: str
+    log_time: int
+    sequence: int
+    data: bytes
+
+class _SalvageReport(TypedDict):
+    bytes_total: int
+    bytes_used: int
+    chunks_ok: int
+    chunks_lost: int
+    messages: int
+    metadata: int
+    attachments: int
+    complete: bool
+    stopped_because: str | None
+
+def demo_parse_handlog(path: _StrPath, mode: str = "strict") -> _HandLog:
+    """Parse a hand-log file (mode "strict" | "lenient").
+
+    Raises LogFormatError("file:line: reason").
+    """
+
+def demo_parse_handlog_str(text: str, name: str = "<string>", mode: str = "strict") -> _HandLog:
+    """Parse hand-log text; `name` is the file name used in error messages."""
+
+def demo_write_handlog(
+    path: _StrPath,
+    header: dict[str, Any],
+    t: _F64,
+    tracked: _Bool,
+    joints: _F64,
+    orientations: _F64 | None = None,
+) -> None:
+    """Write a hand log atomically.
+
+    t (T,), tracked (T,), joints (T, J, 3) m, orientations (T, J, 4) or None.
+    """
+
+@final
+class DemoWriter:
+    """Records one episode into an MCAP demo (``path + ".partial"`` until ``finish``).
+
+    ``DemoWriter(path, meta, chunk_size=65536, flush_every_steps=50)``. A context manager: a normal
+    exit finishes with success=False if ``finish`` was not called; an exception abandons the file.
+    """
+
+    def __new__(
+        cls,
+        path: _StrPath,
+        meta: dict[str, Any],
+        chunk_size: int = 65536,
+        flush_every_steps: int = 50,
+    ) -> DemoWriter: ...
+    def write_step(
+        self,
+        step: int,
+        t: float,
+        obs: _F32,
+        action: _F32,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        gesture: str,
+        joints: tuple[float, float, float, float, float, float] | list[float] | _F64,
+        ee_pose: list[float] | _F64,
+        tile_pose: list[float] | _F64,
+        events: list[str] | None = None,
+        scene: list[dict[str, Any]] | None = None,
+    ) -> None:
+        """Record one step; poses are [x, y, z, qx, qy, qz, qw] or (4, 4)."""
+    def write_hand_frame(
+        self,
+        t: float,
+        joints: _F64,
+        tracked: bool = True,
+        hand_t: float | None = None,
+        orientations: _F64 | None = None,
+    ) -> None:
+        """Record a raw hand frame: joints (J, 3) m, orientations (J, 4) or None."""
+    def write_event(self, t: float, name: str, properties: dict[str, Any] | None = None) -> None:
+        """Record an event ("pick", "install", "fall", ...) at episode time t."""
+    @property
+    def steps(self) -> int:
+        """Steps written so far."""
+    @property
+    def path(self) -> Path:
+        """The final path."""
+    def finish(self, success: bool, extra: dict[str, Any] | None = None) -> _WriteStats:
+        """End the episode and rename the file into place."""
+    def abandon(self) -> None:
+        """Close without finishing: the file stays as path + ".partial" (salvageable)."""
+    def __enter__(self) -> DemoWriter: ...
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        _exc: BaseException | None,
+        _tb: TracebackType | None,
+    ) -> Literal[False]: ...
+
+def demo_read(path: _StrPath) -> _DemoEpisode:
+    """Read one demo: obs (T, obs_dim), actions (T, act_dim); rewards, flags and t (T,)."""
+
+def demo_load(path: _StrPath) -> _DemoDataset:
+    """Read a demo file or every *.mcap of a directory (sorted by name), concatenated."""
+
+def demo_salvage(path: _StrPath) -> tuple[list[_SalvagedMessage], _SalvageReport]:
+    """Every complete message of a (possibly cut) demo, and the report."""
+
+def demo_salvage_to(path_in: _StrPath, path_out: _StrPath) -> _SalvageReport:
+    """Rewrite what can be recovered from path_in as a valid MCAP file path_out."""
