@@ -234,6 +234,13 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
         replayed = cv.replay(task, res.episode_seed, d.actions[sl], backend)
         np.testing.assert_array_equal(np.array(replayed, dtype=np.float32), d.rewards[sl])
         assert d.terminated[sl][-1] and sum(replayed) == 2.0  # pick/grip +1, install +1
+        # each record pairs an action with the observation it was chosen from (obs_t, a_t):
+        # BC and GAIL learn from these pairs, so a one-step shift would teach the wrong mapping
+        env = backend.make_env(task)
+        obs, _ = env.reset(res.episode_seed)
+        for o_rec, a in zip(d.obs[sl], d.actions[sl], strict=True):
+            np.testing.assert_array_equal(o_rec, np.asarray(obs, dtype=np.float32))
+            obs = env.step(a)[0]
 
 
 @sim

@@ -399,6 +399,9 @@ def convert_log(
             a[6] = cmd
             if act_dim == 8:
                 a[7] = spin
+            # The step record pairs an action with the observation it was chosen from (obs_t,
+            # a_t), as BC and GAIL need it; the observation after the step is the next record's.
+            obs_before = obs
             obs, reward, terminated, truncated, info = env.step(a)
             q = np.asarray(obs[-fd:][:6], dtype=np.float64)
             rewards.append(float(reward))
@@ -417,7 +420,7 @@ def convert_log(
                 sink.step(
                     step,
                     t_ctrl - t0,
-                    obs,
+                    obs_before,
                     a,
                     float(reward),
                     bool(terminated),
