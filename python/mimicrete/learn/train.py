@@ -685,7 +685,8 @@ def train(
 # CLI
 # ----------------------------------------------------------------------------------------------
 
-DEFAULT_GROUP = "group3.yaml"  # the paper's best row of Table 5
+DEFAULT_GROUP = "group4.yaml"  # Table 5's best pair is groups 3 and 4; 4 is the one that installs
+# with the hand-derived demos here (README: group 3 picks but does not carry within 1M steps)
 DEFAULT_MAX_STEPS = 1_000_000  # the issue's budget when no config is named
 DEFAULT_DEMOS = "demos/suction"
 
