@@ -56,7 +56,7 @@ experiments: $(NATIVE_STAMP) $(EXP_STAMP) ## Table 3 x 3 seeds on Ray Tune (resu
 	$(PY) -m mimicrete.experiments $(EXPERIMENTS_ARGS)
 
 test-py: $(NATIVE_STAMP) $(EXP_STAMP) ## Python tests
-	$(PY) -m pytest tests -q
+	$(PY) -m pytest tests -q --runslow
 
 test: test-rs test-py ## all tests (what CI runs)
 
