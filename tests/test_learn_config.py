@@ -50,6 +50,8 @@ def test_group_matches_tables_3_and_4(group):
     if b.behavioral_cloning is not None:  # Table 4, BC column
         assert b.behavioral_cloning.steps == 100_000
         assert b.behavioral_cloning.pretrain_steps == 2000  # extension (paper §4: BC pre-trains)
+    # extension: the demonstrator's pauses are left out wherever demos are read
+    assert b.demo_drop_idle == (0.1 if demos else 0.0)
     assert h.buffer_size % cfg.env_settings.num_envs == 0
 
 
@@ -94,3 +96,11 @@ def test_bad_configs_are_rejected(mutate, message):
     mutate(data)
     with pytest.raises(config.ConfigError, match=message):
         config.from_dict(data)
+
+
+def test_demo_drop_idle_range():
+    cfg = config.load(CONFIGS / "group4.yaml")
+    assert config.with_overrides(cfg, ["behavior.demo_drop_idle=0"]).behavior.demo_drop_idle == 0
+    for bad in ("-0.1", "1.0"):
+        with pytest.raises(config.ConfigError, match="demo_drop_idle"):
+            config.with_overrides(cfg, [f"behavior.demo_drop_idle={bad}"])

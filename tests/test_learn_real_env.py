@@ -54,6 +54,12 @@ def test_short_run_on_tile_suction(tmp_path):
     run = tmp_path / "run"
     tr = tr_mod.train(cfg, run, demos=str(tmp_path / "d.npz"), progress=False)
     assert tr.step == 2048 and tr.signals == ["extrinsic", "gail"]
+    # group 4 leaves the expert's pauses out of BC and GAIL (demo_drop_idle 0.1), and says so
+    info = json.loads((run / "run.json").read_text())
+    idle = tr_mod.idle_steps(demos["actions"], demos["episode"], 0.1)
+    assert info["demo_steps_loaded"] == len(demos["actions"])
+    assert info["demo_steps_idle_dropped"] == idle.sum() == len(demos["actions"]) - len(tr.bc.obs)
+    assert tr.gail is not None and len(tr.gail.expert) == len(tr.bc.obs)
     res = evaluate.evaluate_run(run, 8)
     assert res["episodes"] == 8 and 1 <= res["mean_episode_length"] <= 750
     assert json.loads((run / "eval.json").read_text())["env_id"] == "TileSuction-v0"

@@ -7,6 +7,9 @@ is strict too). mimicrete's own additions are marked "extension" below:
 
 - ``behaviors.<name>.demo_episodes``: how many demonstration episodes to use (Table 3: 60/20/10);
   the first N episodes (sorted by file name) of ``demo_path`` are loaded.
+- ``behaviors.<name>.demo_drop_idle``: drop the demo steps in which the demonstrator was idle
+  (every joint motion below this fraction of the env's joint step, end-effector command 0 or
+  repeated); 0 keeps every step (ML-Agents). See ``train.drop_idle_steps``.
 - ``reward_signals.gail.survivor_bias``: ``"none"`` (ML-Agents exactly) or ``"bootstrap"``
   (the GAIL signal bootstraps through terminal states; see ``gail.py``).
 - ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads).
@@ -97,6 +100,7 @@ class BehaviorConfig:
     checkpoint_interval: int = 500_000
     keep_checkpoints: int = 5
     demo_episodes: int | None = None  # extension
+    demo_drop_idle: float = 0.0  # extension: no-op filtering of the demos (0 = keep all)
 
 
 @dataclass
@@ -218,6 +222,8 @@ def _validate(cfg: TrainerConfig) -> None:
             raise ConfigError("reward_signals.gail.use_vail: VAIL is not implemented")
         if g.survivor_bias not in ("none", "bootstrap"):
             raise ConfigError("reward_signals.gail.survivor_bias: 'none' or 'bootstrap'")
+    if not 0.0 <= b.demo_drop_idle < 1.0:
+        raise ConfigError(f"demo_drop_idle: a fraction in [0, 1), got {b.demo_drop_idle}")
     if cfg.env_settings.num_envs <= 0 or h.buffer_size % cfg.env_settings.num_envs:
         raise ConfigError("env_settings.num_envs must divide hyperparameters.buffer_size")
 

@@ -122,6 +122,34 @@ def load_demos(path: str, episodes: int | None) -> dict[str, np.ndarray]:
 DEMO_KEYS = ("obs", "actions", "rewards", "terminated", "truncated", "episode")
 
 
+def idle_steps(actions: np.ndarray, episode: np.ndarray, threshold: float) -> np.ndarray:
+    """Mask of the demo steps in which the demonstrator was idle: every joint motion
+    ``|a[0:6]|`` below ``threshold`` (a fraction of the env's joint step) and every command after
+    the joints (end effector, spin) either 0 ("fixed") or the same as the previous step's in the
+    episode, so it changes nothing. A human pauses: after the pick, before the place, while
+    deciding. Those steps teach a policy that standing still is what the expert does in a state it
+    cannot tell from the moment before moving on, and a five-frame observation cannot tell how
+    long a pause has lasted; the policy then freezes there. ``threshold <= 0`` marks nothing."""
+    a = np.asarray(actions)
+    idle = np.zeros(len(a), bool)
+    if threshold <= 0 or len(a) == 0:
+        return idle
+    ep = np.asarray(episode)
+    cmd = a[:, N_CONT:]
+    prev = np.vstack([np.full((1, cmd.shape[1]), np.nan), cmd[:-1]])
+    prev[np.r_[True, ep[1:] != ep[:-1]]] = np.nan  # no previous command at an episode's start
+    no_change = ((cmd == 0) | (cmd == prev)).all(axis=1)
+    return (np.abs(a[:, :N_CONT]).max(axis=1) < threshold) & no_change
+
+
+def drop_idle_steps(d: dict[str, np.ndarray], threshold: float) -> dict[str, np.ndarray]:
+    """``d`` without its :func:`idle_steps` (behaviours.<name>.demo_drop_idle, an extension).
+    Every kept step keeps the observation it was recorded with, so BC's (obs, action) pairs and
+    GAIL's expert states stay true; only the pauses leave."""
+    keep = ~idle_steps(d["actions"], d["episode"], threshold)
+    return {k: np.asarray(v)[keep] for k, v in d.items()}
+
+
 def _demo_arrays(loaded: Any) -> dict[str, np.ndarray]:
     """Accept a dict, a NamedTuple, a dataclass / object with attributes, or a plain tuple in the
     order (obs, actions, rewards, terminated, truncated, episode)."""
@@ -204,12 +232,15 @@ class Trainer:
         )
 
         self.demos = None
+        self.demo_steps_loaded = 0
         need_demos = rs.gail is not None or self.b.behavioral_cloning is not None
         if need_demos:
             path = demos_override or cfg.demo_path
             if not path:
                 raise config_mod.ConfigError("gail/behavioral_cloning need a demo_path or --demos")
             self.demos = load_demos(path, self.b.demo_episodes)
+            self.demo_steps_loaded = len(self.demos["actions"])
+            self.demos = drop_idle_steps(self.demos, self.b.demo_drop_idle)
         self.gail = None
         if rs.gail is not None:
             assert self.demos is not None
@@ -614,10 +645,12 @@ def train(
     run_dir.mkdir(parents=True, exist_ok=True)
     total = int(max_steps if max_steps is not None else cfg.behavior.max_steps)
     config_mod.save(cfg, run_dir / "resolved_config.yaml")
-    (run_dir / "run.json").write_text(
-        json.dumps({"max_steps": total, "demos": demos or cfg.demo_path}, indent=1)
-    )
     tr = Trainer(cfg, run_dir, demos, total)
+    info: dict[str, Any] = {"max_steps": total, "demos": demos or cfg.demo_path}
+    if tr.demos is not None:
+        info["demo_steps_loaded"] = tr.demo_steps_loaded
+        info["demo_steps_idle_dropped"] = tr.demo_steps_loaded - len(tr.demos["actions"])
+    (run_dir / "run.json").write_text(json.dumps(info, indent=1))
     if resume:
         ck = latest_checkpoint(run_dir)
         if ck is None:
