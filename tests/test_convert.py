@@ -168,6 +168,24 @@ def test_teleop_targets_follow_the_plan_and_gestures_command(task, handedness, s
         assert (1.0, 1.0) in cmds and (1.0, -1.0) not in cmds
 
 
+@pytest.mark.parametrize(
+    ("task", "state", "cmd", "sent"),
+    [
+        ("suction", -1.0, 1.0, 1.0),  # off -> on: sent
+        ("suction", 1.0, 1.0, 0.0),  # already on: fixed
+        ("suction", 1.0, -1.0, -1.0),  # on -> drop: sent
+        ("suction", -1.0, -1.0, 0.0),  # already off: fixed
+        ("suction", 1.0, 0.0, 0.0),
+        ("grip", 0.03, 1.0, 1.0),  # the gripper closes only while commanded
+        ("grip", 0.085, -1.0, -1.0),
+    ],
+)
+def test_recorded_command_switches_latching_suction_only(task, state, cmd, sent):
+    frame = np.zeros(16)
+    frame[6] = state
+    assert cv.recorded_command(task, cmd, frame) == sent
+
+
 def test_teleop_holds_target_through_untracked_frames(scene_fn):
     scene = scene_fn("suction", 1)
     ep = sy.synth_episode(scene, 0)
@@ -240,7 +258,14 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
         obs, _ = env.reset(res.episode_seed)
         for o_rec, a in zip(d.obs[sl], d.actions[sl], strict=True):
             np.testing.assert_array_equal(o_rec, np.asarray(obs, dtype=np.float32))
+            before = np.asarray(obs)[-len(obs) // 5 :][6]
             obs = env.step(a)[0]
+            if task == "suction":  # a suction command is recorded only where it switches
+                after = np.asarray(obs)[-len(obs) // 5 :][6]
+                assert (a[6] != 0) == (before != after), (a[6], before, after)
+        if task == "suction":  # the demonstrator switches the suction on once and never drops
+            assert d.actions[sl][:, 6].tolist().count(1.0) == 1
+            assert -1.0 not in d.actions[sl][:, 6]
 
 
 @sim

@@ -12,7 +12,8 @@
 4. inverse kinematics warm-started from the previous solution, unwrapped next to the current
    joints (no 2π jumps);
 5. the action the environment accepts: ``clip((q_ik − q) / MAX_JOINT_STEP, −1, 1)`` for the
-   joints, the smoothed gesture's command ∈ {−1, 0, +1} (and the spin for screwing);
+   joints, the smoothed gesture's command ∈ {−1, 0, +1} (and the spin for screwing); the
+   suction, which latches, gets a command only when it switches (:func:`recorded_command`);
 6. the simulator steps at its control rate (the 90 Hz tracking stream is resampled: each env
    step uses the newest filtered hand state at its start time);
 7. one MCAP demo per episode.
@@ -224,6 +225,23 @@ class Teleop:
         return COMMANDS[g] if g is not None else (0.0, 0.0)
 
 
+def recorded_command(task: str, cmd: float, frame: np.ndarray) -> float:
+    """The end-effector command a demo step records and the env receives, given the newest
+    observation frame. tile-sim's suction latches (on stays on until a drop), so a command that
+    repeats the suction's state (``frame[6]``: +1 on, −1 off) is sent as "fixed" (0): the robot
+    does exactly the same, and the demo marks the two decisions (switch on, drop) instead of
+    labelling every approach step "drop" and every carry step "on". With level labels a policy
+    keeps some probability of "drop" in carry states, which look like approach states, and every
+    such sample loses the tile. The gripper moves only while commanded, so its commands (and the
+    screw's spin) stay as gestured."""
+    if task != "suction":
+        return cmd
+    on = frame[6] > 0
+    if (cmd >= 0.5 and on) or (cmd <= -0.5 and not on):
+        return 0.0
+    return cmd
+
+
 def bound_hand_to_target(calibration: Any) -> Any:
     """``mc.kin.hand_to_target`` with the calibration converted and checked once, not per frame
     (the per-frame path then only crosses into Rust). Same results as the public function."""
@@ -396,7 +414,7 @@ def convert_log(
                     counts.unreachable += 1
                 a[:6] = joint_action(q_ik, q, max_step)
             cmd, spin = tele.command()
-            a[6] = cmd
+            a[6] = recorded_command(task, cmd, obs[-fd:])
             if act_dim == 8:
                 a[7] = spin
             # The step record pairs an action with the observation it was chosen from (obs_t,
