@@ -508,3 +508,42 @@ def test_run_dir_keeps_its_budget(tmp_path):
         )
     assert not (rd / "scalars.csv").exists()
     assert experiments.read_trial(rd)["status"] == "running"
+
+
+def _summary(name, groups, trials, wall, steps=1_000_000):
+    return {
+        "name": name,
+        "groups": groups,
+        "seeds": [0, 1],
+        "max_steps": steps,
+        "sweep_wall_clock_s": wall,
+        "trials": [{"group": g, "seed": s, "status": st} for g, s, st in trials],
+        "command": f"python -m mimicrete.experiments --name {name}",
+    }
+
+
+def test_sweeps_into_one_out_dir_add_up():
+    first = _summary("a", [3, 4], [(3, 0, "done"), (4, 0, "error"), (4, 1, "done")], 100.0)
+    second = _summary("b", [1, 4], [(1, 0, "done"), (4, 0, "done")], 50.0)
+    m = experiments.merge_summaries(first, second)
+    assert [(t["group"], t["seed"], t["status"]) for t in m["trials"]] == [
+        (1, 0, "done"),
+        (3, 0, "done"),
+        (4, 0, "done"),  # trained again by the later sweep: its status wins
+        (4, 1, "done"),
+    ]
+    assert m["groups"] == [1, 3, 4] and m["errors"] == 0 and m["max_steps"] == 1_000_000
+    assert m["sweep_wall_clock_s"] == 150.0 and m["name"] == "a + b"
+    assert [p["name"] for p in m["sweeps"]] == ["a", "b"]
+    # a third sweep, then a resume of the second: the second's part is replaced, not added
+    third = _summary("c", [2], [(2, 0, "done")], 10.0, steps=500_000)
+    m3 = experiments.merge_summaries(m, third)
+    assert m3["max_steps"] is None  # mixed budgets: the report reads each run's own
+    again = experiments.merge_summaries(m3, _summary("b", [1], [(1, 0, "error")], 70.0))
+    assert [p["name"] for p in again["sweeps"]] == ["a", "c", "b"]
+    assert again["sweep_wall_clock_s"] == 180.0 and again["errors"] == 1
+    # the same experiment resumed alone replaces its summary
+    assert experiments.merge_summaries(first, first) == first
+    # the report prints each sweep's command
+    lines = report.render([], {}, Path("x.md"), m).splitlines()
+    assert sum(ln.endswith("# the sweep as run") for ln in lines) == 2

@@ -379,8 +379,39 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
     finally:
         ray.shutdown()
     summary = summarise(grid, elapsed, args, groups, seeds)
-    (out / SWEEP_FILE).write_text(json.dumps(summary, indent=1))
+    previous = out / SWEEP_FILE
+    if previous.exists():
+        summary = merge_summaries(json.loads(previous.read_text()), summary)
+    previous.write_text(json.dumps(summary, indent=1))
     return summary
+
+
+def merge_summaries(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
+    """One ``sweep.json`` for every sweep run into the same ``--out``: e.g. groups 3 and 4 first,
+    the other seven later, so that the report covers all nine. The same experiment (a resume)
+    replaces its earlier summary; a different one adds its trials (a (group, seed) trained again
+    takes the newer status), wall clock and command."""
+    if old.get("name") == new.get("name") or "trials" not in old:
+        return new
+    parts = [p for p in old.get("sweeps", [old]) if p.get("name") != new.get("name")]
+    parts.append({k: v for k, v in new.items() if k not in ("trials", "sweeps")})
+    trials = {(t.get("group"), t.get("seed")): t for t in old["trials"]}
+    trials.update({(t.get("group"), t.get("seed")): t for t in new["trials"]})
+    merged_trials = sorted(trials.values(), key=lambda t: (t["group"] or 0, t["seed"] or 0))
+    budgets = {p.get("max_steps") for p in parts}
+    return {
+        **new,
+        "name": " + ".join(p["name"] for p in parts),
+        "groups": sorted({g for p in parts for g in p.get("groups", [])}),
+        "seeds": sorted({s for p in parts for s in p.get("seeds", [])}),
+        "max_steps": new["max_steps"] if len(budgets) == 1 else None,
+        "sweep_wall_clock_s": sum(p.get("sweep_wall_clock_s") or 0.0 for p in parts),
+        "errors": sum(t["status"] == "error" for t in merged_trials),
+        "unfinished": sum(t["status"] == "unfinished" for t in merged_trials),
+        "trials": merged_trials,
+        "command": " && ".join(p["command"] for p in parts),
+        "sweeps": parts,
+    }
 
 
 def demos_needed_safe(config_dir: Path, groups: list[int]) -> dict[Path, int]:

@@ -700,9 +700,10 @@ def render(
     L.append("")
     L.append("```sh")
     L.append("make experiments   # set-up, requirements/experiments.txt, the sweep, this report")
-    cmd = (sweep or {}).get("command")
-    if cmd:
-        L.append(f"{cmd}   # the sweep as run")
+    cmds = [p.get("command") for p in (sweep or {}).get("sweeps", [sweep or {}])]
+    if all(cmds) and cmds:
+        for c in cmds:
+            L.append(f"{c}   # the sweep as run")
     else:
         L.append(
             f"python -m mimicrete.experiments --groups 1-9 --seeds {' '.join(map(str, seeds))}"
