@@ -11,13 +11,23 @@ from mimicrete.learn.networks import Actor, ee_value_to_index
 from mimicrete.learn.ppo import combine_advantages, linear_decay, ppo_loss, scheduled
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """Small nets on a shared 2-core machine: one thread is faster; restored afterwards."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+def _toy_bc(*, demos, seed, hidden, steps, batch_size, num_epoch):
+    """Toy expert demos, a 2-layer actor normalised on them, and BC at lr 1e-3 on it."""
+    torch.manual_seed(0)
+    d = toyenv.expert_demos(demos, seed=seed)
+    actor = Actor(toyenv.OBS_DIM, 6, hidden, 2, normalize=True)
+    actor.norm.update(torch.from_numpy(d["obs"]))
+    bc = BehavioralCloning(
+        actor,
+        d["obs"],
+        d["actions"],
+        1e-3,
+        steps=steps,
+        batch_size=batch_size,
+        num_epoch=num_epoch,
+        samples_per_update=0,
+    )
+    return d, actor, bc
 
 
 def test_bc_learning_rate_anneals_to_zero_over_its_steps():
@@ -30,20 +40,7 @@ def test_bc_learning_rate_anneals_to_zero_over_its_steps():
 
 
 def test_bc_stops_after_its_steps_and_learns_the_expert():
-    torch.manual_seed(0)
-    d = toyenv.expert_demos(30, seed=3)
-    actor = Actor(toyenv.OBS_DIM, 6, 64, 2, normalize=True)
-    actor.norm.update(torch.from_numpy(d["obs"]))
-    bc = BehavioralCloning(
-        actor,
-        d["obs"],
-        d["actions"],
-        1e-3,
-        steps=1000,
-        batch_size=128,
-        num_epoch=3,
-        samples_per_update=0,
-    )
+    d, actor, bc = _toy_bc(demos=30, seed=3, hidden=64, steps=1000, batch_size=128, num_epoch=3)
     rng = np.random.default_rng(0)
     assert bc.update(1000, rng) is None  # annealed out: no update
     before = [p.clone() for p in actor.parameters()]
@@ -104,20 +101,7 @@ def test_ppo_loss_ratio_one_and_clipping():
 
 
 def test_bc_pretrain_reduces_loss_at_constant_rate():
-    torch.manual_seed(0)
-    d = toyenv.expert_demos(10, seed=4)
-    actor = Actor(toyenv.OBS_DIM, 6, 32, 2, normalize=True)
-    actor.norm.update(torch.from_numpy(d["obs"]))
-    bc = BehavioralCloning(
-        actor,
-        d["obs"],
-        d["actions"],
-        1e-3,
-        steps=10,
-        batch_size=64,
-        num_epoch=1,
-        samples_per_update=0,
-    )
+    _, _, bc = _toy_bc(demos=10, seed=4, hidden=32, steps=10, batch_size=64, num_epoch=1)
     losses = bc.pretrain(120, np.random.default_rng(0))
     assert len(losses) == 120
     assert np.mean(losses[-10:]) < 0.5 * np.mean(losses[:10])

@@ -5,21 +5,11 @@ import csv
 import json
 
 import pytest
-import torch
 import yaml
 
 from mimicrete.learn import config, evaluate, plots
 from mimicrete.learn import train as tr_mod
 from mimicrete.learn.toyenv import toy_config
-
-
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """Small nets on a shared 2-core machine: one thread is faster; restored afterwards."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
 
 
 def _cli_main():

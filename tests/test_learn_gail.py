@@ -17,15 +17,6 @@ from mimicrete.learn.gail import (
 )
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """Small nets on a shared 2-core machine: one thread is faster; restored afterwards."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def test_reward_is_minus_log_one_minus_d_nonnegative_and_increasing():
     d = torch.linspace(0.0, 1.0, 101, dtype=torch.float64)
     r = gail_reward(d)

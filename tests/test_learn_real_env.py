@@ -11,14 +11,6 @@ from mimicrete.learn import config, evaluate
 from mimicrete.learn import train as tr_mod
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def _need_sim():
     native = pytest.importorskip("mimicrete._native")
     if not hasattr(native, "SimVecEnv"):

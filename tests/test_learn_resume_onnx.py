@@ -2,21 +2,11 @@
 
 import numpy as np
 import onnxruntime as ort
-import pytest
 import torch
 
 from mimicrete.learn import train as tr_mod
 from mimicrete.learn.networks import Actor
 from mimicrete.learn.toyenv import toy_config
-
-
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    """Small nets on a shared 2-core machine: one thread is faster; restored afterwards."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
 
 
 def _flat(sd: dict) -> dict:
