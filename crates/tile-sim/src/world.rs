@@ -116,6 +116,26 @@ fn item(name: &'static str, frame: SceneFrame, shape: Shape, t: [f32; 3], rgba: 
     SceneItem { name, frame, shape, translation: t, rotation: ID, rgba }
 }
 
+/// The grey pad and the translucent green target marker (half-size `marker_half_xy`, drawn
+/// `marker_dz` above the task's target point) of the tasks that place an object on the pad.
+fn push_pad_and_target(items: &mut Vec<SceneItem>, task: Task, marker_half_xy: [f32; 2], marker_dz: f32) {
+    items.push(item(
+        "pad",
+        SceneFrame::World,
+        Shape::Box { half: PAD_HALF },
+        [PAD_XY[0], PAD_XY[1], PAD_HALF[2]],
+        [0.5, 0.5, 0.5, 1.0],
+    ));
+    let t = pad_target(task);
+    items.push(item(
+        "target",
+        SceneFrame::World,
+        Shape::Box { half: [marker_half_xy[0], marker_half_xy[1], 0.0005] },
+        [t.x, t.y, t.z + marker_dz],
+        [0.1, 0.8, 0.1, 0.4],
+    ));
+}
+
 /// Arm link capsules in DH frame i (standard DH, UR3 numbers; radii from the UR3 housings).
 /// (frame index, a, b, radius).
 pub fn arm_capsules() -> Vec<(u8, [f32; 3], [f32; 3], f32)> {
@@ -365,21 +385,7 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
     let tool = SceneFrame::Link(6);
     match task {
         Task::TileSuction => {
-            items.push(item(
-                "pad",
-                SceneFrame::World,
-                Shape::Box { half: PAD_HALF },
-                [PAD_XY[0], PAD_XY[1], PAD_HALF[2]],
-                [0.5, 0.5, 0.5, 1.0],
-            ));
-            let t = pad_target(task);
-            items.push(item(
-                "target",
-                SceneFrame::World,
-                Shape::Box { half: [TILE_HALF[0], TILE_HALF[1], 0.0005] },
-                [t.x, t.y, t.z],
-                [0.1, 0.8, 0.1, 0.4],
-            ));
+            push_pad_and_target(&mut items, task, [TILE_HALF[0], TILE_HALF[1]], 0.0);
             items.push(item(
                 "suction_plate",
                 tool,
@@ -425,21 +431,7 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
                 ));
             }
             if task == Task::BlockGrip {
-                items.push(item(
-                    "pad",
-                    SceneFrame::World,
-                    Shape::Box { half: PAD_HALF },
-                    [PAD_XY[0], PAD_XY[1], PAD_HALF[2]],
-                    [0.5, 0.5, 0.5, 1.0],
-                ));
-                let t = pad_target(task);
-                items.push(item(
-                    "target",
-                    SceneFrame::World,
-                    Shape::Box { half: [BLOCK_HALF, BLOCK_HALF, 0.0005] },
-                    [t.x, t.y, t.z - BLOCK_HALF],
-                    [0.1, 0.8, 0.1, 0.4],
-                ));
+                push_pad_and_target(&mut items, task, [BLOCK_HALF, BLOCK_HALF], -BLOCK_HALF);
                 items.push(item(
                     "block",
                     SceneFrame::Object,
