@@ -298,41 +298,23 @@ def test_cut_file_errors_and_salvage(demo: Path, tmp_path: Path):
         np.testing.assert_array_equal(d.obs, mc.demos.load(demo).obs[: len(d)])
 
 
+def _write_first_step(w, obs, act, reward, q):
+    """Step 0 at t = 0, neither terminated nor truncated, identity poses."""
+    ident = [0, 0, 0, 0, 0, 0, 1]
+    w.write_step(0, 0.0, obs, act, reward, False, False, "hold", q, ident, ident)
+
+
 def test_context_manager(tmp_path: Path):
     p = tmp_path / "cm.mcap"
     obs, act, reward, q = _step_values(0, 3)
     with mc.demos.DemoWriter(str(p), {"task": "suction"}) as w:
-        w.write_step(
-            0,
-            0.0,
-            obs,
-            act,
-            reward,
-            False,
-            False,
-            "hold",
-            q,
-            [0, 0, 0, 0, 0, 0, 1],
-            [0, 0, 0, 0, 0, 0, 1],
-        )
+        _write_first_step(w, obs, act, reward, q)
         assert w.steps == 1
     assert p.exists() and mc.demos.read(p)["meta"]["success"] == "false"
     p2 = tmp_path / "boom.mcap"
     with pytest.raises(RuntimeError, match="boom"):
         with mc.demos.DemoWriter(str(p2), {}) as w:
-            w.write_step(
-                0,
-                0.0,
-                obs,
-                act,
-                reward,
-                False,
-                False,
-                "hold",
-                q,
-                [0, 0, 0, 0, 0, 0, 1],
-                [0, 0, 0, 0, 0, 0, 1],
-            )
+            _write_first_step(w, obs, act, reward, q)
             raise RuntimeError("boom")
     assert not p2.exists()
     part = tmp_path / "boom.mcap.partial"
