@@ -67,57 +67,47 @@ fn bad_header_cases() {
         strict_err("hello\n")
             .starts_with("hand.jsonl:1: missing header: line 1 is not a JSON object (invalid JSON:")
     );
-    assert_eq!(
-        strict_err(&HDR.replace("mimicrete.handlog", "other.log")),
-        "hand.jsonl:1: unknown format \"other.log\" in header (expected \"mimicrete.handlog\")"
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#""version":1"#, r#""version":2"#)),
-        "hand.jsonl:1: header: unsupported version 2 (this reader knows version 1)"
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#""version":1,"#, "")),
-        "hand.jsonl:1: header: missing field \"version\""
-    );
-    assert_eq!(
-        strict_err(&HDR.replace("mediapipe", "leapmotion")),
-        "hand.jsonl:1: header: unknown layout \"leapmotion\" (known: openxr, webxr, meta_ovr, mediapipe)"
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#""layout":"mediapipe","#, "")),
-        "hand.jsonl:1: header: missing field \"layout\""
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#""space":"openxr""#, r#""space":"ros""#)),
-        "hand.jsonl:1: header: unknown space \"ros\" (known: openxr, webxr, unity, robot_base)"
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#","space":"openxr""#, "")),
-        "hand.jsonl:1: header: missing field \"space\""
-    );
-    assert_eq!(
-        strict_err(&HDR.replace("right", "both")),
-        "hand.jsonl:1: header: unknown handedness \"both\" (known: left, right)"
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#","handedness":"right""#, "")),
-        "hand.jsonl:1: header: missing field \"handedness\""
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#""units":"m""#, r#""units":"mm""#)),
-        "hand.jsonl:1: header: unknown units \"mm\" (hand logs are in metres: \"m\")"
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#","units":"m""#, "")),
-        "hand.jsonl:1: header: missing field \"units\""
-    );
+    // Header edits and the message each must give (file:line: reason).
+    let edits: [(&str, &str, &str); 12] = [
+        (
+            "mimicrete.handlog",
+            "other.log",
+            "unknown format \"other.log\" in header (expected \"mimicrete.handlog\")",
+        ),
+        (r#""version":1"#, r#""version":2"#, "header: unsupported version 2 (this reader knows version 1)"),
+        (r#""version":1,"#, "", "header: missing field \"version\""),
+        (
+            "mediapipe",
+            "leapmotion",
+            "header: unknown layout \"leapmotion\" (known: openxr, webxr, meta_ovr, mediapipe)",
+        ),
+        (r#""layout":"mediapipe","#, "", "header: missing field \"layout\""),
+        (
+            r#""space":"openxr""#,
+            r#""space":"ros""#,
+            "header: unknown space \"ros\" (known: openxr, webxr, unity, robot_base)",
+        ),
+        (r#","space":"openxr""#, "", "header: missing field \"space\""),
+        ("right", "both", "header: unknown handedness \"both\" (known: left, right)"),
+        (r#","handedness":"right""#, "", "header: missing field \"handedness\""),
+        (
+            r#""units":"m""#,
+            r#""units":"mm""#,
+            "header: unknown units \"mm\" (hand logs are in metres: \"m\")",
+        ),
+        (r#","units":"m""#, "", "header: missing field \"units\""),
+        (
+            r#""units":"m""#,
+            r#""units":"m","episode_seed":-3"#,
+            "header: \"episode_seed\" must be a non-negative integer, got -3",
+        ),
+    ];
+    for (from, to, reason) in edits {
+        assert_eq!(strict_err(&HDR.replace(from, to)), format!("hand.jsonl:1: {reason}"), "{from} -> {to}");
+    }
     assert!(
         strict_err(&HDR.replace(r#""units":"m""#, r#""units":"m","fps":90"#))
             .starts_with("hand.jsonl:1: header: unknown field \"fps\"")
-    );
-    assert_eq!(
-        strict_err(&HDR.replace(r#""units":"m""#, r#""units":"m","episode_seed":-3"#)),
-        "hand.jsonl:1: header: \"episode_seed\" must be a non-negative integer, got -3"
     );
     // A bad header aborts in lenient mode too.
     assert!(HandLog::parse_str(&HDR.replace("mediapipe", "x"), "h", ParseMode::Lenient).is_err());
