@@ -547,3 +547,19 @@ def test_sweeps_into_one_out_dir_add_up():
     # the report prints each sweep's command
     lines = report.render([], {}, Path("x.md"), m).splitlines()
     assert sum(ln.endswith("# the sweep as run") for ln in lines) == 2
+
+
+def test_regenerating_the_report_keeps_the_why_section():
+    def doc(body: str, table: str) -> str:
+        head = f"# R\n\n{table}\n\n### Why (human-written)\n\n"
+        return f"{head}{report.WHY_MARK}\n{body}\n## Fig. 7\n\nx\n"
+
+    fresh = doc(f"\n{report.WHY_PLACEHOLDER}\n", "new table")
+    written = doc("\nGroup 2 differs because ...\n\nAnd group 7 ...\n", "old table")
+    out = report.keep_why(written, fresh)
+    assert "new table" in out and "old table" not in out
+    assert "Group 2 differs because ...\n\nAnd group 7 ...\n" in out
+    assert report.WHY_PLACEHOLDER not in out and out.endswith("## Fig. 7\n\nx\n")
+    # nothing written yet, or no mark: the new text as generated
+    assert report.keep_why(fresh, fresh) == fresh
+    assert report.keep_why("# an old file without the mark\n", fresh) == fresh

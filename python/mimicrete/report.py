@@ -74,6 +74,27 @@ RATE_TOL = 0.10  # absolute, or 2 standard errors of the seed mean if larger
 LENGTH_TOL = 0.20  # relative to the paper's length, or 2 standard errors if larger
 
 WHY_MARK = "<!-- WHY: human-written explanation goes here -->"
+WHY_PLACEHOLDER = (
+    "_Not written yet: the explanation of each difference above belongs here once the full "
+    "sweep has run. The generated lines above only state the data._"
+)
+
+
+def keep_why(old_text: str, new_text: str) -> str:
+    """``new_text`` with the human-written part of ``old_text`` (from the line after
+    :data:`WHY_MARK` up to the next ``## `` heading) in place of the placeholder, so that
+    regenerating the report keeps the explanation."""
+    if WHY_MARK not in old_text or WHY_MARK not in new_text:
+        return new_text
+    after = old_text.split(WHY_MARK, 1)[1]
+    cut = after.find("\n## ")
+    written = after if cut < 0 else after[: cut + 1]
+    if WHY_PLACEHOLDER in written:
+        return new_text
+    head, tail = new_text.split(WHY_MARK, 1)
+    cut = tail.find("\n## ")
+    rest = "" if cut < 0 else tail[cut + 1 :]
+    return head + WHY_MARK + written + rest
 
 
 # ----------------------------------------------------------------------------------------------
@@ -573,10 +594,7 @@ def render(
     L.append("")
     L.append(WHY_MARK)
     L.append("")
-    L.append(
-        "_Not written yet: the explanation of each difference above belongs here once the full "
-        "sweep has run. The generated lines above only state the data._"
-    )
+    L.append(WHY_PLACEHOLDER)
     L.append("")
 
     # Fig 7
@@ -731,6 +749,8 @@ def write_report(
     figures = write_figures(runs, fig_dir)
     sweep = _json(Path(sweep_file)) if sweep_file else None
     text = render(runs, figures, out, sweep)
+    if out.exists():
+        text = keep_why(out.read_text(), text)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
     return out
