@@ -52,9 +52,12 @@ def _toy_configs(
         cfg_dir / "group1.yaml",
     )
     g2 = toy_config(cfg_dir, max_steps=max_steps, buffer=512, ckpt=ckpt)
-    if slow_group2:  # 512 x 3 nets: slow enough that Ctrl-C cuts the trial (Tune waits 5 s)
+    if slow_group2:
+        # 512 x 3 nets and 12 epochs per update: slow enough that Ctrl-C cuts the trial even when
+        # a loaded machine delays Tune's handling of it (Tune itself waits up to 5 s)
         g2.behavior.network_settings.hidden_units = 512
         g2.behavior.network_settings.num_layers = 3
+        g2.behavior.hyperparameters.num_epoch = 12
     config.save(g2, cfg_dir / "group2.yaml")
     if bad_group is not None:
         (cfg_dir / f"group{bad_group}.yaml").write_text(
