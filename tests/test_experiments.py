@@ -566,3 +566,26 @@ def test_regenerating_the_report_keeps_the_why_section():
     # nothing written yet, or no mark: the new text as generated
     assert report.keep_why(fresh, fresh) == fresh
     assert report.keep_why("# an old file without the mark\n", fresh) == fresh
+
+
+def test_report_lists_the_departures_from_ml_agents(tmp_path):
+    def beh(g: int, **kw) -> report.Run:
+        r = report.Run(g, 0, None)
+        r.resolved = {"behaviors": {"TileSuction": kw}}
+        return r
+
+    runs = [
+        beh(1),
+        beh(
+            3,
+            reward_signals={"gail": {"survivor_bias": "bootstrap"}},
+            behavioral_cloning={"pretrain_steps": 2000},
+            demo_drop_idle=0.1,
+        ),
+        beh(4, reward_signals={"gail": {"survivor_bias": "none"}}, demo_drop_idle=0.0),
+    ]
+    deps = report._departures(runs)
+    assert len(deps) == 3 and all(d.startswith("group(s) 3 ") for d in deps)
+    assert "survivor_bias" in deps[0] and "pretrain_steps" in deps[1]
+    assert "demo_drop_idle" in deps[2]
+    assert report._departures([beh(1), beh(4)]) == []

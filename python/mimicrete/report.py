@@ -365,7 +365,7 @@ def _budget(runs: list[Run]) -> int | None:
 
 def _departures(runs: list[Run]) -> list[str]:
     """Config facts (from resolved_config.yaml) that differ from ML-Agents / the paper."""
-    surv, pre = set(), set()
+    surv, pre, idle = set(), set(), set()
     for r in runs:
         beh = next(iter(((r.resolved or {}).get("behaviors") or {}).values()), None) or {}
         g = (beh.get("reward_signals") or {}).get("gail") or {}
@@ -374,6 +374,8 @@ def _departures(runs: list[Run]) -> list[str]:
         bc = beh.get("behavioral_cloning") or {}
         if (bc.get("pretrain_steps") or 0) > 0:
             pre.add(r.group)
+        if (beh.get("demo_drop_idle") or 0) > 0:
+            idle.add(r.group)
     out = []
     if surv:
         out.append(
@@ -385,6 +387,11 @@ def _departures(runs: list[Run]) -> list[str]:
         out.append(
             f"group(s) {_list(pre)} ran with an offline BC warm start "
             "(`behavioral_cloning.pretrain_steps` > 0; ML-Agents has none)"
+        )
+    if idle:
+        out.append(
+            f"group(s) {_list(idle)} left the demonstrator's idle steps out of BC and GAIL "
+            "(`demo_drop_idle` > 0; ML-Agents uses every step)"
         )
     return out
 
