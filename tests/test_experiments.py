@@ -589,3 +589,18 @@ def test_report_lists_the_departures_from_ml_agents(tmp_path):
     assert "survivor_bias" in deps[0] and "pretrain_steps" in deps[1]
     assert "demo_drop_idle" in deps[2]
     assert report._departures([beh(1), beh(4)]) == []
+
+
+def test_steps_to_97_needs_enough_episodes():
+    r = report.Run(6, 0, None)
+    steps = np.array([10, 20, 30, 40]) * 1000
+    r.scalars = {
+        "Environment/Installed Rate": (steps, np.array([0.0, 1.0, 0.5, 0.98])),
+        "Environment/Episodes": (steps, np.array([30.0, 1.0, 25.0, 40.0])),
+    }
+    s, v = report.well_sampled(r, *r.scalars["Environment/Installed Rate"])
+    assert list(s) == [10_000, 30_000, 40_000]  # the one-episode 100 % summary is not counted
+    r.status = "done"
+    assert report.group_stats(6, [r]).steps_to == [40_000]
+    del r.scalars["Environment/Episodes"]  # nothing to judge by: every summary counts
+    assert report.group_stats(6, [r]).steps_to == [20_000]

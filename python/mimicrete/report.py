@@ -66,6 +66,8 @@ FIG7_PANELS: dict[str, tuple[str, list[int]]] = {
 
 TAG_REWARD = "Environment/Cumulative Reward"
 TAG_INSTALLED = "Environment/Installed Rate"
+TAG_EPISODES = "Environment/Episodes"
+MIN_EPISODES = 20  # finished episodes a rate summary needs to count for steps-to-97 %
 TAG_PICKED = "Environment/Picked Rate"
 TAG_GAIL_LOSS = "Losses/GAIL Loss"
 
@@ -294,6 +296,18 @@ def _trend(steps: np.ndarray, values: np.ndarray) -> float:
     return float(np.mean(values[a]) - np.mean(values[b]))
 
 
+def well_sampled(run: Run, steps: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rate summaries that rest on at least :data:`MIN_EPISODES` finished episodes (a
+    summary with one episode that happened to install reads 100 %). Runs that do not log
+    ``Environment/Episodes`` keep every summary."""
+    if TAG_EPISODES not in run.scalars:
+        return steps, values
+    es, ev = run.scalars[TAG_EPISODES]
+    enough = {int(x) for x, n in zip(es, ev, strict=True) if n >= MIN_EPISODES}
+    keep = np.array([int(x) in enough for x in steps], bool)
+    return np.asarray(steps)[keep], np.asarray(values)[keep]
+
+
 def group_stats(group: int, runs: list[Run]) -> GroupStats:
     done = [r for r in runs if r.status != "error"]
     evals = [r.eval for r in done if r.eval]
@@ -303,7 +317,7 @@ def group_stats(group: int, runs: list[Run]) -> GroupStats:
             gl.append(last_window_mean(*r.scalars[TAG_GAIL_LOSS], GAIL_WINDOW))
         if TAG_INSTALLED in r.scalars:
             s, v = r.scalars[TAG_INSTALLED]
-            steps_to.append(steps_to_threshold(s, v, THRESHOLD))
+            steps_to.append(steps_to_threshold(*well_sampled(r, s, v), THRESHOLD))
             final_inst.append(float(v[-1]))
             trends.append(_trend(s, v))
     tr = [t for t in trends if math.isfinite(t)]
@@ -656,7 +670,8 @@ def render(
     L.append("")
     L.append(
         f"First logged summary whose training installed rate (`{TAG_INSTALLED}`, stochastic "
-        f"policy) is ≥ {100 * THRESHOLD:.0f} %. The paper reports no such number; it trained "
+        f"policy) is ≥ {100 * THRESHOLD:.0f} % over at least {MIN_EPISODES} finished episodes. "
+        "The paper reports no such number; it trained "
         "until 5M steps or convergence."
     )
     L.append("")
