@@ -588,6 +588,15 @@ def main(argv: list[str] | None = None) -> int:
             sweep_file=Path(args.out) / SWEEP_FILE,
         )
         print(f"wrote {out}")
+    unfinished = summary.get("sweeps", [summary])[-1]["unfinished"]  # this sweep's own trials
+    if unfinished:
+        # Tune caught the Ctrl-C itself and returned: still an interrupted sweep
+        print(
+            f"interrupted: {unfinished} trial(s) unfinished; run the same command "
+            "again to resume the sweep",
+            file=sys.stderr,
+        )
+        return 130
     return 1 if summary["errors"] and summary["errors"] == len(summary["trials"]) else 0
 
 
