@@ -36,7 +36,7 @@ from typing import Any
 
 GROUPS = tuple(range(1, 10))  # Table 3
 DEFAULT_SEEDS = (0, 1, 2)
-DEFAULT_MAX_STEPS = 1_000_000  # docs/RESULTS.md: 27 trials in ~2 h on 2 cores (the paper: 5,000,000)
+DEFAULT_MAX_STEPS = 1_000_000  # docs/RESULTS.md: 27 trials in ~2 h on 2 cores (paper: 5M)
 DEFAULT_OUT = "runs/experiments"
 DEFAULT_NAME = "table3"
 TRIAL_FILE = "trial.json"
