@@ -471,6 +471,8 @@ def _plot_panel(ax, runs_by_group: dict[int, list[Run]], groups: list[int], tag:
         if not curves:
             continue
         grid, mean, lo, hi = curve_band(curves)
+        if tag in (TAG_INSTALLED, TAG_PICKED):  # a rate's band stays inside [0, 1]
+            lo, hi = np.clip(lo, 0.0, 1.0), np.clip(hi, 0.0, 1.0)
         (line,) = ax.plot(grid, mean, lw=1.5, label=f"Group {g} (n={len(curves)})")
         ax.fill_between(grid, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
         drew = True
