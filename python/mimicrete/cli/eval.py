@@ -1,0 +1,17 @@
+"""`mimicrete eval` (temporary forwarder while the package is regrouped)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    import mimicrete.learn.evaluate as lib
+
+    lib.configure(parser)
+
+
+def main(args: argparse.Namespace) -> int:
+    import mimicrete.learn.evaluate as lib
+
+    return int(lib.main(args) or 0)

@@ -1,0 +1,17 @@
+"""`mimicrete gesture` (temporary forwarder while the package is regrouped)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    import mimicrete.gestures as lib
+
+    lib.configure(parser)
+
+
+def main(args: argparse.Namespace) -> int:
+    import mimicrete.gestures as lib
+
+    return int(lib.main(args) or 0)
