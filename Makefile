@@ -32,7 +32,7 @@ native: $(NATIVE_STAMP) ## build mimicrete._native into .venv (maturin develop -
 HANDS := data/hands/suction
 DEMOS := demos/suction
 
-$(DEMOS)/.done: $(NATIVE_STAMP) python/mimicrete/convert.py python/mimicrete/synth.py python/mimicrete/gestures.py
+$(DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/teleop/*.py python/mimicrete/gestures/*.py python/mimicrete/hands/*.py)
 	$(VENV)/bin/mimicrete synth-hands --task suction --episodes 60 --seed 0 --out $(HANDS)
 	$(VENV)/bin/mimicrete convert $(HANDS) --task suction --out $(DEMOS)
 	touch $@

@@ -40,7 +40,7 @@ _SIM_LIKE = {
 
 
 def _sim_like_scene(task: str, seed: int):
-    from mimicrete import synth as sy
+    from mimicrete.teleop import synth as sy
 
     x = float(np.random.default_rng(seed).uniform(0.0, 0.15))
     tcp, tcp_z, obj_z, (tx, ty, tz) = _SIM_LIKE[task]
@@ -65,6 +65,6 @@ def sim_like_scene():
 def scene_fn(sim_like_scene):
     """The simulator's own scene (``synth.scene_from_env``) when its bindings are built, else
     :func:`sim_like_scene`."""
-    from mimicrete import synth as sy
+    from mimicrete.teleop import synth as sy
 
     return sy.scene_from_env if sy.have_simulator() else sim_like_scene

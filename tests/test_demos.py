@@ -353,7 +353,7 @@ def test_source_handlog_hash(tmp_path: Path):
     import hashlib
 
     log = tmp_path / "hand.jsonl"
-    mc.handlog.write(
+    mc.hands.write(
         log,
         {"layout": "mediapipe", "space": "openxr", "handedness": "left"},
         np.zeros(2),

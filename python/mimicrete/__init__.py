@@ -1,8 +1,11 @@
 """mimicrete: hand demonstrations to robot skills.
 
-Submodules: ``kin`` (UR kinematics), ``envs`` (gymnasium environments over the Rust simulator),
-``demos`` (MCAP demonstrations), ``gestures`` (SVM gesture models), ``synth`` (scripted hand
-demonstrator), ``convert`` (hand log -> demo), ``learn`` (BC + GAIL + PPO trainer), ``cli``.
+Grouped by pipeline stage (hand → gesture → frame → IK → sim → demo → trainer):
+``hands`` (joint layouts, the hand model, hand logs), ``gestures`` (SVM gesture models),
+``kin`` (UR kinematics, hand frame → tool0 target), ``envs`` (gymnasium environments over the Rust
+simulator), ``teleop`` (the per-frame session, ``convert``, the scripted demonstrator, the live
+server), ``demos`` (MCAP demonstrations), ``learn`` (BC + GAIL + PPO trainer, evaluation),
+``experiments`` (the sweep and its report), ``cli``.
 """
 
 from __future__ import annotations
@@ -19,6 +22,17 @@ __all__ = ["IkError", "LogFormatError", "MimicreteError", "SimError", "__version
 def __getattr__(name: str):  # lazy submodules: `mc.kin`, `mc.envs`, ... import on first use
     import importlib
 
-    if name in {"kin", "envs", "demos", "gestures", "synth", "convert", "learn", "cli", "handlog"}:
+    if name in {
+        "kin",
+        "envs",
+        "demos",
+        "hands",
+        "gestures",
+        "teleop",
+        "learn",
+        "experiments",
+        "cli",
+        "tasks",
+    }:
         return importlib.import_module(f"mimicrete.{name}")
     raise AttributeError(f"module 'mimicrete' has no attribute {name!r}")

@@ -34,10 +34,10 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from mimicrete import _native
+from mimicrete import _native, tasks
 
-TASKS = ("TileSuction", "BlockGrip", "Screw")
-ENV_IDS = tuple(f"mimicrete/{t}-v0" for t in TASKS)
+TASKS = tasks.SIM_TASKS
+ENV_IDS = tasks.ENV_IDS
 
 _CONST: dict[str, Any] = _native.sim_constants()
 FRAME_STACK: int = int(_CONST["FRAME_STACK"])
@@ -47,22 +47,20 @@ MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])
 
 
 def task_of(env_id: str) -> str:
-    """Task name of an env id: ``"mimicrete/TileSuction-v0"``, ``"TileSuction-v0"``,
-    ``"TileSuction"`` or ``"suction"`` → ``"TileSuction"``."""
-    name = env_id.split("/")[-1]
-    if name.endswith("-v0"):
-        name = name[: -len("-v0")]
-    aliases = {"suction": "TileSuction", "grip": "BlockGrip", "screw": "Screw"}
-    name = aliases.get(name.lower(), name)
-    if name not in TASKS:
-        raise ValueError(f"unknown env id {env_id!r}: expected one of {', '.join(ENV_IDS)}")
-    return name
+    """Simulator task name of an env id: ``"mimicrete/TileSuction-v0"``, ``"TileSuction-v0"``,
+    ``"TileSuction"`` or ``"suction"`` → ``"TileSuction"`` (:func:`mimicrete.tasks.get`)."""
+    try:
+        return tasks.get(env_id).sim
+    except ValueError:
+        raise ValueError(
+            f"unknown env id {env_id!r}: expected one of {', '.join(ENV_IDS)}"
+        ) from None
 
 
 def _spaces(task: str) -> tuple[spaces.Box, spaces.Box]:
-    dims = _CONST["tasks"][task]
-    obs = spaces.Box(-np.inf, np.inf, shape=(int(dims["obs_dim"]),), dtype=np.float32)
-    act = spaces.Box(-1.0, 1.0, shape=(int(dims["act_dim"]),), dtype=np.float32)
+    t = tasks.get(task)
+    obs = spaces.Box(-np.inf, np.inf, shape=(t.obs_dim,), dtype=np.float32)
+    act = spaces.Box(-1.0, 1.0, shape=(t.act_dim,), dtype=np.float32)
     return obs, act
 
 

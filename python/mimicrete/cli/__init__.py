@@ -20,7 +20,10 @@ import sys
 COMMANDS: dict[str, tuple[str, str]] = {
     "synth-hands": ("synth_hands", "write hand logs of a scripted person doing a task"),
     "convert": ("convert", "hand logs -> MCAP demonstrations (one file per episode)"),
-    "teleop": ("teleop", "live teleoperation: the WebXR page drives the robot, episodes are recorded"),
+    "teleop": (
+        "teleop",
+        "live teleoperation: the WebXR page drives the robot, episodes are recorded",
+    ),
     "gesture": ("gesture", "train / evaluate the SVM gesture models"),
     "train": ("train", "train a policy with BC + GAIL + PPO from a YAML config"),
     "eval": ("eval", "evaluate a run: picked/installed rate, episode length"),
@@ -44,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (module, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
-        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+        p.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
+        )
         mod = importlib.import_module(f"{__name__}.{module}")
         mod.configure(p)
         p.set_defaults(_module=f"{__name__}.{module}")

@@ -1,17 +1,94 @@
-"""`mimicrete convert` (temporary forwarder while the package is regrouped)."""
+"""`mimicrete convert`: hand logs → MCAP demonstrations (:mod:`mimicrete.teleop.convert`)."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
+
+from mimicrete.cli import UsageError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    import mimicrete.convert as lib
-
-    lib.configure(parser)
+    """Flags of ``mimicrete convert``."""
+    parser.add_argument(
+        "source", metavar="HANDLOG_OR_DIR", help="a hand log (.jsonl) or a directory of them"
+    )
+    parser.add_argument(
+        "--task",
+        required=True,
+        choices=["suction", "grip", "screw"],
+        help="the task the hand logs demonstrate",
+    )
+    parser.add_argument("--out", required=True, metavar="DIR", help="where the MCAP demos go")
+    parser.add_argument(
+        "--gesture-model",
+        metavar="PATH",
+        help="gesture model (default: the shipped one for the task)",
+    )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace demos that exist in --out already"
+    )
+    parser.add_argument(
+        "--lenient",
+        action="store_true",
+        help="skip bad and untracked frame lines instead of rejecting the log (the header must "
+        "still be valid); the skipped lines are counted",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def main(args: argparse.Namespace) -> int:
-    import mimicrete.convert as lib
+    """Run ``mimicrete convert``; prints per-file outcomes and a summary. Exit 1 when any log
+    failed."""
+    from tqdm import tqdm
 
-    return int(lib.main(args) or 0)
+    from mimicrete import LogFormatError
+    from mimicrete.gestures import load_model
+    from mimicrete.teleop import convert as cv
+
+    logs = cv.find_logs(args.source)
+    out = Path(args.out)
+    try:
+        plan = cv.plan_outputs(logs, out, args.overwrite)
+    except cv.ConvertError as e:
+        raise UsageError(str(e)) from None
+    model = None
+    if args.gesture_model:
+        try:
+            model = load_model(args.gesture_model)
+        except (OSError, ValueError, KeyError, EOFError) as e:
+            raise UsageError(f"--gesture-model {args.gesture_model}: {e}") from None
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UsageError(f"--out {out}: {e.strerror or e}") from None
+    results = []
+    failed = 0
+    mode = "lenient" if args.lenient else "strict"
+    for i, path in enumerate(tqdm(logs, desc="convert", unit="log", disable=args.no_progress)):
+        try:
+            log = cv.load_log(path, mode)
+            res = cv.convert_log(
+                log, args.task, plan[path], source=path, episode_index=i, model=model
+            )
+        except (LogFormatError, cv.ConvertError, ValueError, OSError) as e:
+            failed += 1
+            tqdm.write(f"mimicrete convert: error: {e}", file=sys.stderr)
+            continue
+        results.append(res)
+        c = res.counts
+        skipped = ""
+        if args.lenient:
+            skipped = f", {log.report.get('invalid_skipped', 0)} bad lines skipped"
+        tqdm.write(
+            f"{path.name}: {res.steps} steps, "
+            f"{'installed' if res.installed else 'NOT installed'}"
+            f"{', picked' if res.picked else ''}{', fell' if res.fell else ''}; frames "
+            f"{c.frames} (untracked {c.untracked}, degenerate {c.degenerate}{skipped}), "
+            f"unreachable {c.unreachable} steps, {c.gesture_changes} gesture changes"
+        )
+    n_ok = sum(r.installed for r in results)
+    share = f" ({100.0 * n_ok / len(results):.1f} %)" if results else ""
+    print(f"{len(results)} demos in {args.out}: {n_ok} installed{share}, {failed} logs failed")
+    return 0 if failed == 0 else 1

@@ -1,17 +1,48 @@
-"""`mimicrete synth-hands` (temporary forwarder while the package is regrouped)."""
+"""`mimicrete synth-hands`: hand logs of the scripted demonstrator (`mimicrete.teleop.synth`)."""
 
 from __future__ import annotations
 
 import argparse
 
+from mimicrete.cli import UsageError
+from mimicrete.hands.layouts import LAYOUT_JOINTS
+from mimicrete.tasks import TASKS
+
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    import mimicrete.synth as lib
-
-    lib.configure(parser)
+    """Flags of ``mimicrete synth-hands``."""
+    parser.add_argument("--task", choices=TASKS, default="suction", help="task to demonstrate")
+    parser.add_argument("--episodes", type=int, default=60, help="hand logs to write (60)")
+    parser.add_argument("--seed", type=int, default=0, help="seed: same seed, same files (0)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    parser.add_argument(
+        "--layout",
+        choices=sorted(LAYOUT_JOINTS),
+        default="openxr",
+        help="joint layout written (openxr)",
+    )
+    parser.add_argument(
+        "--handedness",
+        choices=["right", "left"],
+        default="right",
+        help="the demonstrating hand (right)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
-    import mimicrete.synth as lib
+    """Run ``mimicrete synth-hands``."""
+    from mimicrete.teleop.synth import synth_hands
 
-    return int(lib.main(args) or 0)
+    if args.episodes < 1:
+        raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
+    paths = synth_hands(
+        args.task,
+        args.episodes,
+        args.seed,
+        args.out,
+        layout=args.layout,
+        handedness=args.handedness,
+        progress=True,
+    )
+    print(f"wrote {len(paths)} hand logs to {args.out}")
+    return 0

@@ -11,8 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mimicrete import LogFormatError, kin
-from mimicrete import convert as cv
-from mimicrete import synth as sy
+from mimicrete.cli import main as cli_main
+from mimicrete.teleop import convert as cv
+from mimicrete.teleop import session as ss
+from mimicrete.teleop import synth as sy
 
 HAVE_SIM = sy.have_simulator()
 
@@ -25,11 +27,6 @@ def _log(tmp_path, scene_fn, task="suction", seed=0, layout="openxr", handedness
 
 
 # ---------------------------------------------------------------- parsing
-
-
-class _NoSim(cv.Backend):
-    def __init__(self) -> None:  # never reaches the simulator: the log is rejected first
-        self.control_dt, self.max_joint_step = 0.04, 0.04
 
 
 def test_load_log_roundtrip(tmp_path, scene_fn):
@@ -90,7 +87,7 @@ def test_convert_errors_name_file_and_line(tmp_path, lines, match):
     path = tmp_path / "bad.jsonl"
     path.write_text("\n".join(lines) + ("\n" if lines else ""))
     with pytest.raises(LogFormatError, match=match) as e:
-        cv.convert_log(path, "suction", None, backend=_NoSim())
+        cv.convert_log(path, "suction", None)
     assert str(e.value).startswith(f"{path}:")
 
 
@@ -104,9 +101,9 @@ def test_convert_errors_name_file_and_line(tmp_path, lines, match):
 )
 def test_joint_action_takes_the_short_way_and_is_bounded(q, dq):
     q, dq = np.array(q), np.array(dq)
-    a = cv.joint_action(q + dq, q, 0.04)
+    a = ss.joint_action(q + dq, q, 0.04)
     assert np.all(np.abs(a) <= 1.0)
-    short = cv.wrap_to_pi(dq)
+    short = ss.wrap_to_pi(dq)
     assert np.all(np.abs(short) <= np.pi + 1e-12)
     small = np.abs(short) < 0.04
     np.testing.assert_allclose(a[small], short[small] / 0.04, atol=1e-6)
@@ -117,7 +114,7 @@ def test_joint_action_takes_the_short_way_and_is_bounded(q, dq):
 
 def test_one_euro_smooths_jitter_and_follows_motion():
     rng = np.random.default_rng(0)
-    f = cv.OneEuro(min_cutoff=1.0, beta=2.0)
+    f = ss.OneEuro(min_cutoff=1.0, beta=2.0)
     t = np.arange(900) / 90.0
     still = np.array(
         [f(np.array([0.1, 0.2, 0.3]) + rng.normal(scale=0.001, size=3), x) for x in t[:450]]
@@ -141,19 +138,15 @@ def test_one_euro_smooths_jitter_and_follows_motion():
 def test_teleop_targets_follow_the_plan_and_gestures_command(task, handedness, scene_fn):
     scene = scene_fn(task, 3)
     ep = sy.synth_episode(scene, 2, handedness=handedness)
-    tele = cv.Teleop(
-        task,
-        "openxr",
-        handedness,
-        kin.Calibration(),
-    )
+    tele = ss.Session(task, "openxr", handedness, kin.Calibration(), seed=3)
     errs, ang, cmds = [], [], []
     for k in range(len(ep.t)):
-        res = tele.push(float(ep.t[k]), bool(ep.tracked[k]), ep.joints[k])
+        tele.observe(float(ep.t[k]), bool(ep.tracked[k]), ep.joints[k])
         cmds.append(tele.command())
-        if res.target is not None and ep.tracked[k] and ep.phases[k] in ("grasp", "settle"):
-            errs.append(np.linalg.norm(res.target[:3, 3] - ep.tool0[k][:3, 3]))
-            r = res.target[:3, :3].T @ ep.tool0[k][:3, :3]
+        target = tele.target
+        if target is not None and ep.tracked[k] and ep.phases[k] in ("grasp", "settle"):
+            errs.append(np.linalg.norm(target[:3, 3] - ep.tool0[k][:3, 3]))
+            r = target[:3, :3].T @ ep.tool0[k][:3, :3]
             ang.append(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
     # while the hand is (nearly) still the filtered target sits on the plan
     assert np.median(errs) < 0.002 and max(errs) < 0.01
@@ -183,41 +176,39 @@ def test_teleop_targets_follow_the_plan_and_gestures_command(task, handedness, s
 def test_recorded_command_switches_latching_suction_only(task, state, cmd, sent):
     frame = np.zeros(16)
     frame[6] = state
-    assert cv.recorded_command(task, cmd, frame) == sent
+    assert ss.recorded_command(task, cmd, frame) == sent
 
 
 def test_teleop_holds_target_through_untracked_frames(scene_fn):
     scene = scene_fn("suction", 1)
     ep = sy.synth_episode(scene, 0)
-    tele = cv.Teleop(
-        "suction",
-        "openxr",
-        "right",
-        kin.Calibration(),
-    )
+    tele = ss.Session("suction", "openxr", "right", kin.Calibration(), seed=1)
     for k in range(100):
-        tele.push(float(ep.t[k]), True, ep.joints[k])
+        tele.observe(float(ep.t[k]), True, ep.joints[k])
     held = tele.target.copy()
-    state = tele.smoother.state
+    state = tele.gesture
     for k in range(100, 110):  # the runtime lost the hand; its joints are garbage
-        res = tele.push(float(ep.t[k]), False, np.zeros_like(ep.joints[k]))
-        np.testing.assert_array_equal(res.target, held)
-        assert res.gesture == state
+        tele.observe(float(ep.t[k]), False, np.zeros_like(ep.joints[k]))
+        np.testing.assert_array_equal(tele.target, held)
+        assert tele.gesture == state
     assert tele.counts.untracked == 10
     # a degenerate (collapsed) hand counts and keeps the target too
-    res = tele.push(float(ep.t[110]), True, np.zeros_like(ep.joints[0]))
-    np.testing.assert_array_equal(res.target, held)
+    tele.observe(float(ep.t[110]), True, np.zeros_like(ep.joints[0]))
+    np.testing.assert_array_equal(tele.target, held)
     assert tele.counts.degenerate == 1
 
 
 def test_task_names_and_logged_task_mismatch(tmp_path, scene_fn):
-    assert cv.canonical_task("TileSuction") == "suction"
-    assert cv.canonical_task("block_grip") == "grip"
+    from mimicrete import tasks
+
+    assert tasks.get("TileSuction").name == "suction"
+    assert tasks.get("block_grip").name == "grip"
+    assert tasks.get("mimicrete/Screw-v0").name == "screw"
     with pytest.raises(ValueError, match="unknown task"):
-        cv.canonical_task("weld")
+        tasks.get("weld")
     path = _log(tmp_path, scene_fn, task="suction")
     with pytest.raises(ValueError, match="hand log is for task 'suction'"):
-        cv.convert_log(path, "grip", None, backend=_NoSim())
+        cv.convert_log(path, "grip", None)
 
 
 # ---------------------------------------------------------------- end to end (needs the bindings)
@@ -230,13 +221,12 @@ sim = pytest.mark.skipif(
 @sim
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_convert_installs_and_replays_exactly(tmp_path, task):
-    from mimicrete import demos
+    from mimicrete import _native, demos, tasks
 
     paths = sy.synth_hands(task, 3, 0, tmp_path / "logs")
-    backend = cv.Backend()
     results = []
     for i, p in enumerate(paths):
-        res = cv.convert_log(p, task, tmp_path / "demos", episode_index=i, backend=backend)
+        res = cv.convert_log(p, task, tmp_path / "demos", episode_index=i)
         assert res.installed and res.picked and not res.fell, (p, res.counts)
         assert res.counts.unreachable == 0
         assert res.counts.frames + res.counts.frames_after_end >= res.counts.frames
@@ -249,13 +239,13 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
         assert int(meta["seed"]) == res.episode_seed and meta["success"] == "true"
         np.testing.assert_array_equal(d.actions[sl], res.actions)
         np.testing.assert_array_equal(d.rewards[sl], np.array(res.rewards, dtype=np.float32))
-        replayed = cv.replay(task, res.episode_seed, d.actions[sl], backend)
+        replayed = cv.replay(task, res.episode_seed, d.actions[sl])
         np.testing.assert_array_equal(np.array(replayed, dtype=np.float32), d.rewards[sl])
         assert d.terminated[sl][-1] and sum(replayed) == 2.0  # pick/grip +1, install +1
         # each record pairs an action with the observation it was chosen from (obs_t, a_t):
         # BC and GAIL learn from these pairs, so a one-step shift would teach the wrong mapping
-        env = backend.make_env(task)
-        obs, _ = env.reset(res.episode_seed)
+        env = _native.SimEnv(tasks.get(task).sim)
+        obs = env.reset(res.episode_seed)
         for o_rec, a in zip(d.obs[sl], d.actions[sl], strict=True):
             np.testing.assert_array_equal(o_rec, np.asarray(obs, dtype=np.float32))
             before = np.asarray(obs)[-len(obs) // 5 :][6]
@@ -296,23 +286,10 @@ def test_unreachable_targets_are_counted_not_followed(tmp_path):
 
 @sim
 def test_cli_convert_dir(tmp_path, capsys):
-    import argparse
-
     sy.synth_hands("grip", 2, 1, tmp_path / "logs")
     (tmp_path / "logs" / "broken.jsonl").write_text('{"format": "nope"}\n')
-    parser = argparse.ArgumentParser()
-    cv.configure(parser)
-    args = parser.parse_args(
-        [
-            str(tmp_path / "logs"),
-            "--task",
-            "grip",
-            "--out",
-            str(tmp_path / "demos"),
-            "--no-progress",
-        ]
-    )
-    assert cv.main(args) == 1  # one log failed
+    argv = ["convert", str(tmp_path / "logs"), "--task", "grip", "--out", str(tmp_path / "demos")]
+    assert cli_main([*argv, "--no-progress"]) == 1  # one log failed
     out = capsys.readouterr()
     assert 'broken.jsonl:1: unknown format "nope" in header' in out.err
     assert "2 demos in" in out.out and "2 installed (100.0 %), 1 logs failed" in out.out
@@ -327,9 +304,8 @@ def test_cli_convert_dir(tmp_path, capsys):
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_acceptance_60_episodes_install_rate(tmp_path, task):
     paths = sy.synth_hands(task, 60, 0, tmp_path / "logs")
-    backend = cv.Backend()
     ok = sum(
-        cv.convert_log(p, task, tmp_path / "demos", episode_index=i, backend=backend).installed
+        cv.convert_log(p, task, tmp_path / "demos", episode_index=i).installed
         for i, p in enumerate(paths)
     )
     assert ok >= 57  # ≥ 95 %
@@ -337,13 +313,14 @@ def test_acceptance_60_episodes_install_rate(tmp_path, task):
 
 @settings(max_examples=50, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), hand=st.sampled_from(["left", "right"]))
-def test_bound_hand_to_target_equals_the_public_function(seed, hand):
-    from mimicrete import handmodel as hm
+def test_session_target_is_the_public_hand_to_target(seed, hand):
+    """The session calls ur3-kin's hand → tool0 map with the calibration converted once; on the
+    first frame (the filter passes it through) that is exactly ``mc.kin.hand_to_target``."""
+    from mimicrete.hands import model as hm
 
     rng = np.random.default_rng(seed)
     calib = kin.Calibration(hm.random_rotation(rng), rng.normal(size=3), rng.uniform(0.5, 2.0))
     j = hm.hand_joints(hm.GESTURE_SHAPES["fixed"], hm.random_rotation(rng), rng.normal(size=3))
-    f = cv.bound_hand_to_target(calib)
-    np.testing.assert_array_equal(
-        f(j[1], j[7], j[12], hand), kin.hand_to_target(j[1], j[7], j[12], hand, calib)
-    )
+    s = ss.Session("suction", "openxr", hand, calib, seed=0)
+    s.observe(0.0, True, j)
+    np.testing.assert_array_equal(s.target, kin.hand_to_target(j[1], j[7], j[12], hand, calib))

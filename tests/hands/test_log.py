@@ -55,8 +55,8 @@ def test_round_trip_numpy(tmp_path: Path):
         "extra": {"fps": 72, "ok": [1, 2]},
     }
     p = tmp_path / "h.jsonl"
-    mc.handlog.write(p, header, t, tracked, joints, quats)
-    log = mc.handlog.parse(p)
+    mc.hands.write(p, header, t, tracked, joints, quats)
+    log = mc.hands.parse(p)
     np.testing.assert_array_equal(log.t, t)  # bit-exact
     np.testing.assert_array_equal(log.tracked, tracked)
     np.testing.assert_array_equal(log.joints, joints)
@@ -64,7 +64,7 @@ def test_round_trip_numpy(tmp_path: Path):
     assert log.header["layout"] == "openxr" and log.header["joint_count"] == 26
     assert log.header["episode_seed"] == 12 and log.header["extra"] == {"fps": 72, "ok": [1, 2]}
     assert log.report["kept"] == 50
-    lenient = mc.handlog.parse(p, mode="lenient")
+    lenient = mc.hands.parse(p, mode="lenient")
     assert len(lenient) == int(tracked.sum())
     assert lenient.report["untracked_skipped"] == int((~tracked).sum())
     assert [ln for ln, _ in lenient.report["skipped"]] == [i + 2 for i in np.flatnonzero(~tracked)]
@@ -121,7 +121,7 @@ def test_round_trip_numpy(tmp_path: Path):
 def test_error_messages(tmp_path: Path, frames, header, newline, line, reason):
     p = _write_lines(tmp_path / "bad.jsonl", header, frames, newline)
     with pytest.raises(mc.LogFormatError) as e:
-        mc.handlog.parse(p)
+        mc.hands.parse(p)
     assert str(e.value) == f"{p}:{line}: {reason}"
     assert isinstance(e.value, mc.MimicreteError)
 
@@ -130,13 +130,13 @@ def test_missing_header_and_truncated_last_line(tmp_path: Path):
     p = tmp_path / "nohdr.jsonl"
     p.write_text(json.dumps(_frame(0.0)) + "\n")
     with pytest.raises(mc.LogFormatError, match=r"nohdr.jsonl:1: missing header"):
-        mc.handlog.parse(p)
+        mc.hands.parse(p)
     p = tmp_path / "cut.jsonl"
     full = json.dumps(HEADER) + "\n" + json.dumps(_frame(0.0)) + "\n" + json.dumps(_frame(0.1))
     p.write_text(full[:-15])
     with pytest.raises(mc.LogFormatError, match=r"cut.jsonl:3: truncated last line"):
-        mc.handlog.parse(p)
-    log = mc.handlog.parse(p, mode="lenient")
+        mc.hands.parse(p)
+    log = mc.hands.parse(p, mode="lenient")
     assert len(log) == 1 and log.report["invalid_skipped"] == 1
     assert log.report["skipped"][0][0] == 3
 
@@ -146,7 +146,7 @@ def test_nothing_half_written(tmp_path: Path):
     joints = np.zeros((3, 21, 3))
     joints[2, 4, 1] = np.inf
     with pytest.raises(mc.LogFormatError, match=r"h.jsonl:4: non-finite value in joint 4"):
-        mc.handlog.write(
+        mc.hands.write(
             p,
             {"layout": "mediapipe", "space": "openxr", "handedness": "right"},
             np.arange(3.0),
@@ -155,7 +155,7 @@ def test_nothing_half_written(tmp_path: Path):
         )
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(ValueError, match=r"joints \(T, 21, 3\)"):
-        mc.handlog.write(
+        mc.hands.write(
             p,
             {"layout": "mediapipe", "space": "openxr", "handedness": "right"},
             np.arange(3.0),
@@ -166,11 +166,11 @@ def test_nothing_half_written(tmp_path: Path):
 
 def test_parse_text_and_bad_mode():
     text = json.dumps(HEADER) + "\n" + json.dumps(_frame(0.0)) + "\n"
-    assert len(mc.handlog.parse_text(text, "mem")) == 1
+    assert len(mc.hands.parse_text(text, "mem")) == 1
     with pytest.raises(ValueError, match="strict' or 'lenient"):
-        mc.handlog.parse_text(text, "mem", mode="sloppy")
+        mc.hands.parse_text(text, "mem", mode="sloppy")
     with pytest.raises(mc.LogFormatError, match=r"^mem:2: "):
-        mc.handlog.parse_text(text.replace('"t": 0.0', '"t": "x"'), "mem")
+        mc.hands.parse_text(text.replace('"t": 0.0', '"t": "x"'), "mem")
 
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
@@ -190,7 +190,7 @@ def test_python_json_written_logs_parse_exactly(tmp_path_factory, dts, vals, tra
     p = _write_lines(
         tmp_path_factory.mktemp("h") / "h.jsonl", {**HEADER, "layout": "mediapipe"}, frames
     )
-    log = mc.handlog.parse(p)
+    log = mc.hands.parse(p)
     assert len(log) == len(frames)
     if frames:
         np.testing.assert_array_equal(log.t, t)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
@@ -11,9 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mimicrete import gestures as g
-from mimicrete import handlog, kin
-from mimicrete import handmodel as hm
-from mimicrete import synth as sy
+from mimicrete import kin
+from mimicrete.hands import layouts
+from mimicrete.hands import log as handlog
+from mimicrete.hands import model as hm
+from mimicrete.teleop import synth as sy
 
 HAVE_ENVS = sy.have_simulator()
 
@@ -104,10 +105,10 @@ def test_handlog_format_and_layouts(tmp_path, layout, sim_like_scene):
     t = np.array([f["t"] for f in frames])
     np.testing.assert_allclose(np.diff(t), 1 / 90, atol=2e-6)
     assert 5.0 < t[-1] < 40.0
-    n = hm.LAYOUT_JOINTS[layout]
+    n = layouts.LAYOUT_JOINTS[layout]
     assert all(len(f["joints"]) == n and all(len(p) == 3 for p in f["joints"]) for f in frames)
     # the frame joints are where the calibration says tool0 is
-    fw, fi, fm = hm.FRAME_JOINTS[layout]
+    fw, fi, fm = layouts.FRAME_JOINTS[layout]
     j0 = np.array(frames[0]["joints"])
     calib = kin.Calibration.from_dict(head["extra"]["calibration"])
     t0 = kin.hand_to_target(j0[fw], j0[fi], j0[fm], "right", calib)
@@ -178,10 +179,11 @@ def test_gestures_follow_the_task_through_in_between_shapes(task, sim_like_scene
 def test_cli_writes_logs(tmp_path, monkeypatch, capsys, sim_like_scene):
     if not HAVE_ENVS:  # until the simulator's bindings exist, the sim's layout stands in
         monkeypatch.setattr(sy, "scene_from_env", sim_like_scene)
-    parser = argparse.ArgumentParser()
-    sy.configure(parser)
-    args = parser.parse_args(
+    from mimicrete.cli import main as cli_main
+
+    rc = cli_main(
         [
+            "synth-hands",
             "--task",
             "screw",
             "--episodes",
@@ -194,7 +196,7 @@ def test_cli_writes_logs(tmp_path, monkeypatch, capsys, sim_like_scene):
             "meta_ovr",
         ]
     )
-    assert sy.main(args) == 0
+    assert rc == 0
     files = sorted(tmp_path.glob("*.jsonl"))
     assert len(files) == 2
     head, frames = _read(files[0])
@@ -205,7 +207,7 @@ def test_cli_writes_logs(tmp_path, monkeypatch, capsys, sim_like_scene):
 @pytest.mark.skipif(not HAVE_ENVS, reason="needs mimicrete._native built with the simulator")
 @pytest.mark.parametrize(("task", "tcp_z"), [("suction", 0.05), ("grip", 0.085), ("screw", 0.085)])
 def test_scene_from_env_is_what_the_simulator_resets(task, tcp_z):
-    from mimicrete import _native
+    from mimicrete import _native, tasks
 
     xs = []
     for seed in range(20):
@@ -214,7 +216,7 @@ def test_scene_from_env_is_what_the_simulator_resets(task, tcp_z):
         assert sc.tcp_z == pytest.approx(tcp_z, abs=1e-6)
         assert sc.object[1] == pytest.approx(0.32, abs=1e-6)  # tile-sim OBJECT_Y
         xs.append(sc.object[0])
-        env = _native.SimEnv(sy.SIM_TASK[task])
+        env = _native.SimEnv(tasks.get(task).sim)
         obs = env.reset(seed)
         frame = obs[-len(obs) // 5 :]
         np.testing.assert_allclose(frame[sy.obs_layout(task)["object"]], sc.object, atol=1e-6)

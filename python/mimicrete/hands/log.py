@@ -5,9 +5,9 @@ episode_seed, source, extra); every further line is a frame ``{"t", "tracked", "
 "orientations"?}``. See ``docs/formats.md``. Parsing and validation are done in Rust
 (``demo-log``); errors raise ``mimicrete.LogFormatError`` with ``file:line: reason``.
 
-    >>> log = mc.handlog.parse("hand.jsonl")             # strict: first bad line raises
+    >>> log = mc.hands.parse("hand.jsonl")             # strict: first bad line raises
     >>> log.joints.shape                                  # (T, J, 3) metres
-    >>> log = mc.handlog.parse("hand.jsonl", mode="lenient"); log.report["skipped"]
+    >>> log = mc.hands.parse("hand.jsonl", mode="lenient"); log.report["skipped"]
 """
 
 from __future__ import annotations
@@ -20,10 +20,9 @@ import numpy as np
 
 from mimicrete import _native
 
-__all__ = ["LAYOUT_JOINTS", "HandLogData", "parse", "parse_text", "write"]
+from .layouts import LAYOUT_JOINTS
 
-#: Joints per frame of each layout.
-LAYOUT_JOINTS = {"openxr": 26, "webxr": 25, "meta_ovr": 24, "mediapipe": 21}
+__all__ = ["LAYOUT_JOINTS", "HandLogData", "parse", "parse_text", "write"]
 
 
 @dataclass

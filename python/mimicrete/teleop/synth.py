@@ -22,27 +22,24 @@ How a motion is made:
    the calibration (``ur3_kin::hand``: tool0.x = hand.y, tool0.y = hand.x, tool0.z = −hand.z,
    origin at the wrist; headset OpenXR space → Base by :class:`mimicrete.kin.Calibration`), so the
    hand pose is that map inverted (:func:`hand_pose_for_tool0`; the forward map is only ever
-   ur3-kin's), and the parametric hand (:mod:`mimicrete.handmodel`) adds the fingers.
+   ur3-kin's), and the parametric hand (:mod:`mimicrete.hands.model`) adds the fingers.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mimicrete import handmodel as hm
-from mimicrete import kin
+from mimicrete import kin, tasks
+from mimicrete.hands import layouts
+from mimicrete.hands import model as hm
 from mimicrete.kin import Calibration
 
-TASKS: tuple[str, ...] = ("suction", "grip", "screw")
-#: Simulator task names (``tile-sim`` ``Task``).
-SIM_TASK: dict[str, str] = {"suction": "TileSuction", "grip": "BlockGrip", "screw": "Screw"}
+TASKS = tasks.TASKS
 HAND_RATE_HZ = 90.0
 
 #: Gesture class (paper Table 1) → finger shape shown.
@@ -86,7 +83,7 @@ def hand_pose_for_tool0(
     tool0: np.ndarray, handedness: str, calib: Any
 ) -> tuple[np.ndarray, np.ndarray]:
     """Invert :func:`mimicrete.kin.hand_to_target`: the hand-model wrist rotation (columns: the
-    hand frame of :mod:`mimicrete.handmodel` in headset space) and wrist position that give
+    hand frame of :mod:`mimicrete.hands.model` in headset space) and wrist position that give
     ``tool0`` (``(4, 4)`` or a batch ``(n, 4, 4)`` → ``(…, 3, 3)``, ``(…, 3)``)."""
     tool0 = np.asarray(tool0, dtype=np.float64)
     r_hand_base = tool0[..., :3, :3] @ TOOL_FROM_HAND.T
@@ -195,7 +192,7 @@ def scene_from_env(task: str, seed: int) -> Scene:
             "mimicrete._native was built without the simulator bindings (tile-sim); "
             "rebuild with `make native`"
         )
-    env = _native.SimEnv(SIM_TASK[task])
+    env = _native.SimEnv(tasks.get(task).sim)
     env.reset(int(seed))
     snap = env.snapshot()
     tcp = np.array(snap["tcp"]["t"], dtype=np.float64)
@@ -484,7 +481,7 @@ def synth_episode(
 ) -> Episode:
     """Synthesise one demonstration of ``scene``; the same ``(scene, seed)`` gives the same
     episode."""
-    layout = hm.check_layout(layout)
+    layout = layouts.check_layout(layout)
     calib = calib or Calibration()
     rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
     person = Person(
@@ -529,7 +526,7 @@ def synth_episode(
         length = int(rng.integers(3, 12))
         tracked[k0 : k0 + length] = False
         joints[k0 : k0 + length] = joints[k0 - 1]  # the runtime repeats its last estimate
-    out = hm.to_layout(joints, layout)
+    out = layouts.to_layout(joints, layout)
     header = {
         "format": "mimicrete.handlog",
         "version": 1,
@@ -610,45 +607,3 @@ def synth_hands(
         ep = synth_episode(scene, seed * 1_000_003 + i, layout=layout, handedness=handedness)
         paths.append(write_handlog(out / f"{task}_{i:04d}.handlog.jsonl", ep))
     return paths
-
-
-def configure(parser: argparse.ArgumentParser) -> None:
-    """Flags of ``mimicrete synth-hands``."""
-    parser.add_argument("--task", choices=TASKS, default="suction", help="task to demonstrate")
-    parser.add_argument("--episodes", type=int, default=60, help="hand logs to write (60)")
-    parser.add_argument("--seed", type=int, default=0, help="seed: same seed, same files (0)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    parser.add_argument(
-        "--layout",
-        choices=sorted(hm.LAYOUT_JOINTS),
-        default="openxr",
-        help="joint layout written (openxr)",
-    )
-    parser.add_argument(
-        "--handedness",
-        choices=["right", "left"],
-        default="right",
-        help="the demonstrating hand (right)",
-    )
-
-
-def main(args: argparse.Namespace) -> int:
-    """Run ``mimicrete synth-hands``."""
-    if args.episodes < 1:
-        print("error: --episodes must be >= 1", file=sys.stderr)
-        return 2
-    try:
-        paths = synth_hands(
-            args.task,
-            args.episodes,
-            args.seed,
-            args.out,
-            layout=args.layout,
-            handedness=args.handedness,
-            progress=True,
-        )
-    except (RuntimeError, OSError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    print(f"wrote {len(paths)} hand logs to {args.out}")
-    return 0

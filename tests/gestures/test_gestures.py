@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import warnings
 
@@ -12,7 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mimicrete import gestures as g
-from mimicrete import handmodel as hm
+from mimicrete.cli import main as cli_main
+from mimicrete.hands import layouts
+from mimicrete.hands import model as hm
 
 SHAPES = list(hm.GESTURE_SHAPES)
 
@@ -68,21 +69,21 @@ def test_hand_dimensions_and_gesture_geometry():
 def test_layout_maps_keep_the_frame_joints():
     j = hm.hand_joints(hm.GESTURE_SHAPES["opening"], _rot(3), np.array([0.1, 1.2, -0.3]))
     w, i, m = j[1], j[7], j[12]
-    for layout, n in hm.LAYOUT_JOINTS.items():
-        out = hm.to_layout(j, layout)
+    for layout, n in layouts.LAYOUT_JOINTS.items():
+        out = layouts.to_layout(j, layout)
         assert out.shape == (n, 3)
-        fw, fi, fm = hm.FRAME_JOINTS[layout]
+        fw, fi, fm = layouts.FRAME_JOINTS[layout]
         np.testing.assert_array_equal(out[fw], w)
         np.testing.assert_array_equal(out[fi], i)
         np.testing.assert_array_equal(out[fm], m)
         np.testing.assert_array_equal(
-            hm.canonical21(out, layout), j[list(hm.MEDIAPIPE_FROM_OPENXR)]
+            layouts.canonical21(out, layout), j[list(layouts.MEDIAPIPE_FROM_OPENXR)]
         )
-    ovr = hm.to_layout(j, "meta_ovr")
+    ovr = layouts.to_layout(j, "meta_ovr")
     np.testing.assert_array_equal(ovr[19:24], j[[5, 10, 15, 20, 25]])  # tips
     np.testing.assert_array_equal(ovr[15], j[21])  # Pinky0 = little metacarpal
     with pytest.raises(ValueError, match="unknown hand layout"):
-        hm.to_layout(j, "kinect")
+        layouts.to_layout(j, "kinect")
 
 
 def test_degenerate_frame_raises():
@@ -98,7 +99,7 @@ def test_degenerate_frame_raises():
     seed=st.integers(0, 2**32 - 1),
     scale=st.floats(0.75, 1.25),
     shape=st.sampled_from(SHAPES),
-    layout=st.sampled_from(sorted(hm.LAYOUT_JOINTS)),
+    layout=st.sampled_from(sorted(layouts.LAYOUT_JOINTS)),
 )
 def test_features_3d_invariant_to_pose_size_hand_and_layout(seed, scale, shape, layout):
     s = hm.GESTURE_SHAPES[shape]
@@ -106,7 +107,7 @@ def test_features_3d_invariant_to_pose_size_hand_and_layout(seed, scale, shape, 
     rng = np.random.default_rng(seed)
     for hand in ("right", "left"):
         j = hm.hand_joints(s, hm.random_rotation(rng), rng.normal(size=3), scale, hand)
-        f = g.features_3d(hm.to_layout(j, layout), layout, hand)
+        f = g.features_3d(layouts.to_layout(j, layout), layout, hand)
         np.testing.assert_allclose(f, ref, atol=1e-9)
 
 
@@ -141,7 +142,7 @@ def _keypoint_row(pix: np.ndarray) -> np.ndarray:
 @given(seed=st.integers(0, 2**32 - 1), shape=st.sampled_from(SHAPES))
 def test_features_2d_invariant_to_image_similarity(seed, shape):
     rng = np.random.default_rng(seed)
-    pts = hm.to_layout(hm.hand_joints_local(hm.GESTURE_SHAPES[shape]), "mediapipe")[:, :2]
+    pts = layouts.to_layout(hm.hand_joints_local(hm.GESTURE_SHAPES[shape]), "mediapipe")[:, :2]
     ang = rng.uniform(-np.pi, np.pi)
     r = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
     moved = rng.uniform(0.1, 10) * pts @ r.T + rng.normal(size=2)
@@ -195,8 +196,8 @@ def test_shipped_models(task):
             j = hm.hand_joints(
                 shape, hm.random_rotation(rng), rng.normal(size=3), rng.uniform(0.85, 1.15), hand
             )
-            for layout in hm.LAYOUT_JOINTS:
-                assert model.predict_one(hm.to_layout(j, layout), hand, layout) == label
+            for layout in layouts.LAYOUT_JOINTS:
+                assert model.predict_one(layouts.to_layout(j, layout), hand, layout) == label
     assert model.predict_one(np.zeros((26, 3))) is None
 
 
@@ -234,7 +235,7 @@ def _mediapipe_2d_csv(path, n_per_class: int, seed: int) -> None:
                 np.array([rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), -0.2]),
                 rng.uniform(0.85, 1.15),
             )
-            pix = _project(hm.to_layout(j, "mediapipe"), rng)
+            pix = _project(layouts.to_layout(j, "mediapipe"), rng)
             rows.append([str(label), *(f"{v:.6f}" for v in _keypoint_row(pix))])
     path.write_text("\ufeff" + "\n".join(",".join(r) for r in rows) + "\n")
 
@@ -259,7 +260,7 @@ def test_csv_3d_any_layout_and_cli(tmp_path, capsys):
     rng = np.random.default_rng(0)
     j = np.array(
         [
-            hm.to_layout(
+            layouts.to_layout(
                 hm.hand_joints(
                     hm.jitter_shape(hm.GESTURE_SHAPES[c], rng), hm.random_rotation(rng), np.zeros(3)
                 ),
@@ -273,15 +274,11 @@ def test_csv_3d_any_layout_and_cli(tmp_path, capsys):
     data = g.read_gesture_csv(path)
     assert (data.layout, data.dims) == ("webxr", 3)
     np.testing.assert_allclose(data.joints, j, rtol=1e-5, atol=1e-6)
-    parser = argparse.ArgumentParser()
-    g.configure(parser)
     out = tmp_path / "custom.joblib"
-    args = parser.parse_args(["train", "--data", str(path), "--out", str(out), "--quick"])
-    assert g.main(args) == 0
+    assert cli_main(["gesture", "train", "--data", str(path), "--out", str(out), "--quick"]) == 0
     text = capsys.readouterr().out
     assert "held-out accuracy" in text and "closing" in text
-    args = parser.parse_args(["eval", "--data", str(path), "--model", str(out)])
-    assert g.main(args) == 0
+    assert cli_main(["gesture", "eval", "--data", str(path), "--model", str(out)]) == 0
     text = capsys.readouterr().out
     assert "webxr.csv (every row, no split) accuracy: " in text
     acc = float(text.split("accuracy: ")[1].split(" %")[0])
@@ -383,16 +380,22 @@ def test_fast_single_sample_path_matches_sklearn(task):
 def test_cli_2d_keypoint_csv_label_names_carry_to_eval(tmp_path, capsys):
     csv_path = tmp_path / "keypoint.csv"
     _mediapipe_2d_csv(csv_path, 60, seed=1)
-    parser = argparse.ArgumentParser()
-    g.configure(parser)
     out = tmp_path / "kp.joblib"
-    argv = ["train", "--data", str(csv_path), "--label-names", "open,close,pointer", "--quick"]
-    assert g.main(parser.parse_args([*argv, "--out", str(out)])) == 0
+    argv = [
+        "gesture",
+        "train",
+        "--data",
+        str(csv_path),
+        "--label-names",
+        "open,close,pointer",
+        "--quick",
+    ]
+    assert cli_main([*argv, "--out", str(out)]) == 0
     side = json.loads((tmp_path / "kp.joblib.json").read_text())
     assert side["features"]["kind"] == "2d" and side["info"]["label_names"][2] == "pointer"
     capsys.readouterr()
-    assert g.main(parser.parse_args(["eval", "--data", str(csv_path), "--model", str(out)])) == 0
+    assert cli_main(["gesture", "eval", "--data", str(csv_path), "--model", str(out)]) == 0
     text = capsys.readouterr().out
     assert "pointer" in text and float(text.split("accuracy: ")[1].split(" %")[0]) > 90.0
     # a 3-D model refuses 2-D data with a clear message
-    assert g.main(parser.parse_args(["eval", "--data", str(csv_path), "--task", "grip"])) == 2
+    assert cli_main(["gesture", "eval", "--data", str(csv_path), "--task", "grip"]) == 2

@@ -1,0 +1,49 @@
+"""The gesture classes of each task and the paper's numbers about them (§3.2, Table 1)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+TASK_CLASSES: dict[str, tuple[str, ...]] = {
+    "grip": ("closing", "opening", "fixed"),
+    "screw": (
+        "closing_tightening",
+        "closing_loosening",
+        "closing_fixed",
+        "opening_stopped",
+        "fixed_stopped",
+    ),
+}
+#: Which finger shape (:data:`mimicrete.hands.model.GESTURE_SHAPES`) each class is made with.
+CLASS_SHAPE: dict[str, str] = {
+    "closing": "closing",
+    "opening": "opening",
+    "fixed": "fixed",
+    "closing_tightening": "tightening",
+    "closing_loosening": "loosening",
+    "closing_fixed": "closing",
+    "opening_stopped": "opening",
+    "fixed_stopped": "fixed",
+}
+#: Paper §3.2: samples per class and the held-out share.
+PAPER_COUNTS: dict[str, tuple[int, ...]] = {
+    "grip": (290, 274, 263),
+    "screw": (1475, 1289, 1494, 1209, 1458),
+}
+PAPER_TEST_SIZE: dict[str, float] = {"grip": 0.2, "screw": 0.3}
+#: Paper Table 1: held-out accuracy.
+PAPER_ACCURACY: dict[str, float] = {"grip": 0.9819, "screw": 0.9928}
+#: Task names the rest of the package uses → gesture model.
+TASK_MODEL: dict[str, str] = {"suction": "grip", "grip": "grip", "screw": "screw"}
+
+DEFAULT_GRID: dict[str, list[Any]] = {
+    "svc__C": [0.3, 1.0, 10.0, 100.0],
+    "svc__gamma": ["scale", 0.001, 0.003, 0.01, 0.03],
+}
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+"""The shipped models (trained on the built-in synthetic hands)."""
+
+
+class GestureDataError(ValueError):
+    """A gesture CSV is malformed; the message starts with ``file:line:``."""

@@ -1,0 +1,337 @@
+"""Hand logs → MCAP demonstrations: the teleoperation session (:mod:`.session`) run over files.
+
+``mimicrete convert HANDLOG_OR_DIR --task suction --out DIR`` parses every hand log once up front
+with the project's one hand-log parser (:func:`mimicrete.hands.parse`, Rust ``demo-log``;
+``mimicrete.LogFormatError`` with ``file:line: reason`` on bad input), pushes its frames one by
+one into a :class:`~mimicrete.teleop.session.Session` that records into an MCAP demo, and checks
+the outcome: an episode in which the robot never followed the hand is a failure, not an empty
+demo.
+
+Output names are the input's whole name minus a known suffix (``.handlog.jsonl``, ``.jsonl``):
+``take.v1.jsonl`` → ``take.v1.mcap``. Two inputs that would give one name, and demos that exist
+already (unless ``overwrite``), are errors before anything is written. A lock file beside each
+demo being written keeps two converters out of each other's files.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete import LogFormatError, _native, tasks
+from mimicrete import gestures as gest
+from mimicrete.hands import log as handlog
+from mimicrete.hands.log import HandLogData
+from mimicrete.kin import Calibration
+
+from .record import DemoSink, episode_meta
+from .session import Counts, Session
+
+#: Hand-log file suffixes stripped to name the demo (longest first).
+LOG_SUFFIXES: tuple[str, ...] = (".handlog.jsonl", ".jsonl")
+
+
+class ConvertError(ValueError):
+    """A hand log cannot become a demo (names the file and the reason)."""
+
+
+@dataclass
+class EpisodeResult:
+    """The outcome of converting one hand log."""
+
+    source: str
+    out: str | None
+    episode_seed: int
+    steps: int
+    rewards: list[float]
+    actions: np.ndarray
+    picked: bool
+    installed: bool
+    fell: bool
+    terminated: bool
+    truncated: bool
+    counts: Counts
+
+
+# ----------------------------------------------------------------------------------------------
+# Inputs
+# ----------------------------------------------------------------------------------------------
+
+
+def calibration_of(log: HandLogData, source: str = "handlog") -> Calibration:
+    """The calibration a log was recorded with (``extra.calibration``, validated), else the
+    default for its space."""
+    extra = log.header.get("extra") or {}
+    cal = extra.get("calibration") if isinstance(extra, dict) else None
+    if cal is not None:
+        return parse_calibration(cal, f"{source}:1: extra.calibration")
+    space = str(log.header.get("space", "openxr"))
+    if space == "robot_base":
+        return Calibration(np.eye(3), np.zeros(3), 1.0, "robot_base")
+    return Calibration(space="openxr" if space in ("openxr", "webxr") else space)
+
+
+def parse_calibration(d: Any, where: str) -> Calibration:
+    """A calibration from its JSON form (:meth:`Calibration.to_dict`); ``where`` names the place in
+    errors (``file:line: field``)."""
+    if not isinstance(d, dict):
+        raise LogFormatError(f"{where}: must be an object with rotation, translation, scale, space")
+    missing = [k for k in ("rotation", "translation", "scale", "space") if k not in d]
+    if missing:
+        raise LogFormatError(f"{where}: missing {', '.join(missing)}")
+    try:
+        rot = np.asarray(d["rotation"], dtype=np.float64)
+        tr = np.asarray(d["translation"], dtype=np.float64)
+        scale = float(d["scale"])
+    except (TypeError, ValueError) as e:
+        raise LogFormatError(f"{where}: not numbers ({e})") from None
+    if rot.shape != (3, 3) or tr.shape != (3,):
+        raise LogFormatError(
+            f"{where}: rotation must be 3×3 and translation 3 numbers, got {rot.shape}, {tr.shape}"
+        )
+    if not (np.all(np.isfinite(rot)) and np.all(np.isfinite(tr)) and np.isfinite(scale)):
+        raise LogFormatError(f"{where}: NaN or infinite values")
+    if not scale > 0:
+        raise LogFormatError(f"{where}: scale must be > 0, got {scale}")
+    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+        raise LogFormatError(f"{where}: rotation is not a rotation matrix")
+    space = d["space"]
+    if space not in ("openxr", "webxr", "unity", "robot_base"):
+        raise LogFormatError(f"{where}: unknown space {space!r} (openxr, webxr, unity, robot_base)")
+    return Calibration(rot, tr, scale, space)
+
+
+def load_log(path: str | os.PathLike[str], mode: str = "strict") -> HandLogData:
+    """Parse a hand log for conversion (:func:`mimicrete.hands.parse`), with at least one
+    frame. Raises ``mimicrete.LogFormatError`` (``file:line: reason``)."""
+    log = handlog.parse(path, mode)
+    _require_frames(log, os.fspath(path))
+    return log
+
+
+def _require_frames(log: HandLogData, source: str) -> None:
+    if len(log) == 0:
+        raise LogFormatError(f"{source}:2: no frames")
+
+
+def find_logs(path: str | Path) -> list[Path]:
+    """A hand log, or every ``*.jsonl`` in a directory (sorted)."""
+    p = Path(path)
+    if p.is_dir():
+        logs = sorted(p.glob("*.jsonl"))
+        if not logs:
+            raise FileNotFoundError(f"{p}: no *.jsonl hand logs")
+        return logs
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file or directory")
+    return [p]
+
+
+def demo_name(log_path: str | Path) -> str:
+    """The demo file name of a hand log: its whole name minus a known suffix, plus ``.mcap``."""
+    name = Path(log_path).name
+    for suffix in LOG_SUFFIXES:
+        if name.endswith(suffix) and len(name) > len(suffix):
+            name = name[: -len(suffix)]
+            break
+    name = name.lstrip(".")
+    if not name:
+        raise ConvertError(f"{log_path}: cannot name a demo after this file")
+    return name + ".mcap"
+
+
+def plan_outputs(logs: list[Path], out_dir: Path, overwrite: bool) -> dict[Path, Path]:
+    """Hand log → demo path, checked before anything is written: every name is unique, and
+    existing demos are replaced only with ``overwrite``."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ConvertError(f"--out {out_dir}: exists and is not a directory")
+    seen: dict[str, Path] = {}
+    plan: dict[Path, Path] = {}
+    for log in logs:
+        name = demo_name(log)
+        if name in seen:
+            raise ConvertError(f"{seen[name]} and {log} would both be written as {name}")
+        seen[name] = log
+        plan[log] = out_dir / name
+    existing = [p for p in plan.values() if p.exists()]
+    if existing and not overwrite:
+        shown = ", ".join(p.name for p in existing[:3]) + (" ..." if len(existing) > 3 else "")
+        raise ConvertError(
+            f"{out_dir}: {len(existing)} demo(s) exist already ({shown}); "
+            "pass --overwrite to replace them"
+        )
+    return plan
+
+
+class _Lock:
+    """``PATH.lock`` created exclusively: a second converter writing the same demo is refused."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(str(path) + ".lock")
+
+    def __enter__(self) -> _Lock:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            raise ConvertError(
+                f"{self.path}: another process is writing this demo (remove the lock file if "
+                "no other mimicrete convert or teleop is running)"
+            ) from None
+        os.write(fd, f"{os.getpid()}\n".encode())
+        os.close(fd)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.path.unlink(missing_ok=True)
+
+
+# ----------------------------------------------------------------------------------------------
+# One log
+# ----------------------------------------------------------------------------------------------
+
+
+def convert_log(
+    log: HandLogData | str | os.PathLike[str],
+    task: str,
+    out: str | Path | None,
+    *,
+    source: str | os.PathLike[str] | None = None,
+    episode_index: int = 0,
+    model: gest.GestureModel | None = None,
+) -> EpisodeResult:
+    """Run one hand log through a :class:`Session`; write its MCAP demo to ``out`` (a file path
+    ending in ``.mcap``, a directory to write :func:`demo_name` into, or ``None``: simulate only).
+
+    ``log`` is a hand-log path (parsed by :func:`load_log`) or an already parsed
+    :class:`mimicrete.hands.HandLogData`; ``source`` names it (messages, metadata).
+
+    Raises:
+        ConvertError: the log is for another task, or the robot never followed the hand.
+    """
+    if not isinstance(log, HandLogData):
+        source = source if source is not None else log
+        log = load_log(log)
+    source = os.fspath(source) if source is not None else "handlog"
+    _require_frames(log, source)
+    spec = tasks.get(task)
+    logged = log.header.get("task")
+    if logged is not None:
+        try:
+            logged_task = tasks.get(str(logged)).name
+        except ValueError:
+            logged_task = str(logged)
+        if logged_task != spec.name:
+            raise ConvertError(
+                f"{source}: hand log is for task {logged!r}, converting as {spec.name!r}"
+            )
+    seed = int(log.header.get("episode_seed") or 0)
+    calib = calibration_of(log, source)
+    model = model or gest.load_default(spec.name)
+    out_path = None
+    if out is not None:
+        out_path = Path(out)
+        if out_path.suffix != ".mcap":
+            out_path = out_path / demo_name(source)
+    with _Lock(out_path) if out_path is not None else _nullcontext():
+        sink = None
+        if out_path is not None:
+            meta = episode_meta(
+                episode=episode_index,
+                task_sim=spec.sim,
+                seed=seed,
+                source=source,
+                model=model,
+                layout=log.header["layout"],
+                space=log.header["space"],
+                handedness=log.header["handedness"],
+                extra={"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
+            )
+            sink = DemoSink(out_path, meta)
+        session = Session(
+            spec.name,
+            log.header["layout"],
+            log.header["handedness"],
+            calib,
+            seed,
+            model=model,
+            recorder=sink,
+        )
+        rewards: list[float] = []
+        actions: list[np.ndarray] = []
+        try:
+            for k in range(len(log.t)):
+                for st in session.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k]):
+                    rewards.append(st.reward)
+                    actions.append(st.action)
+                if session.done:
+                    session.counts.frames_after_end += len(log.t) - k - 1
+                    break
+            for st in session.finish():
+                rewards.append(st.reward)
+                actions.append(st.action)
+            never = never_followed(session)
+            if never is not None:
+                raise ConvertError(f"{source}: the robot never followed the hand ({never})")
+        except BaseException:
+            if sink is not None:
+                sink.discard()
+            raise
+        counts = session.counts
+        if sink is not None:
+            sink.close(session.installed, counts)
+    return EpisodeResult(
+        source,
+        str(out_path) if out_path else None,
+        seed,
+        session.step_index,
+        rewards,
+        np.array(actions, dtype=np.float32).reshape(-1, spec.act_dim),
+        session.picked,
+        session.installed,
+        session.fell,
+        session.terminated,
+        session.truncated,
+        counts,
+    )
+
+
+def never_followed(session: Session) -> str | None:
+    """Why the robot never followed the hand in a session, or None if it did at some step."""
+    c = session.counts
+    if session.target is not None:
+        return None
+    if c.frames == c.untracked:
+        return f"all {c.frames} frames untracked"
+    return f"no usable hand frame: {c.untracked} untracked, {c.degenerate} degenerate of {c.frames}"
+
+
+class _nullcontext:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+
+def replay(task: str, seed: int, actions: np.ndarray) -> list[float]:
+    """Step a fresh environment reset with ``seed`` through ``actions``; its rewards."""
+    env = _native.SimEnv(tasks.get(task).sim)
+    env.reset(int(seed))
+    out = []
+    for a in np.asarray(actions, dtype=np.float32):
+        _, r, term, trunc, _ = env.step(a)
+        out.append(float(r))
+        if term or trunc:
+            break
+    return out
+
+
+def _rate(log: HandLogData) -> float:
+    d = np.diff(log.t)
+    d = d[d > 0]
+    return float(1.0 / np.median(d)) if len(d) else 0.0

@@ -1,0 +1,114 @@
+"""Recording a session: the MCAP demo (through the Rust ``demo-log`` writer) and its metadata."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete import demos
+from mimicrete.gestures import GestureModel
+
+from .session import CONTROL_DT, Counts
+
+
+def episode_meta(
+    *,
+    episode: int,
+    task_sim: str,
+    seed: int,
+    source: str,
+    model: GestureModel,
+    layout: str,
+    space: str,
+    handedness: str,
+    extra: dict[str, Any],
+) -> dict[str, Any]:
+    """The demo's ``episode_start`` metadata (docs/formats.md, "Metadata records")."""
+    gesture = f"svm-{model.task} ({'/'.join(model.classes)})"
+    path = model.info.get("path")
+    if path:
+        extra = {**extra, "gesture_model_file": str(path)}
+    acc = model.info.get("test_accuracy")
+    if acc is not None:
+        extra = {**extra, "gesture_model_accuracy": float(acc)}
+    return {
+        "episode": int(episode),
+        "task": task_sim,
+        "seed": int(seed),
+        "robot_model": "ur3",
+        "source_handlog": str(source),
+        "gesture_model": gesture,
+        "control_dt": float(CONTROL_DT),
+        "hand": {"layout": layout, "space": space, "handedness": handedness},
+        "extra": extra,
+    }
+
+
+class DemoSink:
+    """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer):
+    the :class:`~mimicrete.teleop.session.Recorder` a session records into."""
+
+    def __init__(self, path: str | os.PathLike[str], meta: dict[str, Any]) -> None:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self.w = demos.DemoWriter(str(path), meta)
+
+    def hand(self, t: float, joints: np.ndarray, tracked: bool, hand_t: float) -> None:
+        self.w.write_hand_frame(t, np.ascontiguousarray(joints, dtype=np.float64), tracked, hand_t)
+
+    def event(self, t: float, name: str, props: dict[str, Any]) -> None:
+        self.w.write_event(t, name, {k: str(v) for k, v in props.items()})
+
+    def step(
+        self,
+        step: int,
+        t: float,
+        obs: np.ndarray,
+        action: np.ndarray,
+        reward: float,
+        terminated: bool,
+        truncated: bool,
+        gesture: str,
+        snap: dict[str, Any],
+        events: list[str],
+    ) -> None:
+        """One env step; ``snap`` is the simulator's snapshot after it (f64 joints, poses)."""
+
+        def pose(p: dict[str, Any]) -> list[float]:
+            return [*map(float, p["t"]), *map(float, p["q"])]
+
+        self.w.write_step(
+            step,
+            t,
+            np.ascontiguousarray(obs, dtype=np.float32),
+            np.ascontiguousarray(action, dtype=np.float32),
+            reward,
+            terminated,
+            truncated,
+            gesture,
+            [float(x) for x in snap["q"]],
+            pose(snap["tool0"]),
+            pose(snap["object"]),
+            events,
+        )
+
+    def close(self, success: bool, counts: Counts, extra: dict[str, Any] | None = None) -> None:
+        """Finish the file: the summary is written and it is renamed into place."""
+        info = {k: json.dumps(v) for k, v in counts.as_dict().items()}
+        for k, v in (extra or {}).items():
+            info[k] = json.dumps(v)
+        self.w.finish(success, info)
+
+    def abandon(self) -> None:
+        """Close without finishing: the file stays as ``.partial`` (valid and salvageable)."""
+        self.w.abandon()
+
+    def discard(self) -> None:
+        """Close without finishing and delete the partial file."""
+        self.w.abandon()
+        Path(str(self.path) + ".partial").unlink(missing_ok=True)
