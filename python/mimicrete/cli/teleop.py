@@ -1,13 +1,118 @@
-"""`mimicrete teleop` (being built)."""
+"""`mimicrete teleop`: record demonstrations with your own hands (the live WebXR page)."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+
+from mimicrete.cli import UsageError
+
+HELP_OPEN = """\
+open the page:
+  Quest over USB:   adb reverse tcp:{port} tcp:{port}, then http://localhost:{port}/ in the Quest
+                    Browser; Enter VR, put the controllers down, demonstrate with the right hand
+  Quest over LAN:   mimicrete teleop --host 0.0.0.0 (HTTPS with a self-signed certificate and a
+                    token; accept the certificate warning once)
+  desktop, no headset: add ?emulate=quest3 to the URL (or pass --emulate): Meta's IWER emulates a
+                    Quest with hand tracking, driven with mouse and keyboard
+  left-hand pinch held 1 s starts / stops an episode; the page has Start/Stop/Discard/Recentre
+"""
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    pass
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = HELP_OPEN.format(port=8012)
+    parser.add_argument("--task", choices=["suction", "grip", "screw"], default="suction")
+    parser.add_argument(
+        "--out", required=True, metavar="DIR", help="where demos and hand logs are saved"
+    )
+    parser.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="bind address (127.0.0.1; any other address serves HTTPS and needs the token)",
+    )
+    parser.add_argument("--port", type=int, default=8012, help="port (8012)")
+    parser.add_argument("--seed", type=int, default=0, help="simulator seed of episode 0 (0)")
+    parser.add_argument(
+        "--calibration",
+        metavar="FILE.json",
+        help="tracking space -> Base calibration (default: DIR/calibration.json if a recentre "
+        "saved one, else the built-in default)",
+    )
+    parser.add_argument(
+        "--gesture-model", metavar="PATH", help="gesture model (default: the shipped one)"
+    )
+    parser.add_argument(
+        "--emulate", action="store_true", help="print the URL of the desktop emulation (IWER)"
+    )
+    parser.add_argument(
+        "--cert-dir",
+        metavar="DIR",
+        help="where the self-signed certificate is kept (default: DIR/.tls)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
-    raise SystemExit("mimicrete teleop: not built yet")
+    import asyncio
+    import json
+    from pathlib import Path
+
+    from mimicrete.gestures import load_model
+    from mimicrete.teleop import server as srv
+    from mimicrete.teleop.convert import parse_calibration
+    from mimicrete.teleop.live import Live
+
+    if not 0 < args.port < 65536:
+        raise UsageError(f"--port must be in 1..65535, got {args.port}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out}: exists and is not a directory")
+    calib = None
+    if args.calibration:
+        try:
+            calib = parse_calibration(
+                json.loads(Path(args.calibration).read_text()), args.calibration
+            )
+        except (OSError, ValueError) as e:
+            raise UsageError(f"--calibration {args.calibration}: {e}") from None
+    model = None
+    if args.gesture_model:
+        try:
+            model = load_model(args.gesture_model)
+        except (OSError, ValueError, KeyError, EOFError) as e:
+            raise UsageError(f"--gesture-model {args.gesture_model}: {e}") from None
+    live = Live(args.task, out, calibration=calib, seed=args.seed, model=model)
+    loopback = srv.is_loopback(args.host)
+    token = None if loopback else srv.new_token()
+    ssl_ctx = None
+    if not loopback:
+        cert, key = srv.self_signed(Path(args.cert_dir or out / ".tls"), args.host)
+        ssl_ctx = srv.ssl_context(cert, key)
+    server = srv.TeleopServer(live, token=token)
+    if not (srv.STATIC / "index.html").exists():
+        raise UsageError(
+            f"the web page is not built ({srv.STATIC}); run `make web` in the repository"
+        )
+    scheme = "http" if loopback else "https"
+    shown = "localhost" if loopback else args.host
+    query = []
+    if token:
+        query.append(f"token={token}")
+    if args.emulate:
+        query.append("emulate=quest3")
+    url = f"{scheme}://{shown}:{args.port}/" + ("?" + "&".join(query) if query else "")
+    print(f"mimicrete teleop: {args.task}, saving to {out}/ (episode {live.next_index} next)")
+    print(f"  {url}")
+    print(HELP_OPEN.format(port=args.port))
+    sys.stdout.flush()
+    try:
+        asyncio.run(srv.serve(server, args.host, args.port, ssl_ctx))
+    except KeyboardInterrupt:
+        pass
+    except OSError as e:
+        raise UsageError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    if live.recording:
+        live.stop("interrupted")
+    if live.last_saved:
+        print(f"last episode: {live.last_saved}")
+    return 0

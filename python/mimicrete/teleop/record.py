@@ -20,14 +20,15 @@ def episode_meta(
     episode: int,
     task_sim: str,
     seed: int,
-    source: str,
+    source: str | None,
     model: GestureModel,
     layout: str,
     space: str,
     handedness: str,
     extra: dict[str, Any],
 ) -> dict[str, Any]:
-    """The demo's ``episode_start`` metadata (docs/formats.md, "Metadata records")."""
+    """The demo's ``episode_start`` metadata (docs/formats.md, "Metadata records"); ``source`` is
+    the hand log it comes from, if it exists when the demo is opened."""
     gesture = f"svm-{model.task} ({'/'.join(model.classes)})"
     path = model.info.get("path")
     if path:
@@ -35,17 +36,19 @@ def episode_meta(
     acc = model.info.get("test_accuracy")
     if acc is not None:
         extra = {**extra, "gesture_model_accuracy": float(acc)}
-    return {
+    meta: dict[str, Any] = {
         "episode": int(episode),
         "task": task_sim,
         "seed": int(seed),
         "robot_model": "ur3",
-        "source_handlog": str(source),
         "gesture_model": gesture,
         "control_dt": float(CONTROL_DT),
         "hand": {"layout": layout, "space": space, "handedness": handedness},
         "extra": extra,
     }
+    if source is not None:  # hashed by the writer, so it must exist by now
+        meta["source_handlog"] = str(source)
+    return meta
 
 
 class DemoSink:

@@ -233,6 +233,7 @@ class Session:
         self.q_ik = self.q.copy()
         self.target: np.ndarray | None = None
         self.raw_gesture: str | None = None
+        self.last_tracked: bool | None = None  # the newest frame's tracked flag
         self.counts = Counts()
         self.t0: float | None = None
         self.t_last: float | None = None
@@ -313,6 +314,7 @@ class Session:
         c = self.counts
         c.frames += 1
         self.t_last = t
+        self.last_tracked = tracked
         assert self.t0 is not None
         before = self.smoother.state
         if self.recorder is not None:

@@ -1,0 +1,343 @@
+"""Live episodes: hand frames from the page drive a :class:`~.session.Session`; episodes are
+started, stopped, discarded and saved (MCAP demo + raw hand log) here. No networking: the
+server (:mod:`.server`) feeds this one frame at a time.
+
+Between recordings a preview session (nothing recorded) lets the user see the robot follow. A
+recording starts a fresh session on the next episode's seed (a new tile position) and ends by
+itself on install, fall or the step limit, or when the user stops or discards it.
+
+Episode control without controllers: a left-hand pinch (thumb tip to index tip under 2 cm) held
+for :data:`PINCH_HOLD_S` starts a recording, or stops the one running.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete import gestures as gest
+from mimicrete import kin, tasks
+from mimicrete.hands import log as handlog
+from mimicrete.kin import Calibration
+
+from .protocol import HandFrame
+from .record import DemoSink, episode_meta
+from .session import Session, Step
+from .view import effector_state, frame_poses
+
+PINCH_M = 0.02  # thumb tip to index tip, left hand
+PINCH_HOLD_S = 1.0
+THUMB_TIP, INDEX_TIP = 4, 9  # WebXR joint indices
+LAYOUT = "webxr"
+
+
+def view_from_base(calibration: Calibration) -> list[float]:
+    """The 4×4 (column-major) from Base into the tracking space: the inverse of the calibration's
+    affine map, read off ur3-kin's ``points_to_base`` (so the axis change lives in one place)."""
+    basis = np.vstack([np.zeros(3), np.eye(3)])
+    p = kin.points_to_base(basis, calibration)
+    m = np.eye(4)
+    m[:3, :3] = (p[1:] - p[0]).T  # columns: images of the unit vectors
+    m[:3, 3] = p[0]
+    return np.linalg.inv(m).reshape(-1, order="F").tolist()
+
+
+@dataclass
+class Episode:
+    """The recording in progress: its session and the raw frames for the hand log."""
+
+    index: int
+    seed: int
+    session: Session
+    sink: DemoSink
+    t: list[float] = field(default_factory=list)
+    tracked: list[bool] = field(default_factory=list)
+    joints: list[np.ndarray] = field(default_factory=list)
+
+
+class Live:
+    """The live state of one teleoperation server.
+
+    Args:
+        task: ``suction`` / ``grip`` / ``screw``.
+        out: folder for the demos (``TASK_NNNN.mcap``) and hand logs (``TASK_NNNN.handlog.jsonl``).
+        calibration: tracking space → Base; None: ``out/calibration.json`` if saved by a
+            recentre, else ur3-kin's default.
+        seed: simulator seed of the first episode (the next ones count up).
+        model: gesture model (default: the shipped one for the task).
+    """
+
+    def __init__(
+        self,
+        task: str,
+        out: str | Path,
+        *,
+        calibration: Calibration | None = None,
+        seed: int = 0,
+        model: gest.GestureModel | None = None,
+    ) -> None:
+        self.task = tasks.get(task)
+        self.out = Path(out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.calib_path = self.out / "calibration.json"
+        if calibration is None and self.calib_path.exists():
+            from .convert import parse_calibration
+
+            calibration = parse_calibration(
+                json.loads(self.calib_path.read_text()), str(self.calib_path)
+            )
+        self.calibration = calibration or Calibration()
+        self.model = model or gest.load_default(self.task.name)
+        self.next_index = self._first_free_index()
+        self.seed = int(seed)
+        self.episode: Episode | None = None
+        self.last_result: str | None = None
+        self.last_saved: dict[str, Any] | None = None
+        self.preview = self._session(self.seed + self.next_index, None)
+        self.pinch_since: float | None = None
+        self.pinch_fired = False
+        self.last_right: np.ndarray | None = None
+        self.events: list[dict[str, Any]] = []  # episode messages for the clients
+
+    # ------------------------------------------------------------------ frames
+
+    @property
+    def session(self) -> Session:
+        return self.episode.session if self.episode is not None else self.preview
+
+    @property
+    def recording(self) -> bool:
+        return self.episode is not None
+
+    def push(self, f: HandFrame) -> list[Step]:
+        """One hand frame from the driving client."""
+        self._left_hand_control(f)
+        if f.right_tracked:
+            self.last_right = f.right
+        ep = self.episode
+        joints = f.right if f.right_tracked else np.zeros((25, 3))
+        if ep is not None:
+            if ep.t and f.t < ep.t[-1]:  # a clock that goes back: not a frame of this episode
+                return []
+            ep.t.append(f.t)
+            ep.tracked.append(f.right_tracked)
+            ep.joints.append(joints)
+        s = self.session
+        steps = s.push(f.t, f.right_tracked, joints)
+        if s.done:
+            if ep is not None:
+                self.stop()
+            else:
+                self.preview = self._session(self.seed + self.next_index, None)
+        return steps
+
+    def _left_hand_control(self, f: HandFrame) -> None:
+        pinched = f.left_tracked and (
+            np.linalg.norm(f.left[THUMB_TIP] - f.left[INDEX_TIP]) < PINCH_M
+        )
+        if not pinched:
+            self.pinch_since, self.pinch_fired = None, False
+            return
+        if self.pinch_since is None:
+            self.pinch_since = f.t
+        if not self.pinch_fired and f.t - self.pinch_since >= PINCH_HOLD_S:
+            self.pinch_fired = True
+            if self.recording:
+                self.stop()
+            else:
+                self.start()
+
+    # ------------------------------------------------------------------ episodes
+
+    def start(self) -> None:
+        """Begin recording the next episode (a running one is stopped and saved first)."""
+        if self.episode is not None:
+            self.stop()
+        index = self.next_index
+        seed = self.seed + index
+        name = f"{self.task.name}_{index:04d}"
+        meta = episode_meta(
+            episode=index,
+            task_sim=self.task.sim,
+            seed=seed,
+            source=None,  # the hand log is written at the end; named in extra
+            model=self.model,
+            layout=LAYOUT,
+            space="webxr",
+            handedness="right",
+            extra={
+                "recorder": "mimicrete teleop",
+                "handlog": str(self.out / f"{name}.handlog.jsonl"),
+                "calibration": self.calibration.to_dict(),
+            },
+        )
+        sink = DemoSink(self.out / f"{name}.mcap", meta)
+        self.episode = Episode(index, seed, self._session(seed, sink), sink)
+        self.next_index += 1
+        self.last_result = None
+        self.events.append({"type": "episode", "event": "started", "index": index})
+
+    def stop(self, result: str | None = None) -> dict[str, Any] | None:
+        """End the recording and save it: the demo and the hand log (``result`` overrides the
+        outcome's name, e.g. "disconnected")."""
+        ep = self.episode
+        if ep is None:
+            return None
+        self.episode = None
+        s = ep.session
+        s.finish()
+        o = s.outcome()
+        if o.installed:
+            res = self.task.success
+        elif o.fell:
+            res = "fell"
+        elif o.truncated:
+            res = "time limit"
+        else:
+            res = result or "stopped"
+        name = f"{self.task.name}_{ep.index:04d}"
+        demo = self.out / f"{name}.mcap"
+        hand = self.out / f"{name}.handlog.jsonl"
+        if ep.t:
+            self._write_handlog(hand, ep)
+        finished = s.done or result is None
+        if finished:
+            ep.sink.close(o.installed, s.counts, {"result": res})
+        else:  # cut short (disconnect, Ctrl-C): kept as a valid, unfinished .partial file
+            ep.sink.abandon()
+            demo = Path(str(demo) + ".partial")
+        self.last_result = res
+        saved = {
+            "type": "episode",
+            "event": "saved",
+            "index": ep.index,
+            "result": res,
+            "demo": str(demo),
+            "handlog": str(hand) if ep.t else None,
+            "steps": o.steps,
+            "finished": finished,
+        }
+        self.last_saved = saved
+        self.events.append(saved)
+        self.preview = self._session(self.seed + self.next_index, None)
+        return saved
+
+    def discard(self) -> None:
+        """End the recording without keeping anything."""
+        ep = self.episode
+        if ep is None:
+            return
+        self.episode = None
+        ep.sink.discard()
+        self.last_result = "discarded"
+        self.events.append({"type": "episode", "event": "discarded", "index": ep.index})
+        self.next_index -= 1  # the index is free again
+        self.preview = self._session(self.seed + self.next_index, None)
+
+    def recentre(self) -> list[float] | None:
+        """Shift the calibration so the right hand's current target is tool0's current position;
+        saved to ``out/calibration.json`` and used by the next episodes."""
+        s = self.session
+        if s.target is None:
+            return None
+        tool0 = np.asarray(s.env.snapshot()["tool0"]["t"], dtype=np.float64)
+        delta = tool0 - s.target[:3, 3]
+        c = self.calibration
+        self.calibration = Calibration(c.rotation, c.translation + delta, c.scale, c.space)
+        tmp = self.calib_path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(self.calibration.to_dict(), indent=1))
+        os.replace(tmp, self.calib_path)
+        if self.episode is None:
+            self.preview = self._session(self.seed + self.next_index, None)
+        return view_from_base(self.calibration)
+
+    # ------------------------------------------------------------------ state out
+
+    def state(self) -> dict[str, Any]:
+        s = self.session
+        snap = s.env.snapshot()
+        why = None
+        if s.target is None:
+            why = "no hand yet"
+        elif s.counts.frames and self.last_frame_untracked(s):
+            why = "hand not tracked"
+        elif s.counts.unreachable and self._last_step_unreachable:
+            why = "target unreachable"
+        elif not self.recording:
+            why = "not recording"
+        target = None
+        if s.target is not None:
+            from scipy.spatial.transform import Rotation
+
+            target = [*s.target[:3, 3].tolist(), *Rotation.from_matrix(s.target[:3, :3]).as_quat()]
+        margin = None
+        return {
+            "type": "state",
+            "frames": frame_poses(snap),
+            "ee": effector_state(self.task.name, snap),
+            "gesture": s.gesture,
+            "margin": margin,
+            "following": why in (None, "not recording"),
+            "why": why,
+            "target": target,
+            "episode": self.episode.index if self.episode else self.next_index,
+            "recording": self.recording,
+            "step": s.step_index,
+            "last_result": self.last_result,
+        }
+
+    _last_step_unreachable = False
+
+    def note_steps(self, steps: list[Step]) -> None:
+        if steps:
+            self._last_step_unreachable = steps[-1].why == "target unreachable"
+
+    @staticmethod
+    def last_frame_untracked(s: Session) -> bool:
+        return s.last_tracked is False
+
+    # ------------------------------------------------------------------ internals
+
+    def _session(self, seed: int, sink: DemoSink | None) -> Session:
+        return Session(
+            self.task.name,
+            LAYOUT,
+            "right",
+            self.calibration,
+            seed,
+            model=self.model,
+            recorder=sink,
+        )
+
+    def _first_free_index(self) -> int:
+        used = [
+            int(p.name[len(self.task.name) + 1 :].split(".")[0])
+            for p in self.out.glob(f"{self.task.name}_[0-9][0-9][0-9][0-9].*")
+        ]
+        return max(used) + 1 if used else 0
+
+    def _write_handlog(self, path: Path, ep: Episode) -> None:
+        header = {
+            "format": "mimicrete.handlog",
+            "version": 1,
+            "layout": LAYOUT,
+            "space": "webxr",
+            "handedness": "right",
+            "units": "m",
+            "task": self.task.name,
+            "episode_seed": ep.seed,
+            "source": "mimicrete teleop (WebXR page)",
+            "extra": {"calibration": self.calibration.to_dict()},
+        }
+        handlog.write(
+            path,
+            header,
+            np.asarray(ep.t, dtype=np.float64),
+            np.asarray(ep.tracked, dtype=bool),
+            np.asarray(ep.joints, dtype=np.float64).reshape(-1, 25, 3),
+        )

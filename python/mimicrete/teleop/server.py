@@ -1,0 +1,325 @@
+"""The live teleoperation server (``mimicrete teleop``): serves the WebXR page and one WebSocket.
+
+Per binary hand frame from the driving client: decode (:mod:`.protocol`), push into the live
+episode (:class:`.live.Live`, the same :class:`.session.Session` ``mimicrete convert`` runs), and
+answer with the state (robot frames, gesture, following or why not, episode, recording, result,
+the frame's ``sent_ms`` echoed for the round trip, and the time the server spent on it).
+
+Bad input (a frame of the wrong size, NaN, garbage, an unknown message type) is dropped and
+counted, never fatal. One driver at a time: a second client watches read-only. A disconnect or
+Ctrl-C mid-episode closes the demo cleanly as an unfinished ``.partial`` file and writes the hand
+log; nothing recorded is lost.
+
+Security: loopback by default. Any other bind address needs TLS (a self-signed certificate made
+on first run) and a per-run token in the page's URL and on the WebSocket (compared in constant
+time). Cross-origin WebSocket upgrades are refused.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import ipaddress
+import json
+import secrets
+import ssl
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+from aiohttp import WSMsgType, web
+
+from .live import Live, view_from_base
+from .protocol import VERSION, FrameError, parse_frame
+from .view import scene_entities
+
+STATIC = Path(__file__).resolve().parent / "static"
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+@dataclass
+class Stats:
+    """Counters the HUD and the log show."""
+
+    frames: int = 0
+    dropped: dict[str, int] = field(
+        default_factory=lambda: {"malformed": 0, "nan": 0, "unknown": 0, "not_driver": 0}
+    )
+    frame_times: list[float] = field(default_factory=list)  # arrival times, last second
+    server_ms: list[float] = field(default_factory=list)  # per frame, kept for the benchmark
+
+    def fps(self, now: float) -> float:
+        self.frame_times = [t for t in self.frame_times if now - t <= 1.0]
+        return float(len(self.frame_times))
+
+
+class TeleopServer:
+    """The aiohttp application around one :class:`Live`."""
+
+    def __init__(self, live: Live, *, token: str | None = None, static: Path = STATIC) -> None:
+        self.live = live
+        self.token = token
+        self.static = static
+        self.driver: web.WebSocketResponse | None = None
+        self.viewers: set[web.WebSocketResponse] = set()
+        self.stats = Stats()
+        self.log = lambda msg: print(f"mimicrete teleop: {msg}", file=sys.stderr, flush=True)
+
+    def app(self) -> web.Application:
+        app = web.Application()
+        app.router.add_get("/", self.index)
+        app.router.add_get("/ws", self.websocket)
+        if self.static.is_dir():
+            app.router.add_static("/static/", self.static)
+        app.on_shutdown.append(self._shutdown)
+        return app
+
+    # ------------------------------------------------------------------ http
+
+    def _token_ok(self, request: web.Request) -> bool:
+        if self.token is None:
+            return True
+        given = request.query.get("token", "")
+        return hmac.compare_digest(given.encode(), self.token.encode())
+
+    async def index(self, request: web.Request) -> web.StreamResponse:
+        if not self._token_ok(request):
+            raise web.HTTPForbidden(text="mimicrete teleop: a valid ?token= is required")
+        page = self.static / "index.html"
+        if not page.exists():
+            raise web.HTTPNotFound(
+                text="mimicrete teleop: the page is not built (run `make web` in the repository)"
+            )
+        return web.FileResponse(page, headers={"Cache-Control": "no-store"})
+
+    # ------------------------------------------------------------------ websocket
+
+    async def websocket(self, request: web.Request) -> web.StreamResponse:
+        if not self._token_ok(request):
+            raise web.HTTPForbidden(text="bad token")
+        origin = request.headers.get("Origin")
+        if origin is not None and urlsplit(origin).netloc != request.host:
+            raise web.HTTPForbidden(text="cross-origin WebSocket refused")
+        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=1 << 16)
+        await ws.prepare(request)
+        role = "viewer"
+        try:
+            async for msg in ws:
+                if msg.type == WSMsgType.BINARY:
+                    if ws is not self.driver:
+                        self.stats.dropped["not_driver"] += 1
+                        continue
+                    await self._frame(ws, msg.data)
+                elif msg.type == WSMsgType.TEXT:
+                    role = await self._text(ws, msg.data, role)
+                elif msg.type == WSMsgType.ERROR:
+                    break
+        finally:
+            if ws is self.driver:
+                self.driver = None
+                if self.live.recording:
+                    saved = self.live.stop("disconnected")
+                    self.log(f"driver disconnected mid-episode; kept {saved}")
+            self.viewers.discard(ws)
+        return ws
+
+    async def _text(self, ws: web.WebSocketResponse, data: str, role: str) -> str:
+        try:
+            msg = json.loads(data)
+            kind = msg["type"]
+        except (ValueError, KeyError, TypeError):
+            self.stats.dropped["malformed"] += 1
+            return role
+        if kind == "hello":
+            want = msg.get("role", "driver")
+            if want == "driver" and self.driver is None:
+                self.driver, role = ws, "driver"
+            else:
+                role = "viewer"
+                self.viewers.add(ws)
+                if want == "driver":
+                    await ws.send_json(
+                        {"type": "error", "message": "another client drives; you watch"}
+                    )
+            await ws.send_json(self._hello(role))
+        elif kind == "control" and ws is self.driver:
+            try:
+                await self._control(str(msg.get("action")))
+            except Exception as e:  # a failed save must not take the server down
+                self.log(f"control {msg.get('action')!r} failed: {e}")
+                await ws.send_json({"type": "error", "message": f"{msg.get('action')}: {e}"})
+        elif kind == "control":
+            self.stats.dropped["not_driver"] += 1
+        else:
+            self.stats.dropped["unknown"] += 1
+        return role
+
+    def _hello(self, role: str) -> dict[str, Any]:
+        live = self.live
+        return {
+            "type": "hello",
+            "protocol": VERSION,
+            "role": role,
+            "task": live.task.name,
+            "layout": "webxr",
+            "control_dt": 0.04,
+            "scene": scene_entities(live.session.env.scene()),
+            "view_from_base": view_from_base(live.calibration),
+            **{k: v for k, v in live.state().items() if k == "frames"},
+        }
+
+    async def _control(self, action: str) -> None:
+        live = self.live
+        if action == "start":
+            live.start()
+        elif action == "stop":
+            live.stop()
+        elif action == "discard":
+            live.discard()
+        elif action == "recentre":
+            m = live.recentre()
+            if m is not None:
+                await self._broadcast({"type": "calibration", "view_from_base": m})
+        else:
+            self.stats.dropped["unknown"] += 1
+        await self._flush_events()
+
+    async def _frame(self, ws: web.WebSocketResponse, data: bytes) -> None:
+        t0 = time.perf_counter()
+        try:
+            f = parse_frame(data)
+        except FrameError as e:
+            self.stats.dropped[e.kind] += 1
+            return
+        self.stats.frames += 1
+        self.stats.frame_times.append(time.monotonic())
+        steps = self.live.push(f)
+        self.live.note_steps(steps)
+        state = self.live.state()
+        state.update(
+            seq=f.seq,
+            sent_ms=f.sent_ms,
+            dropped=dict(self.stats.dropped),
+            fps=self.stats.fps(time.monotonic()),
+        )
+        ms = (time.perf_counter() - t0) * 1000.0
+        state["server_ms"] = ms
+        self.stats.server_ms.append(ms)
+        await ws.send_str(json.dumps(state))
+        if self.viewers and f.seq % 4 == 0:  # ~25 Hz to watchers at a 90 Hz stream
+            await self._broadcast(state, viewers_only=True)
+        await self._flush_events()
+
+    async def _flush_events(self) -> None:
+        while self.live.events:
+            ev = self.live.events.pop(0)
+            self.log(json.dumps(ev))
+            await self._broadcast(ev)
+
+    async def _broadcast(self, msg: dict[str, Any], viewers_only: bool = False) -> None:
+        targets = set(self.viewers) if viewers_only else {*self.viewers, self.driver}
+        text = json.dumps(msg)
+        for ws in targets:
+            if ws is not None and not ws.closed:
+                try:
+                    await ws.send_str(text)
+                except ConnectionError:
+                    pass
+
+    async def _shutdown(self, app: web.Application) -> None:
+        if self.live.recording:
+            saved = self.live.stop("interrupted")
+            self.log(f"stopped mid-episode; kept {saved}")
+        for ws in [self.driver, *self.viewers]:
+            if ws is not None:
+                await ws.close()
+
+
+# ----------------------------------------------------------------------------------------------
+# TLS
+# ----------------------------------------------------------------------------------------------
+
+
+def self_signed(cert_dir: Path, host: str) -> tuple[Path, Path]:
+    """A self-signed certificate for ``host`` (and localhost), made once and reused."""
+    cert, key = cert_dir / "teleop-cert.pem", cert_dir / "teleop-key.pem"
+    if cert.exists() and key.exists():
+        return cert, key
+    import datetime
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    k = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "mimicrete teleop")])
+    alt: list[x509.GeneralName] = [x509.DNSName("localhost")]
+    try:
+        alt.append(x509.IPAddress(ipaddress.ip_address(host)))
+    except ValueError:
+        alt.append(x509.DNSName(host))
+    now = datetime.datetime.now(datetime.UTC)
+    c = (
+        x509.CertificateBuilder()
+        .subject_name(name)
+        .issuer_name(name)
+        .public_key(k.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - datetime.timedelta(minutes=5))
+        .not_valid_after(now + datetime.timedelta(days=365))
+        .add_extension(x509.SubjectAlternativeName(alt), critical=False)
+        .sign(k, hashes.SHA256())
+    )
+    cert_dir.mkdir(parents=True, exist_ok=True)
+    key.write_bytes(
+        k.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.NoEncryption(),
+        )
+    )
+    key.chmod(0o600)
+    cert.write_bytes(c.public_bytes(serialization.Encoding.PEM))
+    return cert, key
+
+
+def ssl_context(cert: Path, key: Path) -> ssl.SSLContext:
+    ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+    ctx.load_cert_chain(str(cert), str(key))
+    return ctx
+
+
+def new_token() -> str:
+    return secrets.token_urlsafe(16)
+
+
+async def serve(
+    server: TeleopServer,
+    host: str,
+    port: int,
+    ssl_ctx: ssl.SSLContext | None,
+    ready: asyncio.Event | None = None,
+) -> None:
+    """Run until cancelled (Ctrl-C): the app on ``host:port``."""
+    runner = web.AppRunner(server.app(), handle_signals=False, access_log=None)
+    await runner.setup()
+    site = web.TCPSite(runner, host, port, ssl_context=ssl_ctx)
+    await site.start()
+    if ready is not None:
+        ready.set()
+    try:
+        await asyncio.Event().wait()
+    finally:
+        await runner.cleanup()

@@ -1,0 +1,221 @@
+"""The live server over a real WebSocket (aiohttp's test server on loopback, no browser): a
+synthetic demonstration streamed as protocol frames installs the tile, saves a demo and a hand log,
+and the hand log converts offline to the same steps, actions and rewards. Bad input is dropped
+and counted; a second client watches; a wrong token and a foreign origin are refused; a disconnect
+mid-episode keeps what was recorded."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import numpy as np
+import pytest
+from aiohttp.test_utils import TestClient, TestServer
+
+from mimicrete import demos
+from mimicrete.teleop import convert as cv
+from mimicrete.teleop import synth as sy
+from mimicrete.teleop.live import Live
+from mimicrete.teleop.protocol import FRAME_BYTES, pack_frame
+from mimicrete.teleop.server import TeleopServer
+
+
+def _log(tmp_path, task="suction", seed=3):
+    path = sy.synth_hands(task, 1, seed, tmp_path / "hands", layout="webxr")[0]
+    return cv.load_log(path)
+
+
+async def _client(server: TeleopServer) -> TestClient:
+    client = TestClient(TestServer(server.app()))
+    await client.start_server()
+    return client
+
+
+async def _hello(ws, role="driver"):
+    await ws.send_json({"type": "hello", "protocol": 1, "role": role, "client": "test"})
+    while True:
+        msg = await ws.receive_json(timeout=10)
+        if msg["type"] == "hello":
+            return msg
+
+
+async def _stream(ws, log, seq0=0, until=None):
+    """Send the log's frames one at a time, each answered by a state; returns the states."""
+    states = []
+    for k in range(len(log.t)):
+        right = log.joints[k] if log.tracked[k] else None
+        await ws.send_bytes(pack_frame(seq0 + k, float(log.t[k]), 1000.0 + k, right))
+        while True:
+            msg = await ws.receive_json(timeout=10)
+            if msg["type"] == "state":
+                break
+        assert msg["seq"] == seq0 + k and msg["sent_ms"] == 1000.0 + k
+        states.append(msg)
+        if until is not None and until(msg):
+            break
+    return states
+
+
+def _run(coro):
+    return asyncio.run(coro)
+
+
+@pytest.mark.parametrize("task", ["suction", "grip", "screw"])
+def test_live_episode_installs_and_its_handlog_converts_to_the_same_demo(tmp_path, task):
+    log = _log(tmp_path, task)
+    calib = cv.calibration_of(log)
+    live = Live(task, tmp_path / "out", calibration=calib, seed=int(log.header["episode_seed"]))
+
+    async def go():
+        client = await _client(TeleopServer(live))
+        try:
+            ws = await client.ws_connect("/ws")
+            hello = await _hello(ws)
+            assert hello["role"] == "driver" and hello["task"] == task
+            assert any(e["frame_id"] == "object" for e in hello["scene"])
+            assert len(hello["view_from_base"]) == 16
+            await ws.send_json({"type": "control", "action": "start"})
+            states = await _stream(ws, log, until=lambda m: not m["recording"])
+            await ws.close()
+            return states
+        finally:
+            await client.close()
+
+    states = _run(go())
+    assert states[0]["recording"] and states[-1]["last_result"] == live.task.success
+    saved = live.last_saved
+    assert saved["finished"] and saved["result"] == live.task.success
+    d = demos.load(saved["demo"])
+    assert d.num_episodes == 1 and d.terminated[-1]
+    # live and offline are one pipeline: the saved hand log converts to the same steps
+    again = cv.convert_log(saved["handlog"], task, tmp_path / "again")
+    assert again.installed and again.steps == len(d.actions) == saved["steps"]
+    np.testing.assert_array_equal(again.actions, d.actions)
+    np.testing.assert_array_equal(np.array(again.rewards, dtype=np.float32), d.rewards)
+    d2 = demos.load(again.out)
+    np.testing.assert_array_equal(d2.obs, d.obs)
+
+
+def test_follows_the_hand_and_reports_why_not(tmp_path):
+    log = _log(tmp_path)
+    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+
+    async def go():
+        client = await _client(TeleopServer(live))
+        try:
+            ws = await client.ws_connect("/ws")
+            await _hello(ws)
+            first = await _stream(ws, log)
+            # the hand lost: the robot holds and the HUD says why
+            await ws.send_bytes(pack_frame(99999, float(log.t[-1]) + 0.1, 0.0, None))
+            lost = await ws.receive_json(timeout=10)
+            return first, lost
+        finally:
+            await client.close()
+
+    first, lost = _run(go())
+    assert first[0]["why"] == "no hand yet" or first[0]["following"]
+    assert not first[-1]["recording"] and first[-1]["why"] in ("not recording", None)
+    assert lost["why"] == "hand not tracked"
+    assert {"base", "link6", "object", "tool0"} <= set(first[-1]["frames"])
+
+
+def test_bad_input_is_dropped_and_counted_and_never_fatal(tmp_path):
+    log = _log(tmp_path)
+    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+
+    async def go():
+        client = await _client(TeleopServer(live))
+        try:
+            ws = await client.ws_connect("/ws")
+            await _hello(ws)
+            await ws.send_bytes(b"\x00" * 10)  # wrong size
+            await ws.send_bytes(b"XXXX" + b"\x00" * (FRAME_BYTES - 4))  # wrong magic
+            nan = np.full((25, 3), np.nan)
+            await ws.send_bytes(pack_frame(1, 0.0, 0.0, nan))  # NaN in a tracked hand
+            await ws.send_str("not json")
+            await ws.send_json({"type": "teleport"})
+            states = await _stream(ws, log, seq0=10, until=lambda m: True)
+            return states[-1]
+        finally:
+            await client.close()
+
+    last = _run(go())
+    assert last["dropped"] == {"malformed": 3, "nan": 1, "unknown": 1, "not_driver": 0}
+
+
+def test_second_client_watches_and_cannot_drive(tmp_path):
+    log = _log(tmp_path)
+    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+
+    async def go():
+        client = await _client(TeleopServer(live))
+        try:
+            a = await client.ws_connect("/ws")
+            await _hello(a)
+            b = await client.ws_connect("/ws")
+            await b.send_json({"type": "hello", "protocol": 1, "role": "driver"})
+            err = await b.receive_json(timeout=10)
+            hello_b = await b.receive_json(timeout=10)
+            await b.send_bytes(pack_frame(0, 0.0, 0.0, log.joints[0]))
+            await b.send_json({"type": "control", "action": "start"})
+            states = await _stream(a, log, until=lambda m: m["seq"] >= 8)
+            watched = await b.receive_json(timeout=10)
+            return err, hello_b, states[-1], watched
+        finally:
+            await client.close()
+
+    err, hello_b, last, watched = _run(go())
+    assert err["type"] == "error" and hello_b["role"] == "viewer"
+    assert last["dropped"]["not_driver"] == 2 and not last["recording"]
+    assert watched["type"] == "state"
+
+
+def test_token_and_origin_are_checked(tmp_path):
+    live = Live("suction", tmp_path / "out")
+
+    async def go():
+        client = await _client(TeleopServer(live, token="s3cret"))
+        try:
+            r1 = await client.get("/ws")
+            r2 = await client.get("/ws?token=wrong")
+            r3 = await client.get("/ws?token=s3cret", headers={"Origin": "http://evil.example"})
+            ws = await client.ws_connect("/ws?token=s3cret")
+            hello = await _hello(ws)
+            return r1.status, r2.status, r3.status, hello["role"]
+        finally:
+            await client.close()
+
+    assert _run(go()) == (403, 403, 403, "driver")
+
+
+def test_disconnect_mid_episode_keeps_what_was_recorded(tmp_path):
+    log = _log(tmp_path)
+    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+
+    async def go():
+        client = await _client(TeleopServer(live))
+        try:
+            ws = await client.ws_connect("/ws")
+            await _hello(ws)
+            await ws.send_json({"type": "control", "action": "start"})
+            await _stream(ws, log, until=lambda m: m["step"] >= 40)
+            await ws.close()
+            for _ in range(100):  # the server notices the close
+                if not live.recording:
+                    break
+                await asyncio.sleep(0.02)
+        finally:
+            await client.close()
+
+    _run(go())
+    saved = live.last_saved
+    assert saved is not None and not saved["finished"] and saved["result"] == "disconnected"
+    assert saved["demo"].endswith(".mcap.partial")
+    steps, info = demos.salvage(saved["demo"])
+    assert info["messages"] > 0
+    hand = cv.load_log(saved["handlog"])
+    assert len(hand.t) > 40 * 2  # ~90 Hz frames for >= 40 steps at 25 Hz
+    meta = json.dumps(saved)
+    assert "disconnected" in meta
