@@ -8,7 +8,7 @@ STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
 RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
-.PHONY: help setup native demos experiments train test test-rs test-py bench lint fmt experiments clean
+.PHONY: help setup native web demos experiments train test test-rs test-py bench lint fmt experiments clean
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
@@ -28,6 +28,24 @@ $(NATIVE_STAMP): $(STAMP) $(RUST_SRC)
 	touch $@
 
 native: $(NATIVE_STAMP) ## build mimicrete._native into .venv (maturin develop --release)
+
+# The teleop page: pinned npm packages (web/package-lock.json) bundled by esbuild into the
+# package's static folder (build output, git-ignored), served by `mimicrete teleop`.
+WEB_STATIC := python/mimicrete/teleop/static
+WEB_STAMP := $(WEB_STATIC)/.stamp
+WEB_SRC := $(wildcard web/src/*.js) web/index.html web/build.mjs web/package.json web/package-lock.json
+CHROMIUM := /usr/bin/chromium
+
+$(WEB_STAMP): $(WEB_SRC)
+	cd web && npm ci --no-audit --no-fund && npm run build
+	touch $@
+
+# The browser tests drive Debian's Chromium through Playwright (no Playwright browser download).
+$(CHROMIUM):
+	apt-get update
+	apt-get install -y --no-install-recommends chromium fonts-dejavu-core
+
+web: $(WEB_STAMP) $(CHROMIUM) ## build the teleop page into $(WEB_STATIC); install chromium if missing
 
 HANDS := data/hands/suction
 DEMOS := demos/suction
@@ -55,7 +73,7 @@ $(EXP_STAMP): $(STAMP) requirements/experiments.txt
 experiments: $(NATIVE_STAMP) $(EXP_STAMP) ## Table 3 x 3 seeds on Ray Tune (resumable), then docs/RESULTS.md; flags via EXPERIMENTS_ARGS
 	$(PY) -m mimicrete.experiments $(EXPERIMENTS_ARGS)
 
-test-py: $(NATIVE_STAMP) $(EXP_STAMP) ## Python tests
+test-py: $(NATIVE_STAMP) $(EXP_STAMP) $(WEB_STAMP) $(CHROMIUM) ## Python tests
 	$(PY) -m pytest tests -q --runslow
 
 test: test-rs test-py ## all tests (what CI runs)
@@ -65,7 +83,7 @@ $(BENCH_STAMP): $(STAMP) requirements/bench.txt
 	$(PIP) install --quiet -r requirements/bench.txt -c requirements/constraints.txt
 	touch $@
 
-bench: $(NATIVE_STAMP) $(BENCH_STAMP) ## print every benchmark (installs the peers: mujoco, ikpy, SB3)
+bench: $(NATIVE_STAMP) $(BENCH_STAMP) $(WEB_STAMP) $(CHROMIUM) ## print every benchmark (installs the peers: mujoco, ikpy, SB3)
 	$(PY) -m mimicrete.bench
 
 lint: $(STAMP) ## fmt, clippy, ruff
