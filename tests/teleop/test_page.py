@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mimicrete.handlog import HandLogData
-from mimicrete.handmodel import GESTURE_SHAPES, hand_joints, rotation_matrix
+from mimicrete.hands.log import HandLogData
+from mimicrete.hands.model import GESTURE_SHAPES, hand_joints, rotation_matrix
 from mimicrete.teleop import browser as br
 
 STATIC = Path(__file__).resolve().parents[2] / "python" / "mimicrete" / "teleop" / "static"

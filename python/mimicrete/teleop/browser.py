@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete.handmodel import WEBXR_FROM_OPENXR
+from mimicrete.hands.layouts import WEBXR_FROM_OPENXR
 
 CHROMIUM = Path("/usr/bin/chromium")
 #: SwiftShader gives headless Chromium WebGL without a GPU; no sandbox because tests run as root;
