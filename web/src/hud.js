@@ -58,7 +58,8 @@ export class DomHud {
   }
 }
 
-/** A 0.36 m × 0.2 m panel, 0.6 m in front of and below the eyes (child of the camera). */
+/** A 0.36 m × 0.2 m panel low on the left, 0.6 m away, turned to the eyes (child of the camera),
+ * so the workspace straight ahead stays clear. */
 export class HeadsetHud {
   constructor(camera) {
     this.canvas = document.createElement('canvas');
@@ -69,8 +70,8 @@ export class HeadsetHud {
     this.texture.colorSpace = THREE.SRGBColorSpace;
     const material = new THREE.MeshBasicMaterial({ map: this.texture, transparent: true, depthTest: false });
     this.mesh = new THREE.Mesh(new THREE.PlaneGeometry(0.36, 0.2), material);
-    this.mesh.position.set(0.0, -0.22, -0.6);
-    this.mesh.rotation.x = -0.35;
+    this.mesh.position.set(-0.24, -0.2, -0.55);
+    this.mesh.rotation.set(-0.3, 0.4, 0, 'YXZ');
     this.mesh.renderOrder = 10;
     this.mesh.visible = false; // only inside an XR session; the DOM HUD serves the desktop
     camera.add(this.mesh);

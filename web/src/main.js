@@ -42,7 +42,8 @@ let replay = null;
 if (emulateKind) {
   // Dynamic import: iwer + devui live in their own chunks, fetched only under emulation.
   emu = await import('./emulate.js');
-  hook.device = emu.installEmulator(emulateKind);
+  // ?devui=0 leaves out IWER's dev UI (mouse/keyboard hand controls), for automated runs.
+  hook.device = emu.installEmulator(emulateKind, { devui: params.get('devui') !== '0' });
   hook.replay = async (recording, mode = 'exact') => {
     if (!session) throw new Error('enter VR before replaying');
     replay?.stop();
