@@ -85,7 +85,9 @@ def _record_one(chromium, tmp_path, task: str, screenshot: Path | None = None):
     )
     server = TeleopServer(live)
     with _Running(server) as run:
-        page = br.open_page(chromium, f"http://127.0.0.1:{run.port}/?emulate=quest3")
+        # IWER's dev UI draws the headset's view into the page (only wanted for the picture)
+        devui = "" if screenshot is not None else "&devui=0"
+        page = br.open_page(chromium, f"http://127.0.0.1:{run.port}/?emulate=quest3{devui}")
         try:
             br.enter_vr(page)
             page.click("#btn-start")
@@ -93,15 +95,19 @@ def _record_one(chromium, tmp_path, task: str, screenshot: Path | None = None):
                 "() => window.__mimicrete.state && window.__mimicrete.state.recording"
             )
             br.replay(page, br.build_recording(right=log))
+            if screenshot is not None:  # mid-episode: the tile on the cups, on its way
+                page.wait_for_function(
+                    "() => window.__mimicrete.state && window.__mimicrete.state.step >= 150",
+                    timeout=120_000,
+                )
+                screenshot.parent.mkdir(parents=True, exist_ok=True)
+                page.screenshot(path=str(screenshot))
             page.wait_for_function(
                 "() => window.__mimicrete.state && !window.__mimicrete.state.recording",
                 timeout=120_000,
             )
             page.wait_for_timeout(300)  # a few more states reach the HUD
             hud = page.inner_text("#hud")
-            if screenshot is not None:
-                screenshot.parent.mkdir(parents=True, exist_ok=True)
-                page.screenshot(path=str(screenshot))
             errors = list(page.mimicrete_errors)
         finally:
             page.close()
