@@ -1,0 +1,269 @@
+"""How the scripted person moves: minimum-jerk reaches, pauses, gestures, tremor and slow drift,
+planned per task from the scene (:mod:`.synth_scene`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mimicrete.hands import model as hm
+
+from .synth_scene import (
+    HAND_RATE_HZ,
+    SHAPE_OF,
+    TASKS,
+    Scene,
+)
+
+# ----------------------------------------------------------------------------------------------
+# Human motion
+# ----------------------------------------------------------------------------------------------
+
+
+def min_jerk(s: np.ndarray) -> np.ndarray:
+    """Minimum-jerk profile ``10s³ − 15s⁴ + 6s⁵`` on ``s ∈ [0, 1]``."""
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+@dataclass
+class Person:
+    """Per-episode traits of the demonstrator."""
+
+    speed: float  # typical hand speed during reaches, m/s
+    hand_scale: float
+    handedness: str
+    tremor_mm: float
+    sway_mm: float
+    hesitancy: float  # probability that a reach pauses part-way
+    overshoot: float  # typical overshoot as a share of the reach distance
+
+
+class Motion:
+    """Accumulates a TCP path (Base), a gesture-shape track and keyframes at 90 Hz."""
+
+    def __init__(
+        self, start: np.ndarray, shape: np.ndarray, rng: np.random.Generator, person: Person
+    ) -> None:
+        self.dt = 1.0 / HAND_RATE_HZ
+        self.rng = rng
+        self.person = person
+        self.pos: list[np.ndarray] = [np.asarray(start, dtype=np.float64)]
+        self.shape: list[np.ndarray] = [np.asarray(shape, dtype=np.float64)]
+        self.phase: list[str] = ["start"]
+        self.transport: list[bool] = [False]
+
+    @property
+    def here(self) -> np.ndarray:
+        return self.pos[-1]
+
+    def _append(self, pos: np.ndarray, shapes: np.ndarray, phase: str, transport: bool) -> None:
+        self.pos.extend(pos)
+        self.shape.extend(shapes)
+        self.phase.extend([phase] * len(pos))
+        self.transport.extend([transport] * len(pos))
+
+    def hold(self, seconds: float, phase: str = "hold") -> None:
+        n = max(1, int(round(seconds / self.dt)))
+        self._append(
+            np.repeat(self.here[None], n, 0), np.repeat(self.shape[-1][None], n, 0), phase, False
+        )
+
+    def gesture(self, target_shape: hm.HandShape, seconds: float, phase: str = "gesture") -> None:
+        """Change the finger shape through in-between shapes while the hand holds still."""
+        n = max(2, int(round(seconds / self.dt)))
+        a = self.shape[-1]
+        b = hm.jitter_shape(target_shape, self.rng, sd=0.03).as_array()
+        w = min_jerk(np.arange(1, n + 1) / n)[:, None]
+        self._append(np.repeat(self.here[None], n, 0), (1 - w) * a + w * b, phase, False)
+
+    def _leg(self, goal: np.ndarray, seconds: float, phase: str, transport: bool) -> None:
+        n = max(2, int(round(seconds / self.dt)))
+        s = min_jerk(np.arange(1, n + 1) / n)[:, None]
+        start = self.here
+        self._append(
+            start + s * (goal - start), np.repeat(self.shape[-1][None], n, 0), phase, transport
+        )
+
+    def reach(
+        self, goal: np.ndarray, phase: str, precise: bool = False, transport: bool = True
+    ) -> None:
+        """A human reach: min-jerk, maybe a hesitation part-way, maybe an overshoot + correction.
+        ``precise`` reaches (the last centimetres to a grasp) are slower and overshoot less."""
+        goal = np.asarray(goal, dtype=np.float64)
+        rng, p = self.rng, self.person
+        d = float(np.linalg.norm(goal - self.here))
+        if d < 1e-6:
+            return
+        speed = p.speed * rng.uniform(0.75, 1.25) * (0.4 if precise else 1.0)
+        seconds = max(0.35, 1.875 * d / speed)  # min-jerk peak speed = 1.875 · mean speed
+        if rng.random() < p.hesitancy and d > 0.05:
+            frac = rng.uniform(0.4, 0.7)
+            mid = self.here + frac * (goal - self.here) + rng.normal(scale=0.004, size=3)
+            self._leg(mid, seconds * frac, phase, transport)
+            self.hold(rng.uniform(0.1, 0.45), phase)
+            seconds *= 1.0 - frac
+        over = p.overshoot * (0.3 if precise else 1.0) * rng.uniform(0.3, 1.5)
+        if d > 0.03 and over > 0.0:
+            direction = (goal - self.here) / max(np.linalg.norm(goal - self.here), 1e-9)
+            past = goal + direction * min(over * d, 0.012) + rng.normal(scale=0.0015, size=3)
+            self._leg(past, seconds, phase, transport)
+            self._leg(goal, rng.uniform(0.2, 0.4), phase + "_correct", False)
+        else:
+            self._leg(goal, seconds, phase, transport)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, list[str], np.ndarray]:
+        return np.array(self.pos), np.array(self.shape), self.phase, np.array(self.transport)
+
+
+def _slow_noise(n: int, dt: float, rng: np.random.Generator, tau: float = 0.4) -> np.ndarray:
+    """Unit-variance low-pass noise ``(n, 3)`` (exponential kernel of time constant ``tau``)."""
+    m = int(5 * tau / dt)
+    white = rng.normal(size=(n + m - 1, 3))
+    k = np.exp(-np.arange(m) * dt / tau)
+    k /= np.sqrt(np.sum(k**2))
+    return np.stack([np.convolve(white[:, i], k, mode="valid") for i in range(3)], axis=1)
+
+
+def _tremor(n: int, dt: float, rng: np.random.Generator, person: Person) -> np.ndarray:
+    """Physiological tremor (8-12 Hz) plus slow sway, ``(n, 3)`` metres."""
+    t = np.arange(n) * dt
+    out = np.zeros((n, 3))
+    for _ in range(3):
+        f = rng.uniform(8.0, 12.0)
+        amp = person.tremor_mm * 1e-3 / 3.0
+        out += amp * np.sin(2 * np.pi * f * t[:, None] + rng.uniform(0, 2 * np.pi, size=3))
+    return out + person.sway_mm * 1e-3 * _slow_noise(n, dt, rng)
+
+
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+def _approach_and_grasp(
+    m: Motion,
+    above: np.ndarray,
+    *,
+    approach: tuple[float, float],
+    settle: tuple[float, float],
+    grasp_at: Any,
+    settled: tuple[float, float],
+    close: hm.HandShape,
+    grasp: tuple[float, float],
+) -> None:
+    """Reach ``approach`` (m, uniform range) above ``above``, settle, descend precisely to
+    ``grasp_at()`` (called only then, so its draws come after the settle's), settle, close the
+    hand, hold ``grasp`` seconds while the end effector closes. Ranges are drawn from ``m.rng``."""
+    rng = m.rng
+    m.reach(above + _UP * rng.uniform(*approach), "approach")
+    m.hold(rng.uniform(*settle), "settle")
+    m.reach(grasp_at(), "descend", precise=True)
+    m.hold(rng.uniform(*settled), "settle")
+    m.gesture(close, rng.uniform(0.2, 0.5), "close")
+    m.hold(rng.uniform(*grasp), "grasp")
+
+
+def _carry_and_place(
+    m: Motion,
+    target: np.ndarray,
+    *,
+    held_below: float,
+    carry: tuple[float, float],
+    lower: tuple[float, float],
+    release_shape: hm.HandShape,
+    release: tuple[float, float],
+) -> None:
+    """Lift, carry to ``carry`` above ``target`` (plus ``held_below``, how far the object's
+    centre hangs below the TCP), settle, lower precisely to ``lower`` above it, place, open the
+    hand, hold ``release`` seconds, retreat upwards."""
+    rng = m.rng
+    m.reach(m.here + _UP * rng.uniform(0.08, 0.12), "lift")
+    m.reach(target + _UP * (held_below + rng.uniform(*carry)), "carry")
+    m.hold(rng.uniform(0.3, 0.6), "settle")
+    m.reach(target + _UP * (held_below + rng.uniform(*lower)), "lower", precise=True)
+    m.hold(rng.uniform(0.5, 0.9), "place")
+    m.gesture(release_shape, rng.uniform(0.2, 0.5), "release")
+    m.hold(rng.uniform(*release), "release")
+    m.reach(m.here + _UP * 0.08, "retreat")
+
+
+def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
+    """The TCP path and gestures of one demonstration of ``scene.task``."""
+    task = scene.task
+    up = _UP
+    cls_open = "opening_stopped" if task == "screw" else "opening"
+    cls_close = "closing_fixed" if task == "screw" else "closing"
+    shp = {c: hm.GESTURE_SHAPES[SHAPE_OF[c]] for c in SHAPE_OF}
+    m = Motion(scene.tcp, hm.jitter_shape(shp[cls_open], rng, 0.03).as_array(), rng, person)
+    m.hold(rng.uniform(0.3, 0.8), "start")
+    obj, tgt = scene.object, scene.target
+    if task == "suction":
+        grasp = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
+        clearance = rng.uniform(0.008, 0.016)
+        _approach_and_grasp(
+            m,
+            grasp,
+            approach=(0.06, 0.10),
+            settle=(0.3, 0.7),
+            grasp_at=lambda: grasp + up * clearance,
+            settled=(0.5, 0.9),
+            close=shp[cls_close],
+            grasp=(0.5, 0.9),
+        )
+        _carry_and_place(
+            m,
+            tgt,
+            held_below=clearance + obj[2],  # tile centre to cup centre while held
+            carry=(0.06, 0.10),
+            lower=(0.0, 0.006),
+            release_shape=shp[cls_open],
+            release=(0.3, 0.6),
+        )
+    elif task == "grip":
+        _approach_and_grasp(
+            m,
+            obj,
+            approach=(0.08, 0.12),
+            settle=(0.3, 0.7),
+            grasp_at=lambda: obj + up * rng.uniform(-0.003, 0.003),
+            settled=(0.6, 1.0),
+            close=shp[cls_close],
+            grasp=(0.9, 1.3),  # fingers close at 0.1 m/s
+        )
+        _carry_and_place(
+            m,
+            tgt,
+            held_below=0.0,
+            carry=(0.07, 0.10),
+            lower=(0.002, 0.006),
+            release_shape=shp[cls_open],
+            release=(0.6, 1.0),
+        )
+    elif task == "screw":
+        _approach_and_grasp(
+            m,
+            obj,
+            approach=(0.07, 0.10),
+            settle=(0.4, 0.8),
+            grasp_at=obj.copy,
+            settled=(0.7, 1.1),
+            close=shp[cls_close],
+            grasp=(0.9, 1.3),
+        )
+        m.gesture(shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten")
+        # keep tightening, following the nut down, until it sits at the target (seen in VR)
+        seconds = rng.uniform(4.5, 5.5)
+        n = int(round(seconds * HAND_RATE_HZ))
+        follow = np.linspace(0.0, 1.0, n)[:, None] ** 1.0
+        start = m.here
+        path = start + np.clip(follow * 1.15, 0, 1) * (tgt - start)
+        m._append(path, np.repeat(m.shape[-1][None], n, 0), "tighten", False)
+        m.gesture(shp["closing_fixed"], rng.uniform(0.2, 0.4), "stop")
+        m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release")
+        m.hold(rng.uniform(0.4, 0.8), "release")
+        m.reach(m.here + up * 0.08, "retreat")
+    else:
+        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    m.hold(rng.uniform(0.3, 0.6), "end")
+    return m

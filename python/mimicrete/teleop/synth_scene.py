@@ -1,0 +1,179 @@
+"""The scripted demonstrator's view of a task: where the object, the target and the tool are
+(read from the simulator), and the inverse of ur3-kin's hand → tool0 map (which hand pose puts
+the tool where the person wants it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mimicrete import kin, tasks
+
+TASKS = tasks.TASKS
+HAND_RATE_HZ = 90.0
+
+#: Gesture class (paper Table 1) → finger shape shown.
+SHAPE_OF: dict[str, str] = {
+    "closing": "closing",
+    "opening": "opening",
+    "fixed": "fixed",
+    "closing_fixed": "closing",
+    "closing_tightening": "tightening",
+    "closing_loosening": "loosening",
+    "opening_stopped": "opening",
+    "fixed_stopped": "fixed",
+}
+
+#: Columns are tool0's axes in hand-frame coordinates (ur3_kin ``tool_from_hand_rotation``).
+TOOL_FROM_HAND = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: tool0 pointing straight down, tool X along Base X (tile-sim ``expert::tool_down``).
+TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
+
+
+# ----------------------------------------------------------------------------------------------
+# Inverting ur3-kin's hand → tool0 map (the forward map is mimicrete.kin.hand_to_target)
+# ----------------------------------------------------------------------------------------------
+
+
+def _affine(calib: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(A (3, 3), b (3,))`` with ``p_base = A · p + b``, read off ur3-kin's own point map
+    (:func:`mimicrete.kin.points_to_base`) so that axis conventions live only in the crate."""
+    pts = kin.points_to_base(np.vstack([np.zeros(3), np.eye(3)]), calib)
+    return (pts[1:] - pts[0]).T, pts[0]
+
+
+def points_from_base(points: np.ndarray, calib: Any) -> np.ndarray:
+    """Base points ``(..., 3)`` → the calibration's (headset) space: the inverse of
+    :func:`mimicrete.kin.points_to_base`."""
+    a, b = _affine(calib)
+    return (np.asarray(points, dtype=np.float64) - b) @ np.linalg.inv(a).T
+
+
+def hand_pose_for_tool0(
+    tool0: np.ndarray, handedness: str, calib: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """Invert :func:`mimicrete.kin.hand_to_target`: the hand-model wrist rotation (columns: the
+    hand frame of :mod:`mimicrete.hands.model` in headset space) and wrist position that give
+    ``tool0`` (``(4, 4)`` or a batch ``(n, 4, 4)`` → ``(…, 3, 3)``, ``(…, 3)``)."""
+    tool0 = np.asarray(tool0, dtype=np.float64)
+    r_hand_base = tool0[..., :3, :3] @ TOOL_FROM_HAND.T
+    # ur3-kin negates x' for a left hand: its frame is ours · diag(-1, 1, -1)
+    if handedness == "left":
+        r_hand_base = r_hand_base @ np.diag([-1.0, 1.0, -1.0])
+    a, _ = _affine(calib)
+    rot_base_from_space = a / np.linalg.norm(a[:, 0])  # a = scale · rotation
+    return rot_base_from_space.T @ r_hand_base, points_from_base(tool0[..., :3, 3], calib)
+
+
+def _rot_batch(axis: int, angle: np.ndarray) -> np.ndarray:
+    """Rotations ``(n, 3, 3)`` about coordinate axis ``axis`` (0 x, 1 y, 2 z)."""
+    c, s = np.cos(angle), np.sin(angle)
+    r = np.zeros((len(angle), 3, 3))
+    i, k = [(1, 2), (2, 0), (0, 1)][axis]
+    r[:, axis, axis] = 1.0
+    r[:, i, i] = c
+    r[:, k, k] = c
+    r[:, i, k] = -s
+    r[:, k, i] = s
+    return r
+
+
+# ----------------------------------------------------------------------------------------------
+# Scene: the one place positions come from
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Scene:
+    """What the demonstrator sees at the start of an episode (Base frame, metres).
+
+    Attributes:
+        task: ``suction``, ``grip`` or ``screw``.
+        episode_seed: the simulator seed of the episode.
+        tcp: the end effector's TCP (cup centre / between the fingertips).
+        tcp_z: distance from tool0 (flange) to the TCP along the tool axis.
+        object: centre of the tile / block / nut.
+        target: where the object's centre must end up.
+    """
+
+    task: str
+    episode_seed: int
+    tcp: np.ndarray
+    tcp_z: float
+    object: np.ndarray
+    target: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "task": self.task,
+            "episode_seed": self.episode_seed,
+            "tcp": np.round(self.tcp, 6).tolist(),
+            "tcp_z": round(self.tcp_z, 6),
+            "object": np.round(self.object, 6).tolist(),
+            "target": np.round(self.target, 6).tolist(),
+        }
+
+
+def obs_layout(task: str) -> dict[str, slice]:
+    """Fields of one observation frame (tile-sim ``Task::obs_frame_dim``)."""
+    if task == "screw":
+        return {
+            "q": slice(0, 6),
+            "tcp": slice(8, 11),
+            "target": slice(11, 14),
+            "object": slice(14, 17),
+        }
+    return {"q": slice(0, 6), "tcp": slice(7, 10), "target": slice(10, 13), "object": slice(13, 16)}
+
+
+def scene_from_obs(task: str, seed: int, obs: np.ndarray, frame_dim: int) -> Scene:
+    """Read a :class:`Scene` from a reset observation (newest frame last)."""
+    from mimicrete import kin
+
+    f = np.asarray(obs, dtype=np.float64).reshape(-1)[-frame_dim:]
+    lay = obs_layout(task)
+    tcp = f[lay["tcp"]]
+    tool0 = kin.fk(f[lay["q"]], model="ur3")
+    return Scene(
+        task,
+        int(seed),
+        tcp,
+        float(np.linalg.norm(tool0[:3, 3] - tcp)),
+        f[lay["object"]],
+        f[lay["target"]],
+    )
+
+
+def have_simulator() -> bool:
+    """Whether ``mimicrete._native`` was built with the simulator (``tile-sim``) bindings."""
+    from mimicrete import _native
+
+    return hasattr(_native, "SimEnv")
+
+
+def scene_from_env(task: str, seed: int) -> Scene:
+    """The scene of episode ``seed`` as the simulator resets it (the one switch for where the
+    demonstrator's knowledge comes from): positions of the end effector, the object and the
+    target, which a person sees in the VR scene."""
+    from mimicrete import _native
+
+    if not have_simulator():
+        raise RuntimeError(
+            "mimicrete._native was built without the simulator bindings (tile-sim); "
+            "rebuild with `make native`"
+        )
+    env = _native.SimEnv(tasks.get(task).sim)
+    env.reset(int(seed))
+    snap = env.snapshot()
+    tcp = np.array(snap["tcp"]["t"], dtype=np.float64)
+    tool0 = np.array(snap["tool0"]["t"], dtype=np.float64)
+    return Scene(
+        task,
+        int(seed),
+        tcp,
+        float(np.linalg.norm(tool0 - tcp)),
+        np.array(snap["object"]["t"], dtype=np.float64),
+        np.array(snap["target"]["t"], dtype=np.float64),
+    )
