@@ -399,3 +399,18 @@ def test_cli_2d_keypoint_csv_label_names_carry_to_eval(tmp_path, capsys):
     assert "pointer" in text and float(text.split("accuracy: ")[1].split(" %")[0]) > 90.0
     # a 3-D model refuses 2-D data with a clear message
     assert cli_main(["gesture", "eval", "--data", str(csv_path), "--task", "grip"]) == 2
+
+
+def test_margin_agrees_with_the_pipeline_and_is_positive_for_the_winner():
+    """The per-frame path's class equals scikit-learn's, and its margin is the winner's smallest
+    one-vs-one decision value (≥ 0 except where libsvm breaks a tie)."""
+    model = g.load_default("grip")
+    joints, labels, hands = g.synthetic_dataset("grip", seed=5, counts=(40, 40, 40))
+    feats = g.features_3d(joints, "openxr", hands)
+    fast = g.FastRbfSvc.from_pipeline(model.pipeline)
+    for f, h, j in zip(feats, hands, joints, strict=True):
+        label, margin = model.predict_margin(j, h, "openxr")
+        assert label == model.pipeline.predict(f[None])[0] == fast.predict_one(f)
+        assert margin is not None and np.isfinite(margin)
+    margins = [model.predict_margin(j, h, "openxr")[1] for j, h in zip(joints, hands, strict=True)]
+    assert np.median(margins) > 0.5

@@ -86,6 +86,21 @@ class GestureModel:
             return self._fast.predict_one(f)
         return str(self.pipeline.predict(f[None])[0])
 
+    def predict_margin(
+        self, joints: np.ndarray, handedness: str = "right", layout: str | None = None
+    ) -> tuple[str | None, float | None]:
+        """:meth:`predict_one` and the decision margin of the class it gives
+        (:meth:`FastRbfSvc.decide`; None when the model is not a scaler + RBF SVC or the hand is
+        degenerate)."""
+        f = self.features(joints, handedness, layout)
+        if not np.all(np.isfinite(f)):
+            return None, None
+        if self._fast is None:
+            self._fast = FastRbfSvc.from_pipeline(self.pipeline) or False
+        if self._fast:
+            return self._fast.decide(f)
+        return str(self.pipeline.predict(f[None])[0]), None
+
     def score(self, joints: np.ndarray, labels: np.ndarray, handedness: Any = "right") -> float:
         """Accuracy on labelled hands."""
         return float(np.mean(self.predict(joints, handedness) == np.asarray(labels)))
@@ -182,14 +197,28 @@ class FastRbfSvc:
 
     def votes(self, features: np.ndarray) -> np.ndarray:
         """One-vs-one votes per class for one feature vector."""
+        return self._votes(self._decisions(features))
+
+    def decide(self, features: np.ndarray) -> tuple[str, float]:
+        """The class of one feature vector and its margin: the smallest one-vs-one decision
+        value of the winner against another class (how far the sample is from the nearest
+        boundary that would take a vote away; > 1 is beyond the SVM's margin)."""
+        dec = self._decisions(features)
+        w = int(np.argmax(self._votes(dec)))
+        own = np.concatenate([dec[self.pi == w], -dec[self.pj == w]])
+        return self.classes[w], float(own.min())
+
+    def _votes(self, dec: np.ndarray) -> np.ndarray:
+        winners = np.where(dec > 0, self.pi, self.pj)
+        return np.bincount(winners, minlength=len(self.classes))
+
+    def _decisions(self, features: np.ndarray) -> np.ndarray:
         x = (np.asarray(features, dtype=np.float64) - self.mean) / self.scale
         d2 = self.sv_sq - 2.0 * (self.sv @ x) + x @ x
         k = np.exp(-self.gamma * np.maximum(d2, 0.0))
         # part[r, c]: row r of the dual coefficients against class c's support vectors
         part = np.add.reduceat(self.dual * k, self.starts, axis=1)
-        dec = part[self.pj - 1, self.pi] + part[self.pi, self.pj] + self.intercept
-        winners = np.where(dec > 0, self.pi, self.pj)
-        return np.bincount(winners, minlength=len(self.classes))
+        return part[self.pj - 1, self.pi] + part[self.pi, self.pj] + self.intercept
 
     def predict_one(self, features: np.ndarray) -> str:
         """The class of one feature vector."""

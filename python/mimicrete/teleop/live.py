@@ -275,7 +275,7 @@ class Live:
             from scipy.spatial.transform import Rotation
 
             target = [*s.target[:3, 3].tolist(), *Rotation.from_matrix(s.target[:3, :3]).as_quat()]
-        margin = None
+        margin = None if s.margin is None else round(s.margin, 3)
         return {
             "type": "state",
             "frames": frame_poses(snap),

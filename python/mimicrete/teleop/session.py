@@ -234,6 +234,7 @@ class Session:
         self.target: np.ndarray | None = None
         self.raw_gesture: str | None = None
         self.last_tracked: bool | None = None  # the newest frame's tracked flag
+        self.margin: float | None = None  # the SVM's decision margin of raw_gesture
         self.counts = Counts()
         self.t0: float | None = None
         self.t_last: float | None = None
@@ -322,7 +323,7 @@ class Session:
         if not tracked:
             c.untracked += 1
             return
-        raw = self.model.predict_one(joints, self.handedness, self.layout)
+        raw, self.margin = self.model.predict_margin(joints, self.handedness, self.layout)
         self.raw_gesture = raw
         gesture = self.smoother.update(raw)
         if gesture != before:
