@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from mimicrete.cli import UsageError
 from mimicrete.gestures import (
     PAPER_ACCURACY,
     PAPER_TEST_SIZE,
@@ -93,9 +93,8 @@ def main(args: argparse.Namespace) -> int:
         if args.gesture_cmd == "train":
             return _main_train(args)
         return _main_eval(args)
-    except (GestureDataError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    except GestureDataError as e:
+        raise UsageError(str(e)) from None
 
 
 def _report(task: str, classes, truth, pred, n_test: int, what: str = "held-out") -> None:
@@ -143,19 +142,16 @@ def _main_eval(args: argparse.Namespace) -> int:
     if args.data:
         data = _load_csv_args(args, model.info.get("label_names"))
         if data.dims != model.dims:
-            print(
-                f"error: {args.data} holds {data.dims}-D {data.layout} joints, the model "
-                f"expects {model.dims}-D {model.layout}",
-                file=sys.stderr,
+            raise UsageError(
+                f"{args.data} holds {data.dims}-D {data.layout} joints, the model "
+                f"expects {model.dims}-D {model.layout}"
             )
-            return 2
         feats = featurize(data.joints, data.layout, data.dims, "right")
         truth = data.labels
         what = f"{Path(args.data).name} (every row, no split)"
     else:
         if model.task not in TASK_CLASSES:
-            print("error: a custom model needs --data to be scored", file=sys.stderr)
-            return 2
+            raise UsageError("a custom model needs --data to be scored")
         seed = int(model.info.get("seed", args.seed))
         joints, labels, hands = synthetic_dataset(model.task, seed)
         feats_all = features_3d(joints, "openxr", hands)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 import platform
 import warnings
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ from .classes import (
     PAPER_TEST_SIZE,
     TASK_CLASSES,
     TASK_MODEL,
+    GestureDataError,
 )
 from .data import synthetic_dataset
 from .features import features_3d, featurize
@@ -231,8 +233,11 @@ def load_model(path: str | Path) -> GestureModel:
     import joblib
 
     path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such gesture model file")
     side = Path(str(path) + ".json")
     info: dict[str, Any] = {}
+    notes: list[str] = []  # version warnings, given once the file proves to be a model
     if side.exists():
         meta = json.loads(side.read_text())
         info = meta.get("info", {})
@@ -240,19 +245,26 @@ def load_model(path: str | Path) -> GestureModel:
         for key in ("sklearn", "numpy"):
             then = meta.get("versions", {}).get(key)
             if then != now[key]:
-                warnings.warn(
+                notes.append(
                     f"{path}: fitted with {key} {then}, running {now[key]}; retrain with "
-                    f"`mimicrete gesture train` if predictions look wrong",
-                    RuntimeWarning,
-                    stacklevel=2,
+                    f"`mimicrete gesture train` if predictions look wrong"
                 )
     else:
-        warnings.warn(
-            f"{path}: no sidecar {side.name}; versions unknown", RuntimeWarning, stacklevel=2
-        )
+        notes.append(f"{path}: no sidecar {side.name}; versions unknown")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # sklearn's own InconsistentVersionWarning: ours is above
-        d = joblib.load(path)
+        try:
+            d = joblib.load(path)
+        except Exception as e:  # joblib/pickle raise many types on foreign bytes
+            raise GestureDataError(f"{path}: not a gesture model ({type(e).__name__})") from None
+    keys = ("pipeline", "classes", "layout", "dims", "task")
+    if not isinstance(d, dict) or any(k not in d for k in keys):
+        raise GestureDataError(
+            f"{path}: not a gesture model written by `mimicrete gesture train` "
+            f"(expected a dict with {', '.join(keys)})"
+        )
+    for note in notes:
+        warnings.warn(note, RuntimeWarning, stacklevel=2)
     return GestureModel(d["pipeline"], tuple(d["classes"]), d["layout"], d["dims"], d["task"], info)
 
 
@@ -293,6 +305,18 @@ def fit(
 
     ok = np.all(np.isfinite(features), axis=1)
     features, labels = features[ok], np.asarray(labels)[ok]
+    classes, counts = np.unique(labels, return_counts=True)
+    if len(classes) < 2:
+        raise GestureDataError(
+            f"need at least 2 gesture classes to train, got {len(classes)} "
+            f"({', '.join(map(str, classes)) or 'none'})"
+        )
+    need = math.ceil(5 / (1.0 - test_size)) + 1  # 5 CV folds of the training part, and a test
+    few = [f"{c} ({n})" for c, n in zip(classes, counts, strict=True) if n < need]
+    if few:
+        raise GestureDataError(
+            f"each class needs at least {need} usable samples for 5-fold CV, got {', '.join(few)}"
+        )
     xtr, xte, ytr, yte = train_test_split(
         features, labels, test_size=test_size, random_state=seed, stratify=labels
     )
