@@ -88,8 +88,14 @@ class MimicreteEnv(gym.Env):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         # The episode seed comes from the gymnasium RNG, so reset(seed=s) fixes the episode and
-        # every later reset() of the same env.
+        # every later reset() of the same env. options={"episode_seed": s} starts the simulator's
+        # episode s instead (a recorded demo's seed: `mimicrete export --format minari` stores it
+        # as each episode's reset options); the RNG still advances, so later resets do not change.
         episode_seed = int(self.np_random.integers(0, 2**63 - 1))
+        if options and options.get("episode_seed") is not None:
+            episode_seed = int(options["episode_seed"])
+            if not 0 <= episode_seed < 2**64:
+                raise ValueError(f"episode_seed must be a u64, got {episode_seed}")
         obs = self._sim.reset(episode_seed)
         self._scene = self._sim.scene()
         info = {"episode_seed": episode_seed, "picked": False, "installed": False, "fell": False}

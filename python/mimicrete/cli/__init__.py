@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("train", "train a policy with BC + GAIL + PPO from a YAML config"),
     "eval": ("eval", "evaluate a run: picked/installed rate, episode length"),
     "inspect": ("inspect", "show what is in an MCAP demo and check it"),
+    "export": ("export", "MCAP demos -> a LeRobot v3.0 or Minari dataset (one task per dataset)"),
 }
 
 

@@ -1,0 +1,252 @@
+"""Reading a folder of MCAP demos for export: one task, every episode checked by replaying it.
+
+Both exporters (:mod:`mimicrete.export.lerobot`, :mod:`mimicrete.export.minari`) read their input
+here. :func:`read_demo_dir` loads every ``*.mcap`` of a directory (sorted by name; ``*.partial``
+files are skipped, as :func:`mimicrete.demos.load` does), requires one task for all of them, and
+replays each episode in the simulator from its seed with its recorded actions. The replay must
+give back the recorded observations, rewards and terminations exactly (the simulator is
+deterministic; on the 60 converted demos of the tests the difference is 0.0), and gives what the
+demo file does not store: the observation after the last step (Minari keeps N + 1 observations
+per episode) and the per-step ``picked`` / ``held`` / ``installed`` / ``fell`` flags (LeRobot's
+``next.success`` is ``installed`` after the step).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: The task as one sentence (LeRobot stores it as the frame's task text).
+TASK_TEXT: dict[str, str] = {
+    "suction": "Pick up the tile with the suction head and install it on the target pad.",
+    "grip": "Pick up the block with the parallel gripper and place it on the target.",
+    "screw": "Grip the nut and screw it down the bolt.",
+}
+
+#: Names of one observation frame's floats per task (tile-sim's ``Task::obs_frame_dim`` layout).
+_JOINTS = [f"q{i}" for i in range(6)]
+_XYZ = ("x", "y", "z")
+FRAME_NAMES: dict[str, list[str]] = {
+    "suction": _JOINTS
+    + ["suction"]
+    + [f"cup_{a}" for a in _XYZ]
+    + [f"target_{a}" for a in _XYZ]
+    + [f"tile_{a}" for a in _XYZ],
+    "grip": _JOINTS
+    + ["gripper_width"]
+    + [f"tcp_{a}" for a in _XYZ]
+    + [f"target_{a}" for a in _XYZ]
+    + [f"block_{a}" for a in _XYZ],
+    "screw": _JOINTS
+    + ["gripper_width", "spin"]
+    + [f"tcp_{a}" for a in _XYZ]
+    + [f"target_{a}" for a in _XYZ]
+    + [f"nut_{a}" for a in _XYZ]
+    + ["turns"],
+}
+
+#: Names of the action's entries per task.
+ACTION_NAMES: dict[str, list[str]] = {
+    "suction": [*(f"dq{i}" for i in range(6)), "suction_command"],
+    "grip": [*(f"dq{i}" for i in range(6)), "gripper_command"],
+    "screw": [*(f"dq{i}" for i in range(6)), "gripper_command", "spin_command"],
+}
+
+INFO_KEYS: tuple[str, ...] = ("picked", "held", "installed", "fell")
+
+
+class ExportError(ValueError):
+    """Input that cannot be exported (mixed tasks, a damaged demo, an existing output, ...)."""
+
+
+@dataclass
+class Episode:
+    """One demonstration, checked by replay. ``T`` steps."""
+
+    file: str
+    index: int  # position in the dataset (0, 1, ...)
+    obs: np.ndarray  # (T, obs_dim) float32: the observation each action was chosen from
+    actions: np.ndarray  # (T, act_dim) float32
+    rewards: np.ndarray  # (T,) float32
+    terminated: np.ndarray  # (T,) bool
+    truncated: np.ndarray  # (T,) bool
+    final_obs: np.ndarray  # (obs_dim,) float32: the observation after the last step (replayed)
+    info: dict[str, np.ndarray]  # INFO_KEYS -> (T,) bool, after each step (replayed)
+    seed: int  # the simulator's episode seed (u64)
+    success: bool
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.rewards.shape[0])
+
+
+@dataclass
+class DemoSet:
+    """Every episode of one task, in file-name order."""
+
+    task: str  # suction | grip | screw
+    sim: str  # TileSuction | BlockGrip | Screw
+    env_id: str  # mimicrete/TileSuction-v0 ...
+    control_dt: float
+    obs_dim: int
+    act_dim: int
+    episodes: list[Episode]
+
+    @property
+    def num_frames(self) -> int:
+        return sum(len(e) for e in self.episodes)
+
+    @property
+    def fps(self) -> int:
+        return int(round(1.0 / self.control_dt))
+
+
+def demo_files(demos_dir: str | os.PathLike[str]) -> list[Path]:
+    """The ``*.mcap`` files of a directory, sorted by name (``*.partial`` never match)."""
+    d = Path(demos_dir)
+    if not d.exists():
+        raise ExportError(f"{d}: no such directory")
+    if not d.is_dir():
+        raise ExportError(f"{d}: not a directory (give the folder of the demos)")
+    files = sorted(p for p in d.glob("*.mcap") if p.is_file())
+    if not files:
+        raise ExportError(f"{d}: no *.mcap demos")
+    return files
+
+
+def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
+    """Every demo of ``demos_dir``, all of one task, each replayed and checked.
+
+    Raises :class:`ExportError` with one line naming the file for: no demos, a file that cannot
+    be read (cut, damaged, not a demo: ``mimicrete.demos.salvage_to`` repairs a cut one), a file
+    that was never finished, demos of more than one task, and an episode whose replay does not
+    give back its recorded observations.
+    """
+    from mimicrete import LogFormatError, demos, tasks
+
+    files = demo_files(demos_dir)
+    raw: list[tuple[Path, dict[str, Any]]] = []
+    for f in files:
+        try:
+            ep = demos.read(f)
+        except (LogFormatError, OSError, ValueError) as e:
+            raise ExportError(
+                f"{f}: damaged demo ({e}); `mimicrete inspect` shows what is in it"
+            ) from None
+        meta = {str(k): str(v) for k, v in dict(ep["meta"]).items()}
+        if "task" not in meta:
+            raise ExportError(f"{f}: no task in its metadata (not a mimicrete demo?)")
+        if "success" not in meta:
+            raise ExportError(f"{f}: unfinished demo (no 'episode' metadata record)")
+        raw.append((f, {**ep, "meta": meta}))
+
+    by_task: dict[str, list[str]] = {}
+    for f, ep in raw:
+        by_task.setdefault(ep["meta"]["task"], []).append(f.name)
+    if len(by_task) > 1:
+        parts = [
+            f"{t}: {len(n)} ({', '.join(n[:2])}{', ...' if len(n) > 2 else ''})"
+            for t, n in sorted(by_task.items())
+        ]
+        raise ExportError(
+            f"{Path(demos_dir)}: demos of {len(by_task)} tasks ({'; '.join(parts)}); "
+            "a dataset holds one task: put each task's demos in its own folder"
+        )
+    task_name = next(iter(by_task))
+    try:
+        spec = tasks.get(task_name)
+    except ValueError as e:
+        raise ExportError(f"{files[0]}: {e}") from None
+
+    control_dt = {float(ep["meta"].get("control_dt", "nan")) for _, ep in raw}
+    if len(control_dt) != 1 or not all(np.isfinite(list(control_dt))):
+        raise ExportError(f"{Path(demos_dir)}: demos disagree on control_dt ({sorted(control_dt)})")
+
+    episodes = []
+    for i, (f, ep) in enumerate(raw):
+        obs = np.asarray(ep["obs"], dtype=np.float32)
+        act = np.asarray(ep["actions"], dtype=np.float32)
+        if len(act) == 0:
+            raise ExportError(f"{f}: demo has no steps")
+        if obs.shape[1:] != (spec.obs_dim,) or act.shape[1:] != (spec.act_dim,):
+            raise ExportError(
+                f"{f}: obs/action sizes {obs.shape[1:]}/{act.shape[1:]} do not match task "
+                f"{spec.name} ({spec.obs_dim}/{spec.act_dim})"
+            )
+        seed = int(ep["meta"].get("seed", "0"))
+        final_obs, info = _replay(f, spec.sim, seed, obs, act, ep)
+        episodes.append(
+            Episode(
+                file=str(f),
+                index=i,
+                obs=obs,
+                actions=act,
+                rewards=np.asarray(ep["rewards"], dtype=np.float32),
+                terminated=np.asarray(ep["terminated"], dtype=bool),
+                truncated=np.asarray(ep["truncated"], dtype=bool),
+                final_obs=final_obs,
+                info=info,
+                seed=seed,
+                success=ep["meta"]["success"] == "true",
+                meta=ep["meta"],
+            )
+        )
+    return DemoSet(
+        task=spec.name,
+        sim=spec.sim,
+        env_id=spec.env_id,
+        control_dt=control_dt.pop(),
+        obs_dim=spec.obs_dim,
+        act_dim=spec.act_dim,
+        episodes=episodes,
+    )
+
+
+def _replay(
+    f: Path, sim: str, seed: int, obs: np.ndarray, act: np.ndarray, ep: dict[str, Any]
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Step a fresh simulator reset with ``seed`` through ``act``; check it reproduces the demo;
+    return the observation after the last step and the per-step info flags."""
+    from mimicrete import _native
+
+    env = _native.SimEnv(sim)
+    o = np.asarray(env.reset(seed), dtype=np.float32)
+    info = {k: np.zeros(len(act), dtype=bool) for k in INFO_KEYS}
+    rewards = np.asarray(ep["rewards"], dtype=np.float32)
+    term = np.asarray(ep["terminated"], dtype=bool)
+    trunc = np.asarray(ep["truncated"], dtype=bool)
+    for k in range(len(act)):
+        if not np.array_equal(o, obs[k]):
+            diff = float(np.max(np.abs(o - obs[k])))
+            raise ExportError(
+                f"{f}: replaying its actions from seed {seed} gives another observation at step "
+                f"{k} (max difference {diff:.3g}); the demo does not match this simulator"
+            )
+        o, r, te, tr, inf = env.step(act[k])
+        o = np.asarray(o, dtype=np.float32)
+        if np.float32(r) != rewards[k] or bool(te) != term[k] or bool(tr) != trunc[k]:
+            raise ExportError(
+                f"{f}: replay gives reward/terminated/truncated {r}/{te}/{tr} at step {k}, the "
+                f"demo {rewards[k]}/{term[k]}/{trunc[k]}; the demo does not match this simulator"
+            )
+        for key in INFO_KEYS:
+            info[key][k] = bool(inf[key])
+        if (te or tr) and k != len(act) - 1:
+            raise ExportError(f"{f}: the episode ends at step {k} but the demo goes on")
+    return o, info
+
+
+def check_new_output(out: str | os.PathLike[str]) -> Path:
+    """The output path, which must not exist yet (its parent is created if missing)."""
+    p = Path(out)
+    if p.exists() or p.is_symlink():
+        raise ExportError(f"--out {p}: exists already; give a new directory")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ExportError(f"--out {p}: {e.strerror or e}") from None
+    return p
