@@ -41,6 +41,12 @@ DEFAULT_GRID: dict[str, list[Any]] = {
     "svc__C": [0.3, 1.0, 10.0, 100.0],
     "svc__gamma": ["scale", 0.001, 0.003, 0.01, 0.03],
 }
+#: Which kind of model ``load_default`` gives per model task: ``per-frame`` (the paper's SVM on
+#: one frame) or ``temporal`` (:mod:`mimicrete.gestures.temporal`). Chosen by
+#: ``python -m mimicrete.bench gestures`` (docs/RESULTS.md): after the session's smoother the
+#: two tie on flicker, latency and accuracy on held-out demonstrator sequences, so the simpler,
+#: stateless per-frame model stays the default.
+DEFAULT_KIND: dict[str, str] = {"grip": "per-frame", "screw": "per-frame"}
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 """The shipped models (trained on the built-in synthetic hands)."""
 
