@@ -149,11 +149,16 @@ def pool(stats: list[StreamStats]) -> StreamStats:
     return total
 
 
-def evaluate(model: Any, seqs: list[GestureSequence]) -> dict[str, dict[str, Any]]:
-    """``{"raw": summary, "smoothed": summary}`` of a model over sequences."""
-    raw_stats, sm_stats = [], []
+def evaluate(
+    model: Any, seqs: list[GestureSequence], light: tuple[int, int] | None = None
+) -> dict[str, dict[str, Any]]:
+    """``{"raw": summary, "smoothed": summary}`` of a model over sequences (and ``"light"``:
+    after a smoother of ``light = (n, k)`` instead of the session's 7/5, when given)."""
+    stats: dict[str, list[StreamStats]] = {"raw": [], "smoothed": [], "light": []}
     for seq in seqs:
         raw = stream_outputs(model, seq)
-        raw_stats.append(stream_stats(seq, raw))
-        sm_stats.append(stream_stats(seq, smooth(raw, seq.tracked)))
-    return {"raw": pool(raw_stats).summary(), "smoothed": pool(sm_stats).summary()}
+        stats["raw"].append(stream_stats(seq, raw))
+        stats["smoothed"].append(stream_stats(seq, smooth(raw, seq.tracked)))
+        if light is not None:
+            stats["light"].append(stream_stats(seq, smooth(raw, seq.tracked, *light)))
+    return {k: pool(v).summary() for k, v in stats.items() if v}

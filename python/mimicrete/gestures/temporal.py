@@ -39,6 +39,10 @@ from .model import FastRbfSvc, GestureModel
 from .sequences import GestureSequence, sequence_dataset
 
 DEFAULT_WINDOW = 9  # frames: 0.1 s at 90 Hz
+#: Per-frame features that are zero by construction of the hand frame (index proximal's z,
+#: middle proximal's x and z): only float rounding (~1e-17) is left in them, which a scaler
+#: would blow up to unit variance, so the temporal model sets them to exactly 0.
+STRUCTURAL_ZEROS = (3 * 4 + 2, 3 * 8 + 0, 3 * 8 + 2)
 DEFAULT_PARTS: tuple[str, ...] = ("median", "delta")
 PARTS = ("last", "median", "mean", "delta")
 #: C × gamma grid of the temporal SVM (features are 3 × 60 wide, so gamma is smaller).
@@ -101,6 +105,14 @@ class TemporalGestureModel(GestureModel):
         if self.dims != 3:
             raise ValueError("the temporal model reads 3-D hand joints")
         self._buf = deque(maxlen=self.window)
+
+    def features(
+        self, joints: np.ndarray, handedness: Any = "right", layout: str | None = None
+    ) -> np.ndarray:
+        """Per-frame features (:func:`features_3d`) with :data:`STRUCTURAL_ZEROS` set to 0."""
+        f = super().features(joints, handedness, layout)
+        f[..., list(STRUCTURAL_ZEROS)] = 0.0
+        return f
 
     def reset(self) -> None:
         """Forget the window (a new stream: another episode, or the hand came back after long)."""
@@ -200,6 +212,7 @@ def sequence_samples(
     xs, ys, gs = [], [], []
     for k, s in enumerate(sequences):
         f = features_3d(s.joints, s.layout, s.handedness)
+        f[:, list(STRUCTURAL_ZEROS)] = 0.0
         ok = np.all(np.isfinite(f), axis=1) & np.asarray(s.tracked, dtype=bool)
         x = f[ok] if window is None else window_features(f[ok], window, parts)
         y = np.asarray(s.labels)[ok]
