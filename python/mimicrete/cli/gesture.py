@@ -1,4 +1,5 @@
-"""`mimicrete gesture train|eval`: fit / score the SVM gesture models."""
+"""`mimicrete gesture train|eval`: fit / score the SVM gesture models (per-frame, or
+``--temporal``: a window of frames, :mod:`mimicrete.gestures.temporal`)."""
 
 from __future__ import annotations
 
@@ -23,8 +24,16 @@ from mimicrete.gestures import (
     load_default,
     load_model,
     read_gesture_csv,
+    sequence_dataset,
     synthetic_dataset,
     train_builtin,
+)
+from mimicrete.gestures.temporal import (
+    DEFAULT_WINDOW,
+    HELDOUT_SEEDS,
+    TemporalGestureModel,
+    fit_temporal,
+    train_temporal_builtin,
 )
 from mimicrete.hands import LAYOUT_JOINTS
 
@@ -74,6 +83,26 @@ def configure(parser: argparse.ArgumentParser) -> None:
             p.add_argument(
                 "--quick", action="store_true", help="a 2×2 grid instead of the full C × gamma grid"
             )
+            p.add_argument(
+                "--temporal",
+                action="store_true",
+                help="a temporal model (features over a window of frames) trained on labelled "
+                "sequences: --data needs a `sequence` column; without --data, the scripted "
+                "demonstrator's episodes and gesture drills",
+            )
+            p.add_argument(
+                "--window",
+                type=int,
+                default=None,
+                help="--temporal: frames per window (default 9 = 0.1 s at 90 Hz)",
+            )
+            p.add_argument(
+                "--sequences",
+                type=int,
+                default=12,
+                help="--temporal without --data: seeds --seed … --seed+N-1 of built-in "
+                "sequences (default 12: per seed one episode per demonstrator task + one drill)",
+            )
         else:
             p.add_argument(
                 "--model",
@@ -107,12 +136,48 @@ def _report(task: str, classes, truth, pred, n_test: int, what: str = "held-out"
     print(confusion(classes, truth, pred))
 
 
+def _main_train_temporal(args: argparse.Namespace) -> int:
+    task = TASK_MODEL[args.task]
+    grid = {"svc__C": [1.0, 10.0], "svc__gamma": [0.003]} if args.quick else None
+    window = args.window or DEFAULT_WINDOW
+    if args.data:
+        data = _load_csv_args(args)
+        seqs = data.sequences()
+        model, (xte, yte) = fit_temporal(
+            seqs,
+            "custom",
+            window=window,
+            test_size=args.test_size or 0.2,
+            seed=args.seed,
+            grid=grid,
+        )
+        model.info["data"] = str(args.data)
+        out = Path(args.out or "gesture_custom_temporal.joblib")
+    else:
+        seeds = range(args.seed, args.seed + args.sequences)
+        model, (xte, yte) = train_temporal_builtin(task, seeds, window=window, grid=grid)
+        out = Path(args.out or f"gesture_{task}_temporal.joblib")
+    model.save(out)
+    i = model.info
+    print(
+        f"saved {out} (+ .json): temporal, window {model.window} frames, best "
+        f"{i['best_params']}, 5-fold CV accuracy {100 * i['cv_accuracy']:.2f} % (folds and "
+        f"held-out part are whole sequences), {i['n_support']} support vectors"
+    )
+    _report(
+        "custom", model.classes, yte, model.pipeline.predict(xte), len(yte), "held-out sequences"
+    )
+    return 0
+
+
 def _main_train(args: argparse.Namespace) -> int:
+    if args.temporal:
+        return _main_train_temporal(args)
     task = TASK_MODEL[args.task]
     grid = {"svc__C": [10.0, 100.0], "svc__gamma": ["scale", 0.03]} if args.quick else None
     if args.data:
         data = _load_csv_args(args)
-        hands = np.full(len(data.labels), "right")
+        hands = data.hands()
         feats = featurize(data.joints, data.layout, data.dims, hands)
         pipe, info, (xte, yte) = fit(
             feats, data.labels, test_size=args.test_size or 0.2, seed=args.seed, grid=grid
@@ -136,9 +201,35 @@ def _main_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _eval_temporal(args: argparse.Namespace, model: TemporalGestureModel) -> int:
+    if args.data:
+        seqs = _load_csv_args(args, model.info.get("label_names")).sequences()
+        what = f"{Path(args.data).name} (every sequence, no split)"
+    else:
+        if model.task not in TASK_CLASSES:
+            raise UsageError("a custom model needs --data to be scored")
+        seqs = sequence_dataset(model.task, HELDOUT_SEEDS)
+        seeds = f"{HELDOUT_SEEDS.start}..{HELDOUT_SEEDS.stop - 1}"
+        what = f"held-out built-in sequences (seeds {seeds})"
+    truth, pred = [], []
+    for s in seqs:
+        p = model.predict_sequence(s.joints, s.handedness, s.layout, s.tracked)
+        truth.append(np.asarray(s.labels)[s.tracked])
+        pred.append(np.where(p == None, "<degenerate>", p)[s.tracked])  # noqa: E711
+    truth_a, pred_a = np.concatenate(truth), np.concatenate(pred)
+    classes = list(model.classes)
+    extra = sorted(set(map(str, truth_a)) - set(classes))
+    if "<degenerate>" in pred_a:
+        extra.append("<degenerate>")
+    _report(model.task, classes + extra, truth_a, pred_a, len(truth_a), what)
+    return 0
+
+
 def _main_eval(args: argparse.Namespace) -> int:
     task = TASK_MODEL[args.task]
     model = load_model(args.model) if args.model else load_default(task)
+    if isinstance(model, TemporalGestureModel):
+        return _eval_temporal(args, model)
     if args.data:
         data = _load_csv_args(args, model.info.get("label_names"))
         if data.dims != model.dims:
@@ -146,7 +237,7 @@ def _main_eval(args: argparse.Namespace) -> int:
                 f"{args.data} holds {data.dims}-D {data.layout} joints, the model "
                 f"expects {model.dims}-D {model.layout}"
             )
-        feats = featurize(data.joints, data.layout, data.dims, "right")
+        feats = featurize(data.joints, data.layout, data.dims, data.hands())
         truth = data.labels
         what = f"{Path(args.data).name} (every row, no split)"
     else:

@@ -18,6 +18,13 @@ however it is turned, whatever its size. 2-D image landmarks (``x, y`` only, e.g
 ``keypoint.csv`` rows) are made relative to the wrist, rotated so that wrist → middle MCP points
 along ``+y`` and divided by that length.
 
+Temporal model (:mod:`.temporal`, beyond the paper): the per-frame features of a short window
+of frames (median and change) into the same SVM, trained on labelled sequences
+(:mod:`.sequences`: the scripted demonstrator's episodes and gesture drills); a model file's
+``kind`` (``per-frame``/``temporal``) says which it is, ``load_model`` returns the right class,
+and :data:`DEFAULT_KIND` picks the shipped default per task. Labelled CSVs may carry a
+``sequence`` column (:mod:`.data`). Recording samples from a live hand: :mod:`.record`.
+
 The built-in data come from the parametric hand (:mod:`mimicrete.hands.model`): per-class finger
 shapes jittered per sample, a share of in-between shapes (blends toward another class, as hands
 caught mid-change), hand sizes 0.8-1.2, any wrist orientation, left and right hands, and
@@ -28,6 +35,7 @@ from __future__ import annotations
 
 from .classes import (
     CLASS_SHAPE,
+    DEFAULT_KIND,
     MODELS_DIR,
     PAPER_ACCURACY,
     PAPER_COUNTS,
@@ -54,10 +62,20 @@ from .model import (
     load_model,
     train_builtin,
 )
+from .sequences import GestureSequence, demo_sequences, drill_sequence, sequence_dataset
 from .smoother import GestureSmoother
+from .temporal import TemporalGestureModel, fit_temporal, train_temporal_builtin
 
 __all__ = [
     "CLASS_SHAPE",
+    "DEFAULT_KIND",
+    "GestureSequence",
+    "TemporalGestureModel",
+    "demo_sequences",
+    "drill_sequence",
+    "fit_temporal",
+    "sequence_dataset",
+    "train_temporal_builtin",
     "MODELS_DIR",
     "PAPER_ACCURACY",
     "PAPER_COUNTS",

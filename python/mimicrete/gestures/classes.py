@@ -41,6 +41,13 @@ DEFAULT_GRID: dict[str, list[Any]] = {
     "svc__C": [0.3, 1.0, 10.0, 100.0],
     "svc__gamma": ["scale", 0.001, 0.003, 0.01, 0.03],
 }
+#: Which kind of model ``load_default`` gives per model task: ``per-frame`` (the paper's SVM on
+#: one frame) or ``temporal`` (:mod:`mimicrete.gestures.temporal`). Chosen by
+#: ``python -m mimicrete.bench gestures`` (numbers in :mod:`mimicrete.bench.gestures`): after
+#: the session's smoother the two tie on flicker, latency and accuracy on held-out demonstrator
+#: sequences, and the per-frame model costs a third per frame and keeps no state, so it stays
+#: the default for both tasks.
+DEFAULT_KIND: dict[str, str] = {"grip": "per-frame", "screw": "per-frame"}
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 """The shipped models (trained on the built-in synthetic hands)."""
 

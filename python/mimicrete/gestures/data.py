@@ -1,11 +1,28 @@
 """Labelled gesture data: the built-in synthetic hands (sized like the paper's) and the labelled
-CSV format users record."""
+CSV format users record.
+
+Gesture CSV (what ``mimicrete gesture train|eval --data`` read, :func:`read_gesture_csv`):
+
+* **Plain** (no header; MediaPipe ``keypoint.csv`` exports are this): each row is
+  ``label, x0, y0[, z0], x1, …`` — the class, then every joint's coordinates in layout order.
+  The layout and 2-D/3-D follow from the number of coordinates (42 = MediaPipe 2-D, 63 =
+  MediaPipe 3-D, 72 = Meta OVR 3-D, 75 = WebXR 3-D, 78 = OpenXR 3-D, …; ``--layout`` to say it).
+* **With a header** (first row's first cell is ``label``): columns ``label`` first, then any of
+  ``sequence`` (an id: rows with the same id are consecutive frames of one take, in time
+  order — what a temporal model trains on), ``t`` (seconds), ``handedness``
+  (``left``/``right``), in any order, then the coordinates as above (their header cells are
+  free text, e.g. ``x0,y0,z0``). Rows without a ``sequence`` column are each their own sample.
+
+Both read the same way otherwise; files written without sequences, times or handedness are the
+plain form, byte for byte as before.
+"""
 
 from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -77,15 +94,59 @@ _WIDTHS: dict[int, tuple[str, int]] = {
 }
 
 
+#: Header names of the optional columns between the label and the coordinates.
+META_COLUMNS = ("sequence", "t", "handedness")
+
+
 @dataclass
 class GestureCsv:
-    """A labelled gesture CSV: ``labels (n,)``, ``joints (n, N, dims)``, its layout and dims."""
+    """A labelled gesture CSV: ``labels (n,)``, ``joints (n, N, dims)``, its layout and dims, and
+    the optional columns (``sequence`` ids as str, ``t`` seconds, ``handedness``), None when
+    absent."""
 
     labels: np.ndarray
     joints: np.ndarray
     layout: str
     dims: int
     path: str = ""
+    sequence: np.ndarray | None = None
+    t: np.ndarray | None = None
+    handedness: np.ndarray | None = None
+
+    def hands(self) -> np.ndarray:
+        """Handedness per row (``right`` where the file does not say)."""
+        if self.handedness is None:
+            return np.full(len(self.labels), "right")
+        return self.handedness
+
+    def sequences(self, layout: str | None = None) -> list[Any]:
+        """The rows as :class:`~mimicrete.gestures.sequences.GestureSequence` s, one per
+        ``sequence`` id in order of first appearance (3-D only; needs the ``sequence`` column;
+        all frames tracked, none marked as changing: the file does not say)."""
+        from .sequences import GestureSequence
+
+        if self.sequence is None:
+            raise GestureDataError(f"{self.path}: no sequence column (header `label,sequence,…`)")
+        if self.dims != 3:
+            raise GestureDataError(f"{self.path}: sequences need 3-D joints")
+        out = []
+        hands = self.hands()
+        for sid in dict.fromkeys(self.sequence.tolist()):
+            idx = np.flatnonzero(self.sequence == sid)
+            t = self.t[idx] if self.t is not None else np.arange(len(idx)) / 90.0
+            out.append(
+                GestureSequence(
+                    t,
+                    self.joints[idx],
+                    self.labels[idx],
+                    np.ones(len(idx), dtype=bool),
+                    np.zeros(len(idx), dtype=bool),
+                    str(hands[idx[0]]),
+                    layout or self.layout,
+                    f"{self.path} sequence {sid}",
+                )
+            )
+        return out
 
 
 def read_gesture_csv(
@@ -107,15 +168,46 @@ def read_gesture_csv(
         layout = layouts.check_layout(layout)
     labels: list[str] = []
     rows: list[list[float]] = []
+    meta: dict[str, list[str]] = {}
+    meta_cols: list[str] = []
     width: int | None = None
+    header_seen = False
     with open(path, encoding="utf-8-sig", newline="") as f:
         for lineno, row in enumerate(csv.reader(f), start=1):
             if not row or all(not c.strip() for c in row):
                 continue
+            if not header_seen and not rows and row[0].strip().lower() == "label":
+                header_seen = True
+                for c in row[1:]:
+                    name = c.strip().lower()
+                    if name not in META_COLUMNS:
+                        break
+                    if name in meta_cols:
+                        raise GestureDataError(f"{path}:{lineno}: column {name!r} twice")
+                    meta_cols.append(name)
+                meta = {c: [] for c in meta_cols}
+                continue
             label = row[0].strip()
             if not label:
                 raise GestureDataError(f"{path}:{lineno}: empty label in column 1")
-            vals = row[1:]
+            if len(row) < 1 + len(meta_cols):
+                raise GestureDataError(f"{path}:{lineno}: fewer columns than the header")
+            for k, c in enumerate(meta_cols):
+                v = row[1 + k].strip()
+                if c == "handedness" and v not in ("left", "right"):
+                    raise GestureDataError(
+                        f"{path}:{lineno}: column {2 + k}: handedness {v!r} is not left/right"
+                    )
+                if c == "t":
+                    try:
+                        float(v)
+                    except ValueError:
+                        raise GestureDataError(
+                            f"{path}:{lineno}: column {2 + k}: not a number: {v!r}"
+                        ) from None
+                meta[c].append(v)
+            skip = 1 + len(meta_cols)
+            vals = row[skip:]
             if width is None:
                 width = len(vals)
                 if layout is None:
@@ -137,7 +229,7 @@ def read_gesture_csv(
                     f"have {width}"
                 )
             nums = []
-            for col, v in enumerate(vals, start=2):
+            for col, v in enumerate(vals, start=skip + 1):
                 try:
                     x = float(v)
                 except ValueError:
@@ -162,13 +254,43 @@ def read_gesture_csv(
     n = layouts.LAYOUT_JOINTS[layout]
     dims = width // n
     return GestureCsv(
-        np.array(labels), np.array(rows).reshape(len(rows), n, dims), layout, dims, path
+        np.array(labels),
+        np.array(rows).reshape(len(rows), n, dims),
+        layout,
+        dims,
+        path,
+        np.array(meta["sequence"]) if "sequence" in meta else None,
+        np.array(meta["t"], dtype=np.float64) if "t" in meta else None,
+        np.array(meta["handedness"]) if "handedness" in meta else None,
     )
 
 
-def write_gesture_csv(path: str | Path, labels: np.ndarray, joints: np.ndarray) -> None:
-    """Write rows ``label, coords…`` (the format :func:`read_gesture_csv` reads)."""
+def write_gesture_csv(
+    path: str | Path,
+    labels: np.ndarray,
+    joints: np.ndarray,
+    *,
+    sequence: Any = None,
+    t: Any = None,
+    handedness: Any = None,
+) -> None:
+    """Write the format :func:`read_gesture_csv` reads: plain rows ``label, coords…`` or, when
+    any of ``sequence`` / ``t`` / ``handedness`` (one value per row, or one handedness for all)
+    is given, a header ``label,<those>,c0,c1,…`` and those columns after the label."""
+    n = len(labels)
+    meta: list[tuple[str, list[str]]] = []
+    if sequence is not None:
+        meta.append(("sequence", [str(v) for v in np.asarray(sequence).reshape(n)]))
+    if t is not None:
+        meta.append(("t", [f"{float(v):.6f}" for v in np.asarray(t).reshape(n)]))
+    if handedness is not None:
+        h = np.broadcast_to(np.asarray(handedness), (n,))
+        meta.append(("handedness", [str(v) for v in h]))
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        for label, j in zip(labels, joints, strict=True):
-            w.writerow([label, *(f"{v:.6g}" for v in np.asarray(j).ravel())])
+        if meta:
+            width = int(np.asarray(joints[0]).size) if n else 0
+            w.writerow(["label", *(name for name, _ in meta), *(f"c{i}" for i in range(width))])
+        for i, (label, j) in enumerate(zip(labels, joints, strict=True)):
+            coords = (f"{v:.6g}" for v in np.asarray(j).ravel())
+            w.writerow([label, *(vals[i] for _, vals in meta), *coords])

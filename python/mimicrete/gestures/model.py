@@ -15,6 +15,7 @@ import numpy as np
 
 from .classes import (
     DEFAULT_GRID,
+    DEFAULT_KIND,
     MODELS_DIR,
     PAPER_ACCURACY,
     PAPER_TEST_SIZE,
@@ -58,6 +59,35 @@ class GestureModel:
     task: str = "custom"
     info: dict[str, Any] = field(default_factory=dict)
     _fast: Any = field(default=None, repr=False, compare=False)
+
+    #: ``per-frame`` (each frame on its own) or ``temporal`` (a window of frames; stateful).
+    kind = "per-frame"
+
+    def reset(self) -> None:
+        """Start a new stream of frames (nothing to forget for a per-frame model)."""
+
+    def predict_sequence(
+        self,
+        joints: np.ndarray,
+        handedness: Any = "right",
+        layout: str | None = None,
+        tracked: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Classes of consecutive frames ``(T, N, dims)`` of one stream (object array; ``None``
+        where the frame is untracked or degenerate), the same as :meth:`predict_margin` frame
+        by frame."""
+        f = self.features(np.asarray(joints), handedness, layout)
+        ok = np.all(np.isfinite(f), axis=1)
+        if tracked is not None:
+            ok &= np.asarray(tracked, dtype=bool)
+        out = np.full(len(f), None, dtype=object)
+        if ok.any():
+            out[ok] = self.pipeline.predict(f[ok])
+        return out
+
+    def _state(self) -> dict[str, Any]:
+        """What :meth:`save` stores besides the pipeline and the input description."""
+        return {"kind": "per-frame"}
 
     def features(
         self, joints: np.ndarray, handedness: Any = "right", layout: str | None = None
@@ -123,7 +153,9 @@ class GestureModel:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write ``path`` (joblib) and ``path.json`` (versions, feature spec, training facts)."""
+        """Write ``path`` (joblib) and ``path.json`` (versions, ``kind`` per-frame/temporal,
+        feature spec, training facts). Files without ``kind`` (written before temporal models
+        existed) are per-frame."""
         import joblib
 
         path = Path(path)
@@ -135,6 +167,7 @@ class GestureModel:
                 "layout": self.layout,
                 "dims": self.dims,
                 "task": self.task,
+                **self._state(),
             },
             path,
             compress=3,
@@ -143,6 +176,7 @@ class GestureModel:
             "format": "mimicrete.gesture_model",
             "version": 1,
             "versions": _versions(),
+            "kind": self.kind,
             "task": self.task,
             "classes": list(self.classes),
             "features": self.spec(),
@@ -228,8 +262,10 @@ class FastRbfSvc:
 
 
 def load_model(path: str | Path) -> GestureModel:
-    """Load a model written by :meth:`GestureModel.save`; warns when the sklearn or numpy version
-    differs from the one it was fitted with (pickled sklearn models may then misbehave)."""
+    """Load a model written by :meth:`GestureModel.save` (a
+    :class:`~mimicrete.gestures.temporal.TemporalGestureModel` when its kind is temporal); warns
+    when the sklearn or numpy version differs from the one it was fitted with (pickled sklearn
+    models may then misbehave)."""
     import joblib
 
     path = Path(path)
@@ -265,20 +301,37 @@ def load_model(path: str | Path) -> GestureModel:
         )
     for note in notes:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
-    return GestureModel(d["pipeline"], tuple(d["classes"]), d["layout"], d["dims"], d["task"], info)
+    args = (d["pipeline"], tuple(d["classes"]), d["layout"], d["dims"], d["task"], info)
+    kind = d.get("kind", "per-frame")
+    if kind == "temporal":
+        from .temporal import TemporalGestureModel
+
+        return TemporalGestureModel(*args, window=int(d["window"]), parts=tuple(d["parts"]))
+    if kind != "per-frame":
+        raise GestureDataError(f"{path}: unknown gesture model kind {kind!r}")
+    return GestureModel(*args)
 
 
-def default_model_path(task: str) -> Path:
-    """Where the shipped model for ``task`` (``grip``/``suction``/``screw``) lives."""
-    return MODELS_DIR / f"gesture_{TASK_MODEL.get(task, task)}.joblib"
+def default_model_path(task: str, kind: str | None = None) -> Path:
+    """Where the shipped model for ``task`` (``grip``/``suction``/``screw``) lives; ``kind``
+    (``per-frame``/``temporal``) defaults to :data:`DEFAULT_KIND` of the task."""
+    task = TASK_MODEL.get(task, task)
+    kind = kind or DEFAULT_KIND.get(task, "per-frame")
+    if kind not in ("per-frame", "temporal"):
+        raise ValueError(f"model kind must be 'per-frame' or 'temporal', got {kind!r}")
+    suffix = "_temporal" if kind == "temporal" else ""
+    return MODELS_DIR / f"gesture_{task}{suffix}.joblib"
 
 
-def load_default(task: str) -> GestureModel:
-    """The shipped model for a task (``suction`` and ``grip`` share the 3-class model)."""
-    path = default_model_path(task)
+def load_default(task: str, kind: str | None = None) -> GestureModel:
+    """The shipped model for a task (``suction`` and ``grip`` share the 3-class model), of
+    ``kind`` (default :data:`DEFAULT_KIND`)."""
+    path = default_model_path(task, kind)
     if not path.exists():
+        flag = " --temporal" if path.stem.endswith("_temporal") else ""
         raise FileNotFoundError(
-            f"{path} missing: run `mimicrete gesture train --task {TASK_MODEL.get(task, task)}`"
+            f"{path} missing: run `mimicrete gesture train{flag} --task "
+            f"{TASK_MODEL.get(task, task)}`"
         )
     return load_model(path)
 

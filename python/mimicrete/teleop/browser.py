@@ -381,10 +381,181 @@ def replay_samples(page: Any) -> list[tuple[int, float, int | None]]:
     return [tuple(s) for s in page.evaluate("() => window.__mimicrete.replaySamples")]
 
 
+# ----------------------------------------------------------------------------------------------
+# The built page without a mimicrete server; IWER's own hand poses as a frame source
+# ----------------------------------------------------------------------------------------------
+
+
+@contextmanager
+def serve_static(directory: str | Path | None = None) -> Iterator[str]:
+    """Serve the built page (``teleop/static``, or ``directory``) on a loopback port, laid out
+    as the real server does (``/`` → index.html, ``/static/x`` → x); yields the base URL."""
+    import functools
+    import http.server
+    import threading
+
+    root = Path(directory) if directory else Path(__file__).resolve().parent / "static"
+    if not (root / "index.html").exists():
+        raise FileNotFoundError(f"{root} has no built page: run `make web`")
+
+    class Handler(http.server.SimpleHTTPRequestHandler):
+        def translate_path(self, path: str) -> str:
+            path = path.split("?", 1)[0]
+            rel = "index.html" if path == "/" else path.removeprefix("/static/")
+            return str(root / rel)
+
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Handler))
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+class FrameSink:
+    """Answers the page's WebSocket inside Playwright (``page.route_web_socket``): a driver hello,
+    then one empty state per hand frame; keeps the hand frames (parsed,
+    :func:`mimicrete.teleop.protocol.parse_frame`) in ``frames``. Install it before the page
+    loads (``open_page(..., before_load=FrameSink)``)."""
+
+    def __init__(self, page: Any, task: str = "grip") -> None:
+        self.frames: list[Any] = []
+        self.hello = {
+            "type": "hello",
+            "protocol": 1,
+            "role": "driver",
+            "task": task,
+            "layout": "webxr",
+            "control_dt": 0.04,
+            "scene": [],
+            "view_from_base": list(np.eye(4).ravel()),
+            "frames": {},
+        }
+        page.route_web_socket("**/ws", self._connect)
+
+    def _connect(self, ws: Any) -> None:
+        ws.on_message(lambda m: self._message(ws, m))
+
+    def _message(self, ws: Any, m: str | bytes) -> None:
+        import json
+
+        from .protocol import parse_frame
+
+        if isinstance(m, str):
+            if json.loads(m).get("type") == "hello":
+                ws.send(json.dumps(self.hello))
+            return
+        f = parse_frame(m)
+        self.frames.append(f)
+        ws.send(json.dumps({"type": "state", "seq": f.seq, "sent_ms": f.sent_ms, "server_ms": 0}))
+
+
+#: IWER's hand poses (captured on a Quest 3), by ``device.hands.<side>.poseId``.
+IWER_POSES: tuple[str, ...] = ("default", "pinch", "point")
+
+
+class IwerPoseSource:
+    """A :class:`mimicrete.gestures.record.FrameSource` made of IWER's emulated hand in a page
+    that is in VR: ``prompt(label)`` sets the hand's pose (``poses[label]``, an IWER poseId),
+    ``frames()`` moves and turns the hand about the workspace (a smooth random path, set with
+    ``page.evaluate`` on ``window.__mimicrete.device``) and yields the right-hand frames the page
+    sends, ``(t, tracked, joints (25, 3) webxr)``.
+
+    Args:
+        page: an open page in an emulated session, with a :class:`FrameSink` routed.
+        sink: that sink.
+        poses: class label → IWER poseId (``default``, ``pinch``, ``point``).
+        seed: of the path.
+        step_ms: how long each pose of the path is shown.
+        turn_deg: largest rotation away from the start orientation, about each axis.
+        reach_m: half-size of the box the hand wanders in, around its start position.
+    """
+
+    def __init__(
+        self,
+        page: Any,
+        sink: FrameSink,
+        poses: dict[str, str],
+        *,
+        seed: int = 0,
+        side: str = "right",
+        step_ms: float = 40.0,
+        turn_deg: float = 45.0,
+        reach_m: float = 0.15,
+    ) -> None:
+        for label, pose in poses.items():
+            if pose not in IWER_POSES:
+                raise ValueError(f"{label}: unknown IWER pose {pose!r}; known: {IWER_POSES}")
+        self.page, self.sink, self.poses, self.side = page, sink, poses, side
+        self.rng = np.random.default_rng(seed)
+        self.step_ms, self.turn, self.reach = step_ms, np.radians(turn_deg), reach_m
+        self.home = page.evaluate(
+            f"() => {{ const h = window.__mimicrete.device.hands.{side};"
+            " const p = h.position, q = h.quaternion; return [p.x, p.y, p.z, q.x, q.y, q.z, q.w]; }"
+        )
+        self._goal = self._random_pose()
+        self._pose = np.array([0.0] * 6)
+
+    def _random_pose(self) -> np.ndarray:
+        return np.concatenate(
+            [
+                self.rng.uniform(-1, 1, size=3) * self.reach,
+                self.rng.uniform(-1, 1, size=3) * self.turn,
+            ]
+        )
+
+    def _apply(self, pose: np.ndarray) -> None:
+        x, y, z = (np.asarray(self.home[:3]) + pose[:3]).tolist()
+        half = pose[3:] / 2.0  # small rotations composed about x, y, z, then the home one
+        qs = [
+            np.array([np.sin(half[0]), 0, 0, np.cos(half[0])]),
+            np.array([0, np.sin(half[1]), 0, np.cos(half[1])]),
+            np.array([0, 0, np.sin(half[2]), np.cos(half[2])]),
+        ]
+        q = np.asarray(self.home[3:], dtype=np.float64)
+        for r in qs:
+            q = _quat_mul(q, r)
+        self.page.evaluate(
+            "([s, p, q]) => { const h = window.__mimicrete.device.hands[s];"
+            " h.position.set(p[0], p[1], p[2]); h.quaternion.set(q[0], q[1], q[2], q[3]); }",
+            [self.side, [x, y, z], q.tolist()],
+        )
+
+    def prompt(self, label: str) -> None:
+        self.page.evaluate(
+            "([s, id]) => { window.__mimicrete.device.hands[s].poseId = id; }",
+            [self.side, self.poses[label]],
+        )
+
+    def frames(self) -> Iterator[tuple[float, bool, np.ndarray]]:
+        seen = len(self.sink.frames)
+        while True:
+            d = self._goal - self._pose
+            if np.linalg.norm(d) < 1e-3:
+                self._goal = self._random_pose()
+                d = self._goal - self._pose
+            self._pose = self._pose + d * min(1.0, 0.15 / max(np.linalg.norm(d), 1e-9))
+            self._apply(self._pose)
+            self.page.wait_for_timeout(self.step_ms)  # frames arrive while Playwright waits
+            new = self.sink.frames[seen:]
+            seen += len(new)
+            for f in new:
+                tracked = f.right_tracked if self.side == "right" else f.left_tracked
+                yield f.t, tracked, (f.right if self.side == "right" else f.left)
+
+
 __all__ = [
     "CHROMIUM",
     "CHROMIUM_ARGS",
     "DEFAULT_RADII",
+    "FrameSink",
+    "IWER_POSES",
+    "IwerPoseSource",
     "Track",
     "WEBXR_JOINT_NAMES",
     "build_recording",
@@ -395,6 +566,7 @@ __all__ = [
     "recording_hand",
     "replay",
     "replay_samples",
+    "serve_static",
     "track_from_log",
     "wait_replay_done",
 ]

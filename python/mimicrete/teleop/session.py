@@ -220,6 +220,7 @@ class Session:
         self.calibration = calibration
         self.seed = int(seed)
         self.model = model or gest.load_default(self.task.name)
+        self.model.reset()  # a temporal model forgets the previous episode's frames
         self.recorder = recorder
         self.smoother = gest.GestureSmoother(n=7, k=5)
         self.filter = OneEuro(min_cutoff=1.0, beta=2.0)

@@ -28,7 +28,7 @@ How a motion is made:
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +65,12 @@ class Episode:
     joints: np.ndarray  # (T, N, 3) in the header's layout and space
     phases: list[str]
     tool0: np.ndarray  # (T, 4, 4) the tool0 pose each frame is meant to command (Base)
+    #: the gesture class (paper Table 1) the person shows each frame: while a gesture changes
+    #: through in-between shapes, the old class until the half-way shape and the new one from
+    #: it on (one-frame tracking glitches keep the class the person is showing)
+    gestures: list[str] = field(default_factory=list)
+    #: (T,) bool: the frame is part of a change of gesture (in-between finger shapes)
+    changing: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
 
 def synth_episode(
@@ -91,6 +97,7 @@ def synth_episode(
     )
     motion = plan_task(scene, rng, person)
     tcp, shapes, phases, transport = motion.arrays()
+    gestures, changing = motion.gestures()
     n = len(tcp)
     dt = 1.0 / HAND_RATE_HZ
     tcp = tcp + _tremor(n, dt, rng, person)
@@ -145,7 +152,7 @@ def synth_episode(
             "rate_hz": HAND_RATE_HZ,
         },
     }
-    return Episode(header, t, tracked, out, phases, frames)
+    return Episode(header, t, tracked, out, phases, frames, gestures, changing)
 
 
 def write_handlog(path: str | Path, ep: Episode) -> Path:

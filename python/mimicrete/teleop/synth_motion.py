@@ -45,7 +45,12 @@ class Motion:
     """Accumulates a TCP path (Base), a gesture-shape track and keyframes at 90 Hz."""
 
     def __init__(
-        self, start: np.ndarray, shape: np.ndarray, rng: np.random.Generator, person: Person
+        self,
+        start: np.ndarray,
+        shape: np.ndarray,
+        rng: np.random.Generator,
+        person: Person,
+        label: str = "",
     ) -> None:
         self.dt = 1.0 / HAND_RATE_HZ
         self.rng = rng
@@ -54,16 +59,29 @@ class Motion:
         self.shape: list[np.ndarray] = [np.asarray(shape, dtype=np.float64)]
         self.phase: list[str] = ["start"]
         self.transport: list[bool] = [False]
+        # the gesture class the person shows each frame (paper Table 1): during a change of
+        # gesture the old class until the in-between shape is half-way, the new one after it
+        self.label: list[str] = [label]
+        self.changing: list[bool] = [False]  # frame is part of a change of gesture
 
     @property
     def here(self) -> np.ndarray:
         return self.pos[-1]
 
-    def _append(self, pos: np.ndarray, shapes: np.ndarray, phase: str, transport: bool) -> None:
+    def _append(
+        self,
+        pos: np.ndarray,
+        shapes: np.ndarray,
+        phase: str,
+        transport: bool,
+        labels: list[str] | None = None,
+    ) -> None:
         self.pos.extend(pos)
         self.shape.extend(shapes)
         self.phase.extend([phase] * len(pos))
         self.transport.extend([transport] * len(pos))
+        self.label.extend(labels or [self.label[-1]] * len(pos))
+        self.changing.extend([labels is not None] * len(pos))
 
     def hold(self, seconds: float, phase: str = "hold") -> None:
         n = max(1, int(round(seconds / self.dt)))
@@ -71,13 +89,23 @@ class Motion:
             np.repeat(self.here[None], n, 0), np.repeat(self.shape[-1][None], n, 0), phase, False
         )
 
-    def gesture(self, target_shape: hm.HandShape, seconds: float, phase: str = "gesture") -> None:
-        """Change the finger shape through in-between shapes while the hand holds still."""
+    def gesture(
+        self,
+        target_shape: hm.HandShape,
+        seconds: float,
+        phase: str = "gesture",
+        label: str | None = None,
+    ) -> None:
+        """Change the finger shape through in-between shapes while the hand holds still; the
+        frames are labelled gesture class ``label`` from the half-way shape on (the previous
+        class before it; ``label`` None keeps the previous class throughout)."""
         n = max(2, int(round(seconds / self.dt)))
         a = self.shape[-1]
         b = hm.jitter_shape(target_shape, self.rng, sd=0.03).as_array()
         w = min_jerk(np.arange(1, n + 1) / n)[:, None]
-        self._append(np.repeat(self.here[None], n, 0), (1 - w) * a + w * b, phase, False)
+        before = self.label[-1]
+        labels = [label if label is not None and wk >= 0.5 else before for wk in w[:, 0]]
+        self._append(np.repeat(self.here[None], n, 0), (1 - w) * a + w * b, phase, False, labels)
 
     def _leg(self, goal: np.ndarray, seconds: float, phase: str, transport: bool) -> None:
         n = max(2, int(round(seconds / self.dt)))
@@ -117,6 +145,10 @@ class Motion:
     def arrays(self) -> tuple[np.ndarray, np.ndarray, list[str], np.ndarray]:
         return np.array(self.pos), np.array(self.shape), self.phase, np.array(self.transport)
 
+    def gestures(self) -> tuple[list[str], np.ndarray]:
+        """Per frame: the gesture class shown, and whether the frame is part of a change."""
+        return list(self.label), np.array(self.changing)
+
 
 def _slow_noise(n: int, dt: float, rng: np.random.Generator, tau: float = 0.4) -> np.ndarray:
     """Unit-variance low-pass noise ``(n, 3)`` (exponential kernel of time constant ``tau``)."""
@@ -151,6 +183,7 @@ def _approach_and_grasp(
     settled: tuple[float, float],
     close: hm.HandShape,
     grasp: tuple[float, float],
+    close_label: str | None = None,
 ) -> None:
     """Reach ``approach`` (m, uniform range) above ``above``, settle, descend precisely to
     ``grasp_at()`` (called only then, so its draws come after the settle's), settle, close the
@@ -160,7 +193,7 @@ def _approach_and_grasp(
     m.hold(rng.uniform(*settle), "settle")
     m.reach(grasp_at(), "descend", precise=True)
     m.hold(rng.uniform(*settled), "settle")
-    m.gesture(close, rng.uniform(0.2, 0.5), "close")
+    m.gesture(close, rng.uniform(0.2, 0.5), "close", close_label)
     m.hold(rng.uniform(*grasp), "grasp")
 
 
@@ -173,6 +206,7 @@ def _carry_and_place(
     lower: tuple[float, float],
     release_shape: hm.HandShape,
     release: tuple[float, float],
+    release_label: str | None = None,
 ) -> None:
     """Lift, carry to ``carry`` above ``target`` (plus ``held_below``, how far the object's
     centre hangs below the TCP), settle, lower precisely to ``lower`` above it, place, open the
@@ -183,7 +217,7 @@ def _carry_and_place(
     m.hold(rng.uniform(0.3, 0.6), "settle")
     m.reach(target + _UP * (held_below + rng.uniform(*lower)), "lower", precise=True)
     m.hold(rng.uniform(0.5, 0.9), "place")
-    m.gesture(release_shape, rng.uniform(0.2, 0.5), "release")
+    m.gesture(release_shape, rng.uniform(0.2, 0.5), "release", release_label)
     m.hold(rng.uniform(*release), "release")
     m.reach(m.here + _UP * 0.08, "retreat")
 
@@ -195,7 +229,9 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     cls_open = "opening_stopped" if task == "screw" else "opening"
     cls_close = "closing_fixed" if task == "screw" else "closing"
     shp = {c: hm.GESTURE_SHAPES[SHAPE_OF[c]] for c in SHAPE_OF}
-    m = Motion(scene.tcp, hm.jitter_shape(shp[cls_open], rng, 0.03).as_array(), rng, person)
+    m = Motion(
+        scene.tcp, hm.jitter_shape(shp[cls_open], rng, 0.03).as_array(), rng, person, cls_open
+    )
     m.hold(rng.uniform(0.3, 0.8), "start")
     obj, tgt = scene.object, scene.target
     if task == "suction":
@@ -209,6 +245,7 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
             grasp_at=lambda: grasp + up * clearance,
             settled=(0.5, 0.9),
             close=shp[cls_close],
+            close_label=cls_close,
             grasp=(0.5, 0.9),
         )
         _carry_and_place(
@@ -218,6 +255,7 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
             carry=(0.06, 0.10),
             lower=(0.0, 0.006),
             release_shape=shp[cls_open],
+            release_label=cls_open,
             release=(0.3, 0.6),
         )
     elif task == "grip":
@@ -229,6 +267,7 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
             grasp_at=lambda: obj + up * rng.uniform(-0.003, 0.003),
             settled=(0.6, 1.0),
             close=shp[cls_close],
+            close_label=cls_close,
             grasp=(0.9, 1.3),  # fingers close at 0.1 m/s
         )
         _carry_and_place(
@@ -238,6 +277,7 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
             carry=(0.07, 0.10),
             lower=(0.002, 0.006),
             release_shape=shp[cls_open],
+            release_label=cls_open,
             release=(0.6, 1.0),
         )
     elif task == "screw":
@@ -249,9 +289,12 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
             grasp_at=obj.copy,
             settled=(0.7, 1.1),
             close=shp[cls_close],
+            close_label=cls_close,
             grasp=(0.9, 1.3),
         )
-        m.gesture(shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten")
+        m.gesture(
+            shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten", "closing_tightening"
+        )
         # keep tightening, following the nut down, until it sits at the target (seen in VR)
         seconds = rng.uniform(4.5, 5.5)
         n = int(round(seconds * HAND_RATE_HZ))
@@ -259,8 +302,8 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
         start = m.here
         path = start + np.clip(follow * 1.15, 0, 1) * (tgt - start)
         m._append(path, np.repeat(m.shape[-1][None], n, 0), "tighten", False)
-        m.gesture(shp["closing_fixed"], rng.uniform(0.2, 0.4), "stop")
-        m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release")
+        m.gesture(shp["closing_fixed"], rng.uniform(0.2, 0.4), "stop", "closing_fixed")
+        m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release", "opening_stopped")
         m.hold(rng.uniform(0.4, 0.8), "release")
         m.reach(m.here + up * 0.08, "retreat")
     else:
