@@ -196,7 +196,9 @@ def ensure_demos(
     rc = cli.main([*synth, "--out", str(hand_dir)])
     if rc:
         raise RuntimeError(f"mimicrete synth-hands exited {rc}")
-    rc = cli.main(["convert", str(hand_dir), "--task", task, "--out", str(demo_dir), "--no-progress"])
+    rc = cli.main(
+        ["convert", str(hand_dir), "--task", task, "--out", str(demo_dir), "--no-progress"]
+    )
     if rc:
         raise RuntimeError(f"mimicrete convert exited {rc}")
     got = count_demo_episodes(demo_dir)

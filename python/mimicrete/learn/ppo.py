@@ -118,9 +118,7 @@ def ppo_loss(
     policy_loss = -surr.mean()
     values = critic(b.obs)
     v_clipped = b.old_values + torch.clamp(values - b.old_values, -epsilon, epsilon)
-    v_loss = (
-        torch.max((b.returns - values).pow(2), (b.returns - v_clipped).pow(2)).mean(0).mean()
-    )
+    v_loss = torch.max((b.returns - values).pow(2), (b.returns - v_clipped).pow(2)).mean(0).mean()
     ent = entropy.mean()
     loss = policy_loss + 0.5 * v_loss - beta * ent
     with torch.no_grad():

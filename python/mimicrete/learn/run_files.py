@@ -241,9 +241,7 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
     return torch.load(path, weights_only=False)
 
 
-def save_policy(
-    run_dir: Path, actor: Actor, obs_dim: int, step: int, cfg: TrainerConfig
-) -> None:
+def save_policy(run_dir: Path, actor: Actor, obs_dim: int, step: int, cfg: TrainerConfig) -> None:
     """The final policy: ``policy.onnx`` and ``policy.pt`` (actor weights, obs size, config)."""
     import torch
 

@@ -501,7 +501,9 @@ class Trainer:
         for net in nets:
             for name, p in net.named_parameters():
                 if not torch.isfinite(p).all():
-                    raise NonFiniteLossError(self._nonfinite_message(f"weight {name} is not finite"))
+                    raise NonFiniteLossError(
+                        self._nonfinite_message(f"weight {name} is not finite")
+                    )
         path = run_files.save_checkpoint(
             self.run_dir, self.step, self.state_dict(), self.actor, self.obs_dim,
             self.b.keep_checkpoints,
