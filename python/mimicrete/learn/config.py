@@ -252,7 +252,9 @@ def _build(cls: type, data: Any, where: str) -> Any:
             kwargs[key] = _coerce(fields[key], value, f"{where}.{key}")
             rng = RANGES.get((cls, key))
             if rng is not None and kwargs[key] is not None and kwargs[key] not in rng:
-                raise ConfigError(f"{where}.{key}: {kwargs[key]!r} is not in {rng}")
+                raise ConfigError(
+                    f"{where}.{key}: {kwargs[key]!r} is out of range (allowed: {rng})"
+                )
     return cls(**kwargs)
 
 
@@ -265,6 +267,11 @@ def _coerce(f: dataclasses.Field, value: Any, where: str) -> Any:
             raise ConfigError(f"{where}: expected an integer, got {value!r}")
         return int(value)
     if t.startswith("float"):
+        if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
+            try:
+                return float(value)
+            except ValueError:
+                pass
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{where}: expected a number, got {value!r}")
         return float(value)
@@ -329,12 +336,23 @@ def from_dict(data: dict[str, Any]) -> TrainerConfig:
     return cfg
 
 
+def _yaml_where(e: yaml.YAMLError) -> str:
+    mark = getattr(e, "problem_mark", None)
+    return f":{mark.line + 1}:{mark.column + 1}" if mark is not None else ""
+
+
+def _yaml_problem(e: yaml.YAMLError) -> str:
+    return str(getattr(e, "problem", None) or e).splitlines()[0]
+
+
 def load(path: str | Path) -> TrainerConfig:
     with open(path, encoding="utf-8") as f:
         try:
             data = yaml.safe_load(f)
         except yaml.YAMLError as e:
-            raise ConfigError(f"{path}: not valid YAML ({e})") from None
+            raise ConfigError(
+                f"{path}{_yaml_where(e)}: not valid YAML ({_yaml_problem(e)})"
+            ) from None
     try:
         return from_dict(data)
     except ConfigError as e:
@@ -360,7 +378,7 @@ def with_overrides(cfg: TrainerConfig, overrides: list[str]) -> TrainerConfig:
         try:
             node[parts[-1]] = yaml.safe_load(raw)
         except yaml.YAMLError as e:
-            raise ConfigError(f"override {item!r}: not a YAML value ({e})") from None
+            raise ConfigError(f"override {item!r}: not a YAML value ({_yaml_problem(e)})") from None
     return from_dict(data)
 
 

@@ -37,8 +37,9 @@ def train(
     run_dir = Path(run_dir)
     run_files.prepare_run_dir(run_dir, resume=resume, force=force)
     total = int(max_steps if max_steps is not None else cfg.behavior.max_steps)
-    config_mod.save(cfg, run_dir / "resolved_config.yaml")
+    # the trainer loads the demos first: a bad demo path leaves the run dir as it was
     tr = Trainer(cfg, run_dir, demos, total, skip_bad_demos=skip_bad_demos)
+    config_mod.save(cfg, run_dir / "resolved_config.yaml")
     info: dict[str, Any] = {"max_steps": total, "demos": demos or cfg.demo_path}
     if tr.demos is not None:
         info["demo_steps_loaded"] = tr.demo_steps_loaded

@@ -278,7 +278,8 @@ def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
         actor = Actor(int(s["obs_dim"]), N_CONT, ns.hidden_units, ns.num_layers, ns.normalize)
         actor.load_state_dict(s["actor"])
     except (pickle.UnpicklingError, RuntimeError, EOFError, KeyError, TypeError, ValueError) as e:
-        raise PolicyFileError(f"{path}: not a readable policy ({type(e).__name__}: {e})") from e
+        why = str(e).split(". ")[0][:160]
+        raise PolicyFileError(f"{path}: not a readable policy ({type(e).__name__}: {why})") from e
     actor.eval()
     return actor, cfg
 
