@@ -113,3 +113,10 @@ def test_experiments_entry_point_answers():
         )  # fmt: skip
         assert r.returncode == 0, r.stderr
         assert "usage: python -m " + mod in r.stdout
+
+
+def test_every_module_imports():
+    import importlib
+
+    for name in _modules():
+        importlib.import_module(name)

@@ -8,10 +8,7 @@ import time
 from pathlib import Path
 
 from mimicrete.cli import UsageError
-
-DEFAULT_GROUP = "group3.yaml"  # keep in step with mimicrete.learn.config.DEFAULT_GROUP
-DEFAULT_MAX_STEPS = 1_000_000  # mimicrete.learn.config.DEFAULT_MAX_STEPS
-DEFAULT_DEMOS = "demos/suction"  # the group configs' demo_path
+from mimicrete.learn.config import DEFAULT_DEMOS, DEFAULT_GROUP, DEFAULT_MAX_STEPS  # no torch
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
