@@ -6,21 +6,6 @@ def pytest_addoption(parser):
     parser.addoption("--runslow", action="store_true", default=False, help="run tests marked slow")
 
 
-@pytest.fixture(autouse=True)
-def _one_torch_thread(request):
-    """The trainer's tests (``test_learn_*``) run small nets on a shared 2-core machine, where
-    one torch thread is faster; the thread count is restored afterwards."""
-    if not request.module.__name__.rpartition(".")[2].startswith("test_learn_"):
-        yield
-        return
-    import torch
-
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def pytest_collection_modifyitems(config, items):
     if config.getoption("--runslow"):
         return

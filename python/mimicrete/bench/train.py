@@ -21,7 +21,7 @@ UPDATES = 2
 
 def _our_steps_per_s(cfg, tmp: Path) -> tuple[float, float, float]:
     """(total steps/s, rollout-only steps/s, seconds per update) over UPDATES updates."""
-    from mimicrete.learn.train import Trainer
+    from mimicrete.learn.trainer import Trainer
 
     tr = Trainer(cfg, tmp / "run", None, 5_000_000)
     t_roll = t_upd = 0.0
@@ -29,7 +29,7 @@ def _our_steps_per_s(cfg, tmp: Path) -> tuple[float, float, float]:
         t0 = time.perf_counter()
         tr.collect()
         t1 = time.perf_counter()
-        tr.update(tr.process())
+        tr.update(tr.advantages(tr.reward_signals()))
         t2 = time.perf_counter()
         t_roll += t1 - t0
         t_upd += t2 - t1
@@ -133,7 +133,7 @@ def run() -> None:
         )
         try:
             from mimicrete.learn import config
-            from mimicrete.learn.train import make_env
+            from mimicrete.learn.env import make_env
 
             make_env("TileSuction-v0", 2, 0).close()
         except Exception as e:  # the Rust env is not built yet

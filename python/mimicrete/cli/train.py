@@ -1,17 +1,104 @@
-"""`mimicrete train` (temporary forwarder while the package is regrouped)."""
+"""`mimicrete train`: train a policy with BC + GAIL + PPO from a YAML config, then plot and
+evaluate it. Parses the flags and calls ``mimicrete.learn`` (torch is imported in ``main``)."""
 
 from __future__ import annotations
 
 import argparse
+import time
+from pathlib import Path
+
+from mimicrete.cli import UsageError
+from mimicrete.learn.config import DEFAULT_DEMOS, DEFAULT_GROUP, DEFAULT_MAX_STEPS  # no torch
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    import mimicrete.learn.train as lib
-
-    lib.configure(parser)
+    parser.add_argument(
+        "--config",
+        help=f"ML-Agents-shaped YAML (default configs/{DEFAULT_GROUP}"
+        f" with --max-steps {DEFAULT_MAX_STEPS})",
+    )
+    parser.add_argument(
+        "--demos",
+        help="demo dir/file; overrides the config's demo_path "
+        f"(default: the config's, i.e. {DEFAULT_DEMOS})",
+    )
+    parser.add_argument(
+        "--make-demos",
+        action="store_true",
+        help="if the demo path holds too few demos, make them first (synth-hands + convert, as "
+        "`make demos`); what `python train.py` does",
+    )
+    parser.add_argument(
+        "--skip-bad-demos",
+        action="store_true",
+        help="train on the loadable demo files of a directory, listing the bad ones in run.json "
+        "(default: a bad file is an error)",
+    )
+    parser.add_argument("--run-dir", help="default runs/<config name>-seed<seed>")
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--resume", action="store_true", help="continue from the latest checkpoint")
+    group.add_argument(
+        "--force", action="store_true", help="replace the run already in --run-dir (deletes it)"
+    )
+    parser.add_argument("--seed", type=int, help="override env_settings.seed")
+    parser.add_argument("--max-steps", type=int, help="override max_steps (schedules follow it)")
+    parser.add_argument("--num-envs", type=int, help="override env_settings.num_envs")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override any config key, e.g. behavior.reward_signals.gail."
+        "survivor_bias=none (repeatable)",
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=100,
+        help="evaluate the final policy on this many episodes (0: skip)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def main(args: argparse.Namespace) -> int:
-    import mimicrete.learn.train as lib
+    from mimicrete import learn
+    from mimicrete.learn import config
 
-    return int(lib.main(args) or 0)
+    if args.eval_episodes < 0:
+        raise UsageError(f"--eval-episodes: 0 or more, got {args.eval_episodes}")
+    try:
+        cfg, cfg_path = config.resolve(
+            args.config,
+            overrides=args.set,
+            seed=args.seed,
+            num_envs=args.num_envs,
+            max_steps=args.max_steps,
+        )
+    except learn.ConfigError as e:
+        raise UsageError(str(e)) from None
+    run_dir = Path(args.run_dir) if args.run_dir else config.default_run_dir(cfg_path, cfg)
+    demos = args.demos or cfg.demo_path
+    if args.make_demos and demos:
+        learn.ensure_demos(Path(demos), cfg.behavior.demo_episodes or 1)
+    t0 = time.perf_counter()
+    try:
+        tr = learn.train(
+            cfg,
+            run_dir,
+            demos=args.demos,
+            resume=args.resume,
+            force=args.force,
+            skip_bad_demos=args.skip_bad_demos,
+            progress=not args.no_progress,
+        )
+    except (learn.ConfigError, learn.DemoError, learn.RunDirError) as e:
+        raise UsageError(str(e)) from None
+    print(f"trained {tr.step} steps in {time.perf_counter() - t0:.0f} s -> {run_dir}")
+    for skipped in tr.demo_files_skipped:
+        print(f"skipped demo: {skipped}")
+    for p in learn.learning_curves(run_dir):
+        print(f"plot: {p}")
+    if args.eval_episodes > 0:
+        res = learn.evaluate_run(run_dir, args.eval_episodes)
+        print(learn.format_row(run_dir.name, res))
+    return 0

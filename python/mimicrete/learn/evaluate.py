@@ -1,33 +1,27 @@
-"""``mimicrete eval RUN_DIR --episodes 100``: the paper's Table 5 row for a trained run.
+"""Evaluation of a trained run: the paper's Table 5 row (picked rate, installed rate, average
+episode length).
 
 The deterministic policy (Gaussian mean clipped to [-1, 1], most likely end-effector command) runs
-on fresh envs (seed = the run's seed + 10,000 unless ``--seed``). To avoid favouring short episodes,
+on fresh envs (seed = the run's seed + 10,000 unless given). To avoid favouring short episodes,
 ``episodes`` is split evenly over the envs and each env contributes exactly its first
-``episodes / num_envs`` episodes. Prints the row and writes ``eval.json`` into the run dir.
+``episodes / num_envs`` episodes. ``evaluate_run`` writes ``eval.json`` into the run dir.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 
-from . import config as config_mod
+from .env import make_env
+from .episodes import Episode, EpisodeStats, EpisodeTracker
 from .networks import Actor
-from .train import N_CONT, episode_flags, make_env
+from .run_files import load_policy
 
-
-def load_policy(run_dir: Path) -> tuple[Actor, config_mod.TrainerConfig]:
-    s = torch.load(run_dir / "policy.pt", weights_only=False)
-    cfg = config_mod.from_dict(s["config"])
-    ns = cfg.behavior.network_settings
-    actor = Actor(int(s["obs_dim"]), N_CONT, ns.hidden_units, ns.num_layers, ns.normalize)
-    actor.load_state_dict(s["actor"])
-    actor.eval()
-    return actor, cfg
+__all__ = ["evaluate_run", "format_row", "load_policy", "run_episodes"]
 
 
 def _num_envs_for(episodes: int, cap: int = 32) -> int:
@@ -38,51 +32,42 @@ def _num_envs_for(episodes: int, cap: int = 32) -> int:
 def run_episodes(
     actor: Actor, env_id: str, episodes: int, seed: int, max_envs: int = 32
 ) -> dict[str, float]:
+    """Mean statistics of ``episodes`` episodes of the deterministic ``actor``."""
+    if episodes < 1:
+        raise ValueError(f"episodes: at least 1, got {episodes}")
     n = _num_envs_for(episodes, max_envs)
     per_env = episodes // n
     env = make_env(env_id, n, seed)
     obs, _ = env.reset(seed=seed)
     obs = np.asarray(obs, np.float32)
+    tracker = EpisodeTracker(n)
     done_count = np.zeros(n, np.int64)
-    ep_len = np.zeros(n, np.int64)
-    ep_ret = np.zeros(n)
-    ep_picked = np.zeros(n, bool)
-    ep_installed = np.zeros(n, bool)
-    results: list[tuple[bool, bool, int, float]] = []
+    results: list[Episode] = []
     while (done_count < per_env).any():
         act = actor.deterministic(torch.from_numpy(obs)).numpy()
         obs, r, term, trunc, infos = env.step(act)
         obs = np.asarray(obs, np.float32)
         r = np.asarray(r, np.float32)
-        term = np.asarray(term, bool)
-        trunc = np.asarray(trunc, bool)
-        picked, installed = episode_flags(infos, r, term)
-        ep_len += 1
-        ep_ret += r
-        ep_picked |= picked
-        ep_installed |= installed
-        for i in np.flatnonzero(term | trunc):
+        for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
             if done_count[i] < per_env:
-                results.append(
-                    (bool(ep_picked[i]), bool(ep_installed[i]), int(ep_len[i]), float(ep_ret[i]))
-                )
+                results.append(ep)
                 done_count[i] += 1
-            ep_len[i] = 0
-            ep_ret[i] = 0.0
-            ep_picked[i] = False
-            ep_installed[i] = False
     env.close()
-    p, ins, lens, rets = zip(*results, strict=True)
+    st = EpisodeStats.of(results)
     return {
-        "episodes": len(results),
-        "picked_rate": float(np.mean(p)),
-        "installed_rate": float(np.mean(ins)),
-        "mean_episode_length": float(np.mean(lens)),
-        "mean_cumulative_reward": float(np.mean(rets)),
+        "episodes": st.episodes,
+        "picked_rate": st.picked_rate,
+        "installed_rate": st.installed_rate,
+        "mean_episode_length": st.mean_length,
+        "mean_cumulative_reward": st.mean_return,
     }
 
 
-def evaluate_run(run_dir: Path, episodes: int, seed: int | None = None) -> dict[str, float]:
+def evaluate_run(run_dir: str | Path, episodes: int, seed: int | None = None) -> dict[str, Any]:
+    """Evaluate ``run_dir/policy.pt`` on ``episodes`` episodes; writes and returns ``eval.json``."""
+    run_dir = Path(run_dir)
+    if episodes < 1:
+        raise ValueError(f"episodes: at least 1, got {episodes}")
     actor, cfg = load_policy(run_dir)
     s = cfg.env_settings.seed + 10_000 if seed is None else seed
     res = run_episodes(actor, cfg.env_settings.env_id, episodes, s)
@@ -98,18 +83,3 @@ def format_row(name: str, res: dict) -> str:
         f"{res['mean_episode_length']:>23.1f}"
     )
     return f"{head}\n{row}"
-
-
-def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run_dir", help="a run directory written by `mimicrete train`")
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--seed", type=int, help="eval env seed (default: run seed + 10000)")
-
-
-def main(args: argparse.Namespace) -> int:
-    torch.set_num_threads(1)
-    run_dir = Path(args.run_dir)
-    res = evaluate_run(run_dir, args.episodes, args.seed)
-    print(format_row(run_dir.name, res))
-    print(f"wrote {run_dir / 'eval.json'}")
-    return 0

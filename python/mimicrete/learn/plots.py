@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import matplotlib
@@ -10,22 +9,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from .run_files import read_scalars  # noqa: E402
+
 CURVES = [
     ("Environment/Cumulative Reward", "extrinsic reward per episode", "extrinsic_reward.png"),
     ("Environment/Picked Rate", "picked rate", "picked_rate.png"),
     ("Environment/Installed Rate", "installed rate", "installed_rate.png"),
 ]
-
-
-def read_scalars(run_dir: Path) -> dict[str, list[tuple[int, float]]]:
-    out: dict[str, list[tuple[int, float]]] = {}
-    with open(Path(run_dir) / "scalars.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            step = int(row["step"])
-            for k, v in row.items():
-                if k != "step" and v not in ("", None):
-                    out.setdefault(k, []).append((step, float(v)))
-    return out
 
 
 def learning_curves(run_dir: Path, out_dir: Path | None = None) -> list[Path]:
@@ -37,9 +27,7 @@ def learning_curves(run_dir: Path, out_dir: Path | None = None) -> list[Path]:
     paths = []
     fig_all, axes = plt.subplots(1, len(CURVES), figsize=(5 * len(CURVES), 3.6))
     for ax_all, (tag, label, fname) in zip(axes, CURVES, strict=True):
-        pts = data.get(tag, [])
-        xs = [p[0] for p in pts]
-        ys = [p[1] for p in pts]
+        xs, ys = data.get(tag, ([], []))
         fig, ax = plt.subplots(figsize=(6, 4))
         for a in (ax, ax_all):
             a.plot(xs, ys, lw=1.5)
@@ -62,8 +50,8 @@ def compare(run_dirs: list[Path], out: Path, tag: str = "Environment/Installed R
     """Overlay one scalar of several runs (e.g. the nine groups) in one PNG."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for rd in run_dirs:
-        pts = read_scalars(Path(rd)).get(tag, [])
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], lw=1.3, label=Path(rd).name)
+        xs, ys = read_scalars(Path(rd)).get(tag, ([], []))
+        ax.plot(xs, ys, lw=1.3, label=Path(rd).name)
     ax.set_xlabel("env steps")
     ax.set_ylabel(tag)
     ax.grid(alpha=0.3)

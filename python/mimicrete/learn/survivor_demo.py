@@ -14,7 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from . import config, evaluate, train
+from . import config, evaluate
+from .loop import train
 from .toyenv import toy_config
 
 
@@ -43,7 +44,7 @@ def run(mode: str, steps: int, gail: float, ext: float, seed: int, tmp: Path) ->
     )
     rd = tmp / f"{mode}-gail{gail}-ext{ext}-seed{seed}"
     t0 = time.perf_counter()
-    train.train(c, rd, progress=False)
+    train(c, rd, progress=False)
     res = evaluate.evaluate_run(rd, 100)
     res["train_seconds"] = time.perf_counter() - t0
     return res

@@ -4,9 +4,11 @@ import numpy as np
 import onnxruntime as ort
 import torch
 
-from mimicrete.learn import train as tr_mod
+from mimicrete import learn
 from mimicrete.learn.networks import Actor
+from mimicrete.learn.run_files import export_onnx
 from mimicrete.learn.toyenv import toy_config
+from mimicrete.learn.trainer import Trainer
 
 
 def _flat(sd: dict) -> dict:
@@ -21,10 +23,10 @@ def _flat(sd: dict) -> dict:
 
 def test_resume_equals_uninterrupted(tmp_path):
     cfg = toy_config(tmp_path)  # 4 updates of 512 steps, checkpoint every 2
-    a = tr_mod.train(cfg, tmp_path / "a", progress=False)
-    b1 = tr_mod.train(cfg, tmp_path / "b", progress=False, stop_after_updates=2)
+    a = learn.train(cfg, tmp_path / "a", progress=False)
+    b1 = learn.train(cfg, tmp_path / "b", progress=False, stop_after_updates=2)
     assert b1.step == 1024 and (tmp_path / "b/checkpoints/step_000001024.pt").exists()
-    b = tr_mod.train(cfg, tmp_path / "b", progress=False, resume=True)
+    b = learn.train(cfg, tmp_path / "b", progress=False, resume=True)
     assert a.step == b.step == 2048 and a.update_idx == b.update_idx == 4
     sa, sb = a.state_dict(), b.state_dict()
     for part in ("actor", "critic", "opt", "gail", "bc_opt"):
@@ -34,7 +36,7 @@ def test_resume_equals_uninterrupted(tmp_path):
             assert torch.allclose(fa[k].double(), fb[k].double(), atol=1e-6, rtol=0), (part, k)
     assert torch.equal(sa["torch_rng"], sb["torch_rng"])
     # the run actually changed the weights (not a trivially equal comparison)
-    b0 = tr_mod.Trainer(cfg, tmp_path / "c", None, 2048)
+    b0 = Trainer(cfg, tmp_path / "c", None, 2048)
     assert not torch.allclose(b0.actor.mu.weight, a.actor.mu.weight)
     # and the logs of the two runs agree after the resume point
     rows_a = (tmp_path / "a/scalars.csv").read_text().splitlines()
@@ -47,7 +49,7 @@ def test_onnx_matches_torch(tmp_path):
     actor = Actor(80, 6, 64, 3, normalize=True)
     actor.norm.update(torch.randn(500, 80) * 3 + 1)
     path = tmp_path / "p.onnx"
-    tr_mod.export_onnx(actor, 80, path)
+    export_onnx(actor, 80, path)
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     obs = (np.random.default_rng(0).normal(size=(257, 80)) * 3).astype(np.float32)
     (out,) = sess.run(["actions"], {"obs": obs})

@@ -7,8 +7,9 @@ import json
 import pytest
 import yaml
 
-from mimicrete.learn import config, evaluate, plots
-from mimicrete.learn import train as tr_mod
+from mimicrete.cli import eval as cli_eval
+from mimicrete.cli import train as cli_train
+from mimicrete.learn import config, demo_data, plots
 from mimicrete.learn.toyenv import toy_config
 
 
@@ -93,7 +94,7 @@ def test_train_module_entry_points_and_resume_flag(tmp_path):
     cfg_path = _write_cfg(tmp_path)
     run_dir = tmp_path / "run"
     p = argparse.ArgumentParser()
-    tr_mod.configure(p)
+    cli_train.configure(p)
     args = p.parse_args(
         [
             "--config",
@@ -109,7 +110,7 @@ def test_train_module_entry_points_and_resume_flag(tmp_path):
             "3",
         ]
     )
-    assert tr_mod.main(args) == 0
+    assert cli_train.main(args) == 0
     assert json.loads((run_dir / "eval.json").read_text())["episodes"] == 10
     assert config.load(run_dir / "resolved_config.yaml").env_settings.seed == 3
     # --resume with a larger budget continues from step 1024
@@ -129,12 +130,12 @@ def test_train_module_entry_points_and_resume_flag(tmp_path):
             "--resume",
         ]
     )
-    assert tr_mod.main(args) == 0
+    assert cli_train.main(args) == 0
     steps = [int(r["step"]) for r in csv.DictReader(open(run_dir / "scalars.csv"))]
     assert steps == [512, 1024, 1536, 2048]
     e = argparse.ArgumentParser()
-    evaluate.configure(e)
-    assert evaluate.main(e.parse_args([str(run_dir), "--episodes", "4"])) == 0
+    cli_eval.configure(e)
+    assert cli_eval.main(e.parse_args([str(run_dir), "--episodes", "4"])) == 0
     assert plots.compare([run_dir], tmp_path / "cmp.png").stat().st_size > 1000
 
 
@@ -147,14 +148,14 @@ def test_load_demos_selects_the_first_episodes(tmp_path):
 
     d = toyenv.expert_demos(6, seed=2)
     np.savez(tmp_path / "d.npz", **d)
-    sel = tr_mod.load_demos(str(tmp_path / "d.npz"), 4)
+    sel = demo_data.load_demos(str(tmp_path / "d.npz"), 4)
     assert sorted(set(sel["episode"].tolist())) == [0, 1, 2, 3]
     assert len(sel["obs"]) == int(np.isin(d["episode"], [0, 1, 2, 3]).sum())
     with pytest.raises(ValueError, match="6 demo episodes"):
-        tr_mod.load_demos(str(tmp_path / "d.npz"), 60)
+        demo_data.load_demos(str(tmp_path / "d.npz"), 60)
     with pytest.raises(FileNotFoundError):
-        tr_mod.load_demos(str(tmp_path / "missing"), 4)
-    nt = collections.namedtuple("Demos", tr_mod.DEMO_KEYS)(*[d[k] for k in tr_mod.DEMO_KEYS])
+        demo_data.load_demos(str(tmp_path / "missing"), 4)
+    nt = collections.namedtuple("Demos", demo_data.DEMO_KEYS)(*[d[k] for k in demo_data.DEMO_KEYS])
     for form in (nt, tuple(nt), dict(nt._asdict())):
-        out = tr_mod._demo_arrays(form)
-        assert all(np.array_equal(out[k], d[k]) for k in tr_mod.DEMO_KEYS)
+        out = demo_data.demo_arrays(form)
+        assert all(np.array_equal(out[k], d[k]) for k in demo_data.DEMO_KEYS)

@@ -7,7 +7,7 @@ import yaml
 
 from mimicrete.learn import config
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
 # Table 3: (extrinsic strength, gail strength, bc strength, demonstrations); None = not used.
 TABLE3 = {

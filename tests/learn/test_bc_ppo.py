@@ -8,7 +8,14 @@ from mimicrete.learn import toyenv
 from mimicrete.learn.bc import MIN_LR, BehavioralCloning, bc_learning_rate
 from mimicrete.learn.evaluate import run_episodes
 from mimicrete.learn.networks import Actor, ee_value_to_index
-from mimicrete.learn.ppo import combine_advantages, linear_decay, ppo_loss, scheduled
+from mimicrete.learn.ppo import (
+    PPOBatch,
+    combine_advantages,
+    explained_variance,
+    linear_decay,
+    ppo_loss,
+    scheduled,
+)
 
 
 def _toy_bc(*, demos, seed, hidden, steps, batch_size, num_epoch):
@@ -87,7 +94,10 @@ def test_ppo_loss_ratio_one_and_clipping():
     adv = torch.randn(32)
     with torch.no_grad():
         vals = critic(obs)
-    _, (pl, vl, ent) = ppo_loss(actor, critic, obs, u, k, logp, adv, vals, vals + 1.0, 0.2, 0.01)
+    b = PPOBatch(obs=obs, u=u, k=k, old_logp=logp, adv=adv, old_values=vals, returns=vals + 1.0)
+    _, info = ppo_loss(actor, critic, b, 0.2, 0.01)
+    pl, vl, ent = info.policy_loss, info.value_loss, info.entropy
+    assert info.approx_kl == pytest.approx(0.0, abs=1e-6) and info.clipfrac == 0.0
     assert pl == pytest.approx(-adv.mean().item(), abs=1e-6)  # ratio 1 -> -mean(A)
     assert vl == pytest.approx(1.0, abs=1e-6)  # (returns - values)^2 = 1 per head
     # entropy (ML-Agents): mean over the 6 Gaussians of sigma 1/3 (0.5 ln(2 pi e) - ln 3 each)
@@ -96,8 +106,25 @@ def test_ppo_loss_ratio_one_and_clipping():
     assert h_gauss < ent < h_gauss + np.log(3) + 1e-6
     # a big positive advantage with old logp far below: ratio clipped at 1 + eps
     lp_old = logp - 5.0
-    _, (pl2, _, _) = ppo_loss(actor, critic, obs, u, k, lp_old, torch.ones(32), vals, vals, 0.2, 0)
-    assert pl2 == pytest.approx(-1.2, abs=1e-6)
+    b2 = PPOBatch(obs=obs, u=u, k=k, old_logp=lp_old, adv=torch.ones(32), old_values=vals,
+                  returns=vals)  # fmt: skip
+    _, info2 = ppo_loss(actor, critic, b2, 0.2, 0)
+    assert info2.policy_loss == pytest.approx(-1.2, abs=1e-6)
+    # CleanRL's diagnostics: every component's ratio is e^5, outside [0.8, 1.2]
+    assert info2.clipfrac == 1.0
+    assert info2.approx_kl == pytest.approx((np.exp(5.0) - 1.0) - 5.0, rel=1e-5)
+
+
+def test_explained_variance():
+    rng = np.random.default_rng(0)
+    ret = rng.normal(size=1000)
+    assert explained_variance(ret, ret) == 1.0
+    assert explained_variance(np.zeros(1000), ret) == pytest.approx(0.0, abs=1e-12)
+    noisy = ret + rng.normal(scale=0.5, size=1000)
+    ev = explained_variance(noisy, ret)
+    assert ev == pytest.approx(1.0 - np.var(noisy - ret) / np.var(ret))
+    assert 0.6 < ev < 0.85  # about 1 - 0.25
+    assert np.isnan(explained_variance(ret, np.ones(1000)))
 
 
 def test_bc_pretrain_reduces_loss_at_constant_rate():

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from mimicrete.learn import config, evaluate
-from mimicrete.learn import train as tr_mod
+from mimicrete import learn
+from mimicrete.learn import config, demo_data, evaluate
 
 
 def _need_sim():
@@ -26,7 +26,7 @@ def test_short_run_on_tile_suction(tmp_path):
     assert set(np.unique(demos["actions"][:, 6])) <= {-1.0, 0.0, 1.0}
     assert demos["terminated"].sum() == 6  # every scripted episode installs
     np.savez(tmp_path / "d.npz", **demos)
-    cfg = config.load(tr_mod.find_config_dir() / "group4.yaml")
+    cfg = config.load(config.find_config_dir() / "group4.yaml")
     cfg = config.with_overrides(
         cfg,
         [
@@ -44,11 +44,11 @@ def test_short_run_on_tile_suction(tmp_path):
         ],
     )
     run = tmp_path / "run"
-    tr = tr_mod.train(cfg, run, demos=str(tmp_path / "d.npz"), progress=False)
+    tr = learn.train(cfg, run, demos=str(tmp_path / "d.npz"), progress=False)
     assert tr.step == 2048 and tr.signals == ["extrinsic", "gail"]
     # group 4 leaves the expert's pauses out of BC and GAIL (demo_drop_idle 0.1), and says so
     info = json.loads((run / "run.json").read_text())
-    idle = tr_mod.idle_steps(demos["actions"], demos["episode"], 0.1)
+    idle = demo_data.idle_steps(demos["actions"], demos["episode"], 0.1)
     assert info["demo_steps_loaded"] == len(demos["actions"])
     assert info["demo_steps_idle_dropped"] == idle.sum() == len(demos["actions"]) - len(tr.bc.obs)
     assert tr.gail is not None and len(tr.gail.expert) == len(tr.bc.obs)

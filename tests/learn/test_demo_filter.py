@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mimicrete.learn.train import drop_idle_steps, idle_steps
+from mimicrete.learn.demo_data import drop_idle_steps, idle_steps
 
 
 def _acts(rows):

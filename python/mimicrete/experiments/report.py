@@ -1,0 +1,493 @@
+"""``docs/RESULTS.md`` and ``docs/figures/`` generated from the sweep's run directories only.
+
+``render`` is the report's sections in order (each a function returning its lines): the summary,
+Table 5 beside the paper's, where we agree and differ (generated) with the human-written *why*,
+Fig. 7, the GAIL loss, steps to 97 %, every run, the crashed trials, the commands to reproduce.
+
+``python -m mimicrete.experiments.report --runs runs/experiments/runs --out docs/RESULTS.md``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .figures import write_figures
+from .paper import FIG7_PANELS, PAPER_GAIL_LOSS, PAPER_MAX_STEPS, PAPER_TABLE3, PAPER_TABLE5
+from .runs import Run, _json, load_runs
+from .stats import (
+    GAIL_WINDOW,
+    LENGTH_TOL,
+    MIN_EPISODES,
+    RATE_TOL,
+    TAG_INSTALLED,
+    THRESHOLD,
+    GroupStats,
+    agrees,
+    group_stats,
+    mean_sd,
+)
+
+WHY_MARK = "<!-- WHY: human-written explanation goes here -->"
+WHY_PLACEHOLDER = (
+    "_Not written yet: the explanation of each difference above belongs here once the full "
+    "sweep has run. The generated lines above only state the data._"
+)
+
+
+def keep_why(old_text: str, new_text: str) -> str:
+    """``new_text`` with the human-written part of ``old_text`` (from the line after
+    :data:`WHY_MARK` up to the next ``## `` heading) in place of the placeholder, so that
+    regenerating the report keeps the explanation."""
+    if WHY_MARK not in old_text or WHY_MARK not in new_text:
+        return new_text
+    after = old_text.split(WHY_MARK, 1)[1]
+    cut = after.find("\n## ")
+    written = after if cut < 0 else after[: cut + 1]
+    if WHY_PLACEHOLDER in written:
+        return new_text
+    head, tail = new_text.split(WHY_MARK, 1)
+    cut = tail.find("\n## ")
+    rest = "" if cut < 0 else tail[cut + 1 :]
+    return head + WHY_MARK + written + rest
+
+
+# ----------------------------------------------------------------------------------------------
+# formatting
+# ----------------------------------------------------------------------------------------------
+
+
+def _pct(ms: tuple[float, float, int]) -> str:
+    m, sd, n = ms
+    if n == 0:
+        return "–"
+    return f"{100 * m:.0f} ± {100 * sd:.0f} %" if n > 1 else f"{100 * m:.0f} %"
+
+
+def _num(ms: tuple[float, float, int], fmt: str = ".0f") -> str:
+    m, sd, n = ms
+    if n == 0:
+        return "–"
+    return f"{m:{fmt}} ± {sd:{fmt}}" if n > 1 else f"{m:{fmt}}"
+
+
+def _steps(x: float | int | None) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    x = float(x)
+    if x >= 1e6:
+        return f"{x / 1e6:.2f}M"
+    if x >= 1e3:
+        return f"{x / 1e3:.0f}k"
+    return f"{x:.0f}"
+
+
+def _budget(runs: list[Run]) -> int | None:
+    b = [r.max_steps for r in runs if r.max_steps]
+    return int(max(b)) if b else None
+
+
+def _departures(runs: list[Run]) -> list[str]:
+    """Config facts (from resolved_config.yaml) that differ from ML-Agents / the paper."""
+    surv, pre, idle = set(), set(), set()
+    for r in runs:
+        beh = next(iter(((r.resolved or {}).get("behaviors") or {}).values()), None) or {}
+        g = (beh.get("reward_signals") or {}).get("gail") or {}
+        if g.get("survivor_bias") not in (None, "none"):
+            surv.add(r.group)
+        bc = beh.get("behavioral_cloning") or {}
+        if (bc.get("pretrain_steps") or 0) > 0:
+            pre.add(r.group)
+        if (beh.get("demo_drop_idle") or 0) > 0:
+            idle.add(r.group)
+    out = []
+    if surv:
+        out.append(
+            f"group(s) {_list(surv)} ran with `gail.survivor_bias: bootstrap` (a termination is a "
+            "non-event for the GAIL signal; ML-Agents, which the paper used, is `none`), see "
+            "`python/mimicrete/learn/README.md`"
+        )
+    if pre:
+        out.append(
+            f"group(s) {_list(pre)} ran with an offline BC warm start "
+            "(`behavioral_cloning.pretrain_steps` > 0; ML-Agents has none)"
+        )
+    if idle:
+        out.append(
+            f"group(s) {_list(idle)} left the demonstrator's idle steps out of BC and GAIL "
+            "(`demo_drop_idle` > 0; ML-Agents uses every step)"
+        )
+    return out
+
+
+def _list(gs) -> str:
+    return ", ".join(str(g) for g in sorted(gs))
+
+
+def comparison_lines(stats: dict[int, GroupStats], budget: int | None) -> list[str]:
+    """Generated sentences: where each group agrees with Table 5 and where it does not."""
+    lines = []
+    for g, st in sorted(stats.items()):
+        if g not in PAPER_TABLE5 or st.installed[2] == 0:
+            continue
+        pp, pi, pl = PAPER_TABLE5[g]
+        parts, diffs = [], []
+        for label, ours, paper, rate in (
+            ("picked", st.picked, pp, True),
+            ("installed", st.installed, pi, True),
+            ("episode length", st.length, pl, False),
+        ):
+            ok = agrees(ours, paper, rate=rate)
+            if ok is None:
+                continue
+            if rate:
+                txt = f"{label} {100 * ours[0]:.0f} % vs the paper's {100 * paper:.0f} %"
+            else:
+                txt = f"{label} {ours[0]:.0f} vs {paper:.0f}"
+            (parts if ok else diffs).append(txt)
+        if not diffs:
+            lines.append(f"- Group {g} **agrees** with the paper ({'; '.join(parts)}).")
+            continue
+        s = f"- Group {g} **differs** from the paper: {'; '.join(diffs)}"
+        if parts:
+            s += f" (agrees on {'; '.join(parts)})"
+        s += "."
+        hints = []
+        if budget and budget < PAPER_MAX_STEPS and st.installed[0] < pi:
+            hints.append(
+                f"our budget was {_steps(budget)} steps, {100 * budget / PAPER_MAX_STEPS:.0f} % "
+                "of the paper's 5M"
+            )
+            if math.isfinite(st.trend) and st.trend > 0.05:
+                hints.append(
+                    "its training installed rate was still rising at the cut "
+                    f"(+{100 * st.trend:.0f} points over the last 10 % of steps)"
+                )
+        if hints:
+            s += " Data: " + "; ".join(hints) + "."
+        lines.append(s)
+    return lines
+
+
+# ----------------------------------------------------------------------------------------------
+# the report, section by section
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class ReportInput:
+    """What every section reads: the runs, per-group statistics, figures and the sweep record."""
+
+    runs: list[Run]
+    stats: dict[int, GroupStats]
+    figures: dict[str, Path]
+    report_path: Path
+    sweep: dict | None
+    budget: int | None
+    seeds: list[int]
+
+    def rel(self, figure: Path) -> str:
+        return os.path.relpath(figure, self.report_path.parent)
+
+
+def section_summary(r: ReportInput) -> list[str]:
+    runs = r.runs
+    n_err = sum(x.status == "error" for x in runs)
+    lines = [
+        "# Results: Table 3's groups, reproduced over seeds",
+        "",
+        "Generated by `python -m mimicrete.experiments.report` from the run directories only (do "
+        "not edit by hand, except the marked *why* section). Paper: Duan & Zou, *Learning from "
+        "demonstrations: an intuitive VR environment for imitation learning of construction "
+        "robots* (Tables 3 and 5, Fig. 7, §5.2).",
+        "",
+        f"- Runs: {len(runs)} ({len(r.stats)} groups × seeds {', '.join(map(str, r.seeds))}); "
+        f"{sum(x.status == 'done' for x in runs)} finished, {n_err} crashed, "
+        f"{sum(x.status not in ('done', 'error') for x in runs)} unfinished.",
+        f"- **Step budget per run: {r.budget:,} env steps** (the paper: {PAPER_MAX_STEPS:,}). The "
+        "linear schedules (learning rate, ε, β) decay over our budget, not over 5M."
+        if r.budget
+        else "- Step budget: unknown (no `trial.json`/`run.json`).",
+    ]
+    walls = [x.wall_clock_s for x in runs if x.wall_clock_s]
+    if walls:
+        sweep = r.sweep
+        lines.append(
+            f"- Wall clock per run: mean {np.mean(walls) / 60:.1f} min, min "
+            f"{min(walls) / 60:.1f}, max {max(walls) / 60:.1f} (total {sum(walls) / 3600:.2f} "
+            "trial-hours)"
+            + (
+                f"; the whole sweep took {sweep['sweep_wall_clock_s'] / 3600:.2f} h on "
+                f"{sweep.get('num_cpus')} CPU(s), {sweep.get('cpus_per_trial')} per trial."
+                if sweep and sweep.get("sweep_wall_clock_s")
+                else "."
+            )
+        )
+    lines.extend(f"- Departure: {d}." for d in _departures(runs))
+    lines.append("")
+    return lines
+
+
+def section_table5(r: ReportInput) -> list[str]:
+    lines = [
+        "## Table 5: evaluation of the final policy, ours beside the paper's",
+        "",
+        "Ours: `mimicrete eval` (deterministic policy, `eval.json`), mean ± sample standard "
+        "deviation over seeds (n = seeds evaluated). Paper: one run per group, 100 executions.",
+        "",
+        "| Group | Algorithms (strength) | Demos | n | Picked (ours) | Picked (paper) | "
+        "Installed (ours) | Installed (paper) | Episode length (ours) | Episode length (paper) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for g, st in r.stats.items():
+        alg, demos = PAPER_TABLE3.get(g, ("?", "?"))
+        pp, pi, pl = PAPER_TABLE5.get(g, (math.nan, math.nan, math.nan))
+        lines.append(
+            f"| {g} | {alg} | {demos} | {st.installed[2]} | {_pct(st.picked)} | {100 * pp:.0f} % | "
+            f"{_pct(st.installed)} | {100 * pi:.0f} % | {_num(st.length)} | {pl:.0f} |"
+        )
+    lines.append("")
+    return lines
+
+
+def section_comparison(r: ReportInput) -> list[str]:
+    return [
+        "## Where we agree and where we differ (generated from the numbers)",
+        "",
+        f"Rule: a rate agrees when |ours − paper| ≤ max({100 * RATE_TOL:.0f} points, 2 standard "
+        "errors of our seed mean); an episode length when within max("
+        f"{100 * LENGTH_TOL:.0f} % of the paper's, 2 standard errors).",
+        "",
+        *(comparison_lines(r.stats, r.budget) or ["- No evaluated runs yet."]),
+        "",
+        "### Why (human-written)",
+        "",
+        WHY_MARK,
+        "",
+        WHY_PLACEHOLDER,
+        "",
+    ]
+
+
+def section_fig7(r: ReportInput) -> list[str]:
+    lines = [
+        "## Fig. 7: learning curves",
+        "",
+        "Mean over seeds with a 95 % Student-t confidence band of the mean (no band where one "
+        "seed covers the step). Left: cumulative extrinsic reward per episode (Fig. 7's y axis); "
+        "right: training installed rate. The curves end at our step budget: that is where each "
+        "group stands at the cut.",
+        "",
+    ]
+    for key, (title, groups) in FIG7_PANELS.items():
+        if key in r.figures:
+            lines += [
+                f"**Fig. 7{key}, {title}** (groups {_list(groups)}):",
+                "",
+                f"![Fig. 7{key}]({r.rel(r.figures[key])})",
+                "",
+            ]
+        else:
+            lines += [f"**Fig. 7{key}, {title}**: no runs of groups {_list(groups)}.", ""]
+    return lines
+
+
+def section_gail_loss(r: ReportInput) -> list[str]:
+    short = r.budget and r.budget <= GAIL_WINDOW
+    lines = [
+        "## GAIL loss over the last 100k steps (groups 2–4)",
+        "",
+        "`Losses/GAIL Loss` averaged over the summaries logged in each run's last 100,000 steps, "
+        "then mean ± SD over seeds."
+        + (
+            f" Our runs ({_steps(r.budget)} steps) are shorter than 100k: the window is the whole"
+            " run."
+            if short
+            else ""
+        ),
+        "",
+        "| Group | n | GAIL loss (ours) | GAIL loss (paper) |",
+        "|---|---|---|---|",
+    ]
+    for g, paper in PAPER_GAIL_LOSS.items():
+        st = r.stats.get(g)
+        ours = _num(st.gail_loss, ".2f") if st else "–"
+        n = st.gail_loss[2] if st else 0
+        lines.append(f"| {g} | {n} | {ours} | {paper:.2f} |")
+    if "gail" in r.figures:
+        lines += ["", f"![GAIL loss]({r.rel(r.figures['gail'])})"]
+    lines.append("")
+    return lines
+
+
+def section_steps_to_threshold(r: ReportInput) -> list[str]:
+    lines = [
+        f"## Steps to {100 * THRESHOLD:.0f} % installed (training)",
+        "",
+        f"First logged summary whose training installed rate (`{TAG_INSTALLED}`, stochastic "
+        f"policy) is ≥ {100 * THRESHOLD:.0f} % over at least {MIN_EPISODES} finished episodes. "
+        "The paper reports no such number; it trained "
+        "until 5M steps or convergence.",
+        "",
+        "| Group | seeds reaching it | steps (mean ± SD of those) | per seed | "
+        "installed rate at the cut (training) |",
+        "|---|---|---|---|---|",
+    ]
+    for g, st in r.stats.items():
+        hits = [s for s in st.steps_to if s is not None]
+        per = ", ".join(_steps(s) if s is not None else "never" for s in st.steps_to) or "–"
+        lines.append(
+            f"| {g} | {len(hits)}/{len(st.steps_to)} | "
+            f"{_num(mean_sd(hits), ',.0f') if hits else '–'} | {per} | "
+            f"{_pct(st.final_installed_train)} |"
+        )
+    lines.append("")
+    return lines
+
+
+def section_runs(r: ReportInput) -> list[str]:
+    lines = [
+        "## Runs",
+        "",
+        "| Run | Status | Final step | Wall clock (train + eval) | Steps/s | Picked | Installed "
+        "| Length |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for run in r.runs:
+        wc = f"{run.wall_clock_s / 60:.1f} min" if run.wall_clock_s else "–"
+        sps = (
+            f"{run.final_step / run.wall_clock_s:.0f}"
+            if run.wall_clock_s and run.final_step and run.status == "done"
+            else "–"
+        )
+        e = run.eval or {}
+        lines.append(
+            f"| {run.name} | {run.status} | {_steps(run.final_step)} | {wc} | {sps} | "
+            f"{_pct(mean_sd([e.get('picked_rate')]))} | "
+            f"{_pct(mean_sd([e.get('installed_rate')]))} | "
+            f"{_num(mean_sd([e.get('mean_episode_length')]))} |"
+        )
+    lines.append("")
+    return lines
+
+
+def section_crashes(r: ReportInput) -> list[str]:
+    lines = ["## Crashed trials", ""]
+    crashed = [x for x in r.runs if x.status == "error"]
+    if not crashed:
+        lines.append("None.")
+    for run in crashed:
+        err = (run.error or "no error text recorded").strip()
+        last = err.splitlines()[-1] if err else ""
+        lines.append(f"- **{run.name}**: `{last[:300]}`")
+        if "\n" in err:
+            lines += ["", "  <details><summary>traceback</summary>", "", "  ```"]
+            lines.extend("  " + ln for ln in err.splitlines()[-25:])
+            lines += ["  ```", "", "  </details>"]
+    lines.append("")
+    return lines
+
+
+def section_reproduce(r: ReportInput) -> list[str]:
+    lines = [
+        "## Reproduce",
+        "",
+        "```sh",
+        "make experiments   # set-up, requirements/experiments.txt, the sweep, this report",
+    ]
+    cmds = [p.get("command") for p in (r.sweep or {}).get("sweeps", [r.sweep or {}])]
+    if all(cmds) and cmds:
+        lines.extend(f"{c}   # the sweep as run" for c in cmds)
+    else:
+        lines.append(
+            f"python -m mimicrete.experiments --groups 1-9 --seeds {' '.join(map(str, r.seeds))}"
+            + (f" --max-steps {r.budget}" if r.budget else "")
+        )
+    lines += [
+        "python -m mimicrete.experiments ...   # the same command again resumes it",
+        "python -m mimicrete.experiments --address auto ...   # on an existing Ray cluster",
+        "python -m mimicrete.experiments.report --runs runs/experiments/runs --out docs/RESULTS.md",
+        "```",
+        "",
+    ]
+    return lines
+
+
+SECTIONS = (
+    section_summary,
+    section_table5,
+    section_comparison,
+    section_fig7,
+    section_gail_loss,
+    section_steps_to_threshold,
+    section_runs,
+    section_crashes,
+    section_reproduce,
+)
+
+
+def render(
+    runs: list[Run], figures: dict[str, Path], report_path: Path, sweep: dict | None = None
+) -> str:
+    """The report's Markdown: every section of :data:`SECTIONS` in order."""
+    by_group: dict[int, list[Run]] = {}
+    for run in runs:
+        by_group.setdefault(run.group, []).append(run)
+    r = ReportInput(
+        runs=runs,
+        stats={g: group_stats(g, rs) for g, rs in sorted(by_group.items())},
+        figures=figures,
+        report_path=report_path,
+        sweep=sweep,
+        budget=_budget(runs),
+        seeds=sorted({x.seed for x in runs}),
+    )
+    return "\n".join(line for section in SECTIONS for line in section(r))
+
+
+def write_report(
+    run_root: Path,
+    out: Path,
+    fig_dir: Path | None = None,
+    sweep_file: Path | None = None,
+) -> Path:
+    out = Path(out)
+    fig_dir = Path(fig_dir or out.parent / "figures")
+    if sweep_file is None and (Path(run_root).parent / "sweep.json").exists():
+        sweep_file = Path(run_root).parent / "sweep.json"
+    runs = load_runs(Path(run_root), sweep_file)
+    figures = write_figures(runs, fig_dir)
+    sweep = _json(Path(sweep_file)) if sweep_file else None
+    text = render(runs, figures, out, sweep)
+    if out.exists():
+        text = keep_why(out.read_text(), text)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m mimicrete.experiments.report", description=__doc__)
+    p.add_argument("--runs", default="runs/experiments/runs", help="dir of group<g>-seed<s> runs")
+    p.add_argument("--out", default="docs/RESULTS.md")
+    p.add_argument("--figures", help="figure dir (default: <out dir>/figures)")
+    p.add_argument("--sweep", help="sweep.json (default: beside --runs, if there)")
+    a = p.parse_args(argv)
+    out = write_report(
+        Path(a.runs),
+        Path(a.out),
+        Path(a.figures) if a.figures else None,
+        Path(a.sweep) if a.sweep else None,
+    )
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

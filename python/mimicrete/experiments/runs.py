@@ -1,0 +1,98 @@
+"""The sweep's run directories read back: one :class:`Run` per ``group<g>-seed<s>/``.
+
+Per run dir (written by ``mimicrete.experiments`` / ``mimicrete train``): ``scalars.csv``
+(ML-Agents tag names, one row per summary, ``step`` first), ``eval.json`` (``mimicrete eval``:
+picked_rate, installed_rate, mean_episode_length), ``trial.json`` (status, error, wall clock,
+budget) and ``run.json`` (max_steps). ``sweep.json`` beside the run dirs adds trials that crashed
+before writing anything.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete.learn.run_files import read_scalars
+
+RUN_DIR_RE = re.compile(r"^group(\d+)-seed(\d+)$")
+
+
+@dataclass
+class Run:
+    group: int
+    seed: int
+    path: Path | None
+    status: str = "unknown"  # done | error | running | unknown
+    error: str | None = None
+    wall_clock_s: float | None = None
+    max_steps: int | None = None
+    final_step: int | None = None
+    scalars: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    eval: dict[str, Any] | None = None
+    resolved: dict[str, Any] | None = None
+
+    @property
+    def name(self) -> str:
+        return f"group{self.group}-seed{self.seed}"
+
+
+def _json(path: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads(path.read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return None
+
+
+def load_run(path: Path) -> Run | None:
+    m = RUN_DIR_RE.match(path.name)
+    if not m or not path.is_dir():
+        return None
+    run = Run(int(m.group(1)), int(m.group(2)), path)
+    trial = _json(path / "trial.json") or {}
+    run.status = trial.get("status", "unknown")
+    run.error = trial.get("error")
+    run.wall_clock_s = trial.get("wall_clock_s")
+    run.final_step = trial.get("final_step")
+    run.max_steps = trial.get("max_steps") or (_json(path / "run.json") or {}).get("max_steps")
+    if (path / "scalars.csv").exists():
+        run.scalars = read_scalars(path / "scalars.csv")
+        if run.final_step is None:
+            steps = [s[-1] for s, _ in run.scalars.values() if len(s)]
+            run.final_step = int(max(steps)) if steps else None
+    run.eval = _json(path / "eval.json")
+    if run.status == "unknown" and run.eval is not None:
+        run.status = "done"
+    rc = path / "resolved_config.yaml"
+    if rc.exists():
+        import yaml
+
+        run.resolved = yaml.safe_load(rc.read_text())
+    return run
+
+
+def load_runs(run_root: Path, sweep_file: Path | None = None) -> list[Run]:
+    """Every ``group<g>-seed<s>`` dir under ``run_root``, plus the errored trials of
+    ``sweep_file`` that left no run dir (or no error in it)."""
+    runs: dict[tuple[int, int], Run] = {}
+    if Path(run_root).is_dir():
+        for p in sorted(Path(run_root).iterdir()):
+            r = load_run(p)
+            if r is not None:
+                runs[(r.group, r.seed)] = r
+    sweep = _json(Path(sweep_file)) if sweep_file else None
+    for t in (sweep or {}).get("trials", []):
+        if t.get("group") is None or t.get("seed") is None:
+            continue
+        key = (int(t["group"]), int(t["seed"]))
+        if t.get("status") == "error":
+            r = runs.get(key) or Run(key[0], key[1], None)
+            if r.status != "error" or not r.error:
+                r.status = "error"
+                r.error = r.error or t.get("error")
+            runs[key] = r
+    return [runs[k] for k in sorted(runs)]

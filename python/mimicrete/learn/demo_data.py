@@ -1,0 +1,207 @@
+"""Demonstrations as the trainer uses them: loading (MCAP file or directory, or ``.npz``), the first
+``demo_episodes`` episodes, the demonstrator's idle steps left out, and making the demos when a
+fresh checkout has none (``ensure_demos``: the same synth-hands + convert as ``make demos``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import ConfigError
+from .env import N_CONT
+
+DEMO_KEYS = ("obs", "actions", "rewards", "terminated", "truncated", "episode")
+
+
+class DemoError(ValueError):
+    """A demo path that cannot be trained on (missing, cut, empty, not MCAP); names the file."""
+
+
+@dataclass
+class LoadedDemos:
+    """The demo arrays (keys :data:`DEMO_KEYS`) and what loading them skipped."""
+
+    arrays: dict[str, np.ndarray]
+    skipped: list[str] = field(default_factory=list)  # "file: reason" of each bad file skipped
+
+
+def load_demos(
+    path: str | os.PathLike[str], episodes: int | None, *, skip_bad: bool = False
+) -> dict[str, np.ndarray]:
+    """Demo arrays from an ``.npz`` (same keys as ``mimicrete.demos.load``) or MCAP file/dir,
+    restricted to the first ``episodes`` episodes (in file / episode-index order)."""
+    return read_demos(path, episodes, skip_bad=skip_bad).arrays
+
+
+def read_demos(
+    path: str | os.PathLike[str], episodes: int | None, *, skip_bad: bool = False
+) -> LoadedDemos:
+    """:func:`load_demos` with the list of skipped files. A damaged, cut, empty or non-MCAP file
+    is a :class:`DemoError` naming it, unless ``skip_bad``: then the directory's other files are
+    used and the bad ones listed in ``skipped``."""
+    p = Path(path)
+    skipped: list[str] = []
+    if p.suffix == ".npz":
+        d = _npz_arrays(p)
+    else:
+        if not p.exists():
+            raise FileNotFoundError(
+                f"demo path {p} does not exist (make demos with `mimicrete synth-hands` and "
+                "`mimicrete convert`, or `make demos`, or pass --demos DIR)"
+            )
+        d, skipped = _mcap_arrays(p, skip_bad)
+    ep = np.asarray(d["episode"])
+    if episodes is not None:
+        uniq = np.unique(ep)
+        if len(uniq) < episodes:
+            raise ConfigError(f"{path}: {len(uniq)} demo episodes, the config asks for {episodes}")
+        keep = np.isin(ep, uniq[:episodes])
+        d = {k: np.asarray(v)[keep] for k, v in d.items()}
+    return LoadedDemos(d, skipped)
+
+
+def _npz_arrays(p: Path) -> dict[str, np.ndarray]:
+    try:
+        with np.load(p) as z:
+            d = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as e:
+        raise DemoError(f"{p}: not a readable .npz of demos ({e})") from e
+    missing = [k for k in DEMO_KEYS if k not in d]
+    if missing:
+        raise DemoError(f"{p}: demo .npz without {missing}")
+    return d
+
+
+def _mcap_arrays(p: Path, skip_bad: bool) -> tuple[dict[str, np.ndarray], list[str]]:
+    from mimicrete import LogFormatError, demos
+
+    try:
+        return demo_arrays(demos.load(str(p))), []
+    except (LogFormatError, OSError) as e:
+        if not skip_bad or not p.is_dir():
+            hint = " (--skip-bad-demos trains on the other files)" if p.is_dir() else ""
+            raise DemoError(f"{e}{hint}") from e
+    # one file at a time, leaving out the bad ones; episodes renumbered in file order
+    parts, skipped = [], []
+    for f in sorted(p.glob("*.mcap")):
+        try:
+            parts.append(demo_arrays(demos.load(str(f))))
+        except (LogFormatError, OSError) as e:
+            skipped.append(str(e))
+    if not parts:
+        raise DemoError(f"{p}: no loadable demo file ({len(skipped)} bad)")
+    for i, part in enumerate(parts):
+        part["episode"] = np.full_like(part["episode"], i)
+    return {k: np.concatenate([q[k] for q in parts]) for k in DEMO_KEYS}, skipped
+
+
+def demo_arrays(loaded: Any) -> dict[str, np.ndarray]:
+    """The :data:`DEMO_KEYS` arrays of ``mimicrete.demos.load``'s result. Accepts a dict, a
+    NamedTuple, an object with those attributes, or a plain tuple in that order."""
+    if isinstance(loaded, dict):
+        src = loaded
+    elif hasattr(loaded, "_asdict"):
+        src = loaded._asdict()
+    elif all(hasattr(loaded, k) for k in DEMO_KEYS):
+        src = {k: getattr(loaded, k) for k in DEMO_KEYS}
+    elif isinstance(loaded, (tuple, list)) and len(loaded) >= len(DEMO_KEYS):
+        src = dict(zip(DEMO_KEYS, loaded, strict=False))
+    else:
+        raise TypeError(f"mimicrete.demos.load returned {type(loaded).__name__}")
+    return {k: np.asarray(src[k]) for k in DEMO_KEYS}
+
+
+def idle_steps(actions: np.ndarray, episode: np.ndarray, threshold: float) -> np.ndarray:
+    """Mask of the demo steps in which the demonstrator was idle: every joint motion
+    ``|a[0:6]|`` below ``threshold`` (a fraction of the env's joint step) and every command after
+    the joints (end effector, spin) either 0 ("fixed") or the same as the previous step's in the
+    episode, so it changes nothing. A human pauses: after the pick, before the place, while
+    deciding. Those steps teach a policy that standing still is what the expert does in a state it
+    cannot tell from the moment before moving on, and a five-frame observation cannot tell how
+    long a pause has lasted; the policy then freezes there. ``threshold <= 0`` marks nothing."""
+    a = np.asarray(actions)
+    idle = np.zeros(len(a), bool)
+    if threshold <= 0 or len(a) == 0:
+        return idle
+    ep = np.asarray(episode)
+    cmd = a[:, N_CONT:]
+    prev = np.vstack([np.full((1, cmd.shape[1]), np.nan), cmd[:-1]])
+    prev[np.r_[True, ep[1:] != ep[:-1]]] = np.nan  # no previous command at an episode's start
+    no_change = ((cmd == 0) | (cmd == prev)).all(axis=1)
+    return (np.abs(a[:, :N_CONT]).max(axis=1) < threshold) & no_change
+
+
+def drop_idle_steps(d: dict[str, np.ndarray], threshold: float) -> dict[str, np.ndarray]:
+    """``d`` without its :func:`idle_steps` (behaviours.<name>.demo_drop_idle, an extension).
+    Every kept step keeps the observation it was recorded with, so BC's (obs, action) pairs and
+    GAIL's expert states stay true; only the pauses leave."""
+    keep = ~idle_steps(d["actions"], d["episode"], threshold)
+    return {k: np.asarray(v)[keep] for k, v in d.items()}
+
+
+# ----------------------------------------------------------------------------------------------
+# making demos where there are none
+# ----------------------------------------------------------------------------------------------
+
+
+def count_demo_episodes(path: Path) -> int:
+    """Demo episodes at ``path``: 1 for an ``.mcap`` / ``.npz`` file, the ``*.mcap`` files of a
+    directory, 0 when there is nothing."""
+    if path.is_file():
+        return 1 if path.suffix in (".mcap", ".npz") else 0
+    if not path.is_dir():
+        return 0
+    return len(list(path.glob("*.mcap")))
+
+
+def default_hand_dir(demo_dir: Path) -> Path:
+    """Where :func:`ensure_demos` writes the hand logs of ``demo_dir``: ``data/hands/<name>`` for
+    the repo's ``demos/<name>`` (as ``make demos``), else ``<demo_dir>_handlogs`` beside it."""
+    if demo_dir.parent.name == "demos":
+        return demo_dir.parent.parent / "data" / "hands" / demo_dir.name
+    return demo_dir.parent / f"{demo_dir.name}_handlogs"
+
+
+def ensure_demos(
+    demo_dir: Path,
+    episodes: int,
+    *,
+    task: str = "suction",
+    hand_dir: Path | None = None,
+    seed: int = 0,
+    log: Any = print,
+) -> Path:
+    """Make ``max(episodes, 60)`` demos in ``demo_dir`` when it holds fewer than ``episodes``:
+    a scripted person's hand logs (``synth-hands``), turned into MCAP demos through the real
+    teleoperation path (``convert``), exactly what ``make demos`` runs. Says so through ``log``."""
+    demo_dir = Path(demo_dir)
+    have = count_demo_episodes(demo_dir)
+    if demo_dir.suffix == ".npz" or have >= episodes:
+        return demo_dir
+    hand_dir = Path(hand_dir) if hand_dir is not None else default_hand_dir(demo_dir)
+    n = max(episodes, 60)
+    log(
+        f"demos: {demo_dir} has {have} episodes, making {n} (synth-hands into {hand_dir}, then "
+        f"convert into {demo_dir}, as `make demos`)"
+    )
+    # LEAD: call mimicrete.teleop.synth / mimicrete.teleop.convert directly once they exist.
+    from mimicrete import cli
+
+    synth = ["synth-hands", "--task", task, "--episodes", str(n), "--seed", str(seed)]
+    rc = cli.main([*synth, "--out", str(hand_dir)])
+    if rc:
+        raise RuntimeError(f"mimicrete synth-hands exited {rc}")
+    rc = cli.main(
+        ["convert", str(hand_dir), "--task", task, "--out", str(demo_dir), "--no-progress"]
+    )
+    if rc:
+        raise RuntimeError(f"mimicrete convert exited {rc}")
+    got = count_demo_episodes(demo_dir)
+    if got < episodes:
+        raise RuntimeError(f"{demo_dir}: {got} demo episodes after convert, need {episodes}")
+    return demo_dir

@@ -1,0 +1,39 @@
+"""The environments the trainer and the evaluation run: which vector env an ``env_id`` names, and
+the terminal observations of the episodes that ended in a step.
+
+``Toy...`` ids give the pure-numpy stand-in of ``toyenv.py`` (tests, smoke runs); anything else is
+``mimicrete.envs.make_vec`` over the Rust simulator. Both follow gymnasium 1.x's SAME_STEP
+autoreset: when an episode ends at a step, ``infos["final_obs"]`` holds its last observation and
+the returned observation is already the next episode's first.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+#: continuous action components (six joint motions); the action's last entry is the end-effector
+#: command (suction / grip), a categorical choice in {-1, 0, 1}
+N_CONT = 6
+TOY_PREFIX = "Toy"
+
+
+def make_env(env_id: str, num_envs: int, seed: int) -> Any:
+    """``num_envs`` vectorised envs of ``env_id`` seeded with ``seed``."""
+    if env_id.startswith(TOY_PREFIX):
+        from . import toyenv
+
+        return toyenv.make_vec(num_envs, seed=seed)
+    from mimicrete import envs
+
+    return envs.make_vec(env_id, num_envs=num_envs, seed=seed)
+
+
+def final_obs_of(infos: dict, ended: np.ndarray) -> np.ndarray:
+    """(k, D) terminal observations of the envs where ``ended`` (gymnasium 1.x SAME_STEP)."""
+    fo = infos["final_obs"]
+    idx = np.flatnonzero(ended)
+    if isinstance(fo, np.ndarray) and fo.dtype != object:
+        return fo[idx].astype(np.float32)
+    return np.stack([np.asarray(fo[i], np.float32) for i in idx])

@@ -1,0 +1,103 @@
+"""A training run: the run directory, resume, the loop of updates, summaries, checkpoints and the
+final policy. ``train(cfg, run_dir)`` is what ``mimicrete train`` and the experiments sweep call.
+
+Per update (``Trainer.iterate``: rollout -> reward signals -> GAE -> PPO + GAIL -> BC), then a
+summary row every ``summary_freq`` steps (CSV + TensorBoard) and a checkpoint every
+``checkpoint_interval`` steps and at the end; after the last update ``policy.pt`` and
+``policy.onnx``. A non-finite loss stops the run (``NonFiniteLossError``) before anything of that
+update is written, so the last checkpoint stays the last good one.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+from . import config as config_mod
+from . import run_files
+from .trainer import Trainer
+
+
+def train(
+    cfg: config_mod.TrainerConfig,
+    run_dir: str | Path,
+    *,
+    demos: str | None = None,
+    resume: bool = False,
+    force: bool = False,
+    skip_bad_demos: bool = False,
+    max_steps: int | None = None,
+    progress: bool = True,
+    stop_after_updates: int | None = None,
+) -> Trainer:
+    """Run (or ``resume``) training in ``run_dir``; returns the trainer. A run dir holding another
+    run is refused unless ``resume`` or ``force`` (which deletes that run's files first).
+    ``stop_after_updates`` ends early without changing the schedules (for tests of resume)."""
+    run_dir = Path(run_dir)
+    run_files.prepare_run_dir(run_dir, resume=resume, force=force)
+    total = int(max_steps if max_steps is not None else cfg.behavior.max_steps)
+    # the trainer loads the demos first: a bad demo path leaves the run dir as it was
+    tr = Trainer(cfg, run_dir, demos, total, skip_bad_demos=skip_bad_demos)
+    config_mod.save(cfg, run_dir / "resolved_config.yaml")
+    info: dict[str, Any] = {"max_steps": total, "demos": demos or cfg.demo_path}
+    if tr.demos is not None:
+        info["demo_steps_loaded"] = tr.demo_steps_loaded
+        info["demo_steps_idle_dropped"] = tr.demo_steps_loaded - len(tr.demos["actions"])
+    if skip_bad_demos:
+        info["skip_bad_demos"] = True
+        info["demo_files_skipped"] = tr.demo_files_skipped
+    run_files.write_run_info(run_dir, info)
+    resume_step = None
+    if resume:
+        ck = run_files.latest_checkpoint(run_dir)
+        assert ck is not None  # prepare_run_dir checked
+        tr.load_state_dict(run_files.load_checkpoint(ck))
+        resume_step = tr.step
+    else:
+        tr.pretrain()
+    log = run_files.ScalarLog(run_dir, resume_step)
+    bar = _progress_bar(total, tr.step) if progress else None
+    ck_every = max(cfg.behavior.checkpoint_interval, 1)
+    next_ck = (tr.step // ck_every + 1) * ck_every
+    updates = 0
+    try:
+        while tr.step < total:
+            before = tr.step
+            tr.iterate()
+            updates += 1
+            if tr.step - tr.last_summary_step >= cfg.behavior.summary_freq or tr.step >= total:
+                row = tr.summary()
+                if row:
+                    log.write(tr.step, row)
+                tr.last_summary_step = tr.step
+            if tr.step >= next_ck or tr.step >= total:
+                tr.save_checkpoint()
+                next_ck = (tr.step // ck_every + 1) * ck_every
+            if bar is not None:
+                bar.update(tr.step - before)
+                bar.set_postfix(
+                    picked=f"{tr.recent_picked:.0%}", installed=f"{tr.recent_installed:.0%}"
+                )
+            if stop_after_updates is not None and updates >= stop_after_updates:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+        log.close()
+        tr.env.close()
+    run_files.save_policy(run_dir, tr.actor, tr.obs_dim, tr.step, cfg)
+    return tr
+
+
+def _progress_bar(total: int, initial: int) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        initial=initial,
+        unit="step",
+        dynamic_ncols=True,
+        file=sys.stderr,
+        smoothing=0.1,
+    )

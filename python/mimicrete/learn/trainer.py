@@ -1,0 +1,512 @@
+"""One training update of BC + GAIL + PPO, the way Unity ML-Agents combines them, in CleanRL's
+order. :meth:`Trainer.iterate` reads top to bottom:
+
+1. **rollout** (:meth:`~Trainer.collect`): ``buffer_size`` steps from ``num_envs`` vectorised envs
+   (``buffer_size / num_envs`` each), the stochastic policy acting; episode statistics on the way.
+2. **reward signals** (:meth:`~Trainer.reward_signals`): the observation normalisers take the new
+   observations first; then each signal on the buffer, scaled by its strength: extrinsic (the env's
+   reward) and GAIL (-log(1 - D)), each with its own gamma and termination mask.
+3. **GAE** (:meth:`~Trainer.advantages`): per signal, with that signal's value head; the advantage
+   is the mean over signals, z-normalised; each head regresses its own returns.
+4. **PPO** (:meth:`~Trainer.update`): ``num_epoch`` epochs of minibatches of ``batch_size``;
+5. **GAIL**: one discriminator step after each PPO minibatch, against an expert minibatch of the
+   same size (ML-Agents' schedule, and the same random stream as before this layout);
+6. **BC**: one round over the demos (while its learning rate is above 1e-10);
+7. **log**: the scalars gathered on the way, averaged per summary (:meth:`~Trainer.summary`).
+
+Departures from ML-Agents (and why):
+- Trajectories are the rollout's per-env segments of ``buffer_size / num_envs`` steps, cut at
+  episode ends and every ``time_horizon`` steps, bootstrapped at every cut that is not a
+  termination (truncations bootstrap from ``final_obs``). ML-Agents cuts per agent at
+  ``time_horizon`` the same way; only the segment boundaries differ.
+- Values used for GAE are recomputed in batch after the rollout, with the normaliser just updated
+  (ML-Agents does the same in ``_process_trajectory``); no per-step critic call during rollout.
+- At every checkpoint the envs are reset with a seed derived from (seed, update index); running
+  episodes are cut there as truncations. This is what makes ``--resume`` exact without
+  serialising simulator state.
+- Env action = clip(u, -1, 1) instead of ML-Agents' clamp(u, -3, 3)/3 (see ``networks.py``).
+- GAIL's survivor bias is handled with ``survivor_bias: bootstrap`` (see ``gail.py``).
+
+The run around it (run dir, resume, checkpoints, the scalar log) is ``loop.py``.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from . import config as config_mod
+from . import run_files
+from .bc import BehavioralCloning
+from .buffer import Rollout, gae, horizon_cuts
+from .demo_data import drop_idle_steps, read_demos
+from .env import N_CONT, final_obs_of, make_env
+from .episodes import Episode, EpisodeStats, EpisodeTracker
+from .gail import Gail, signal_terminated
+from .networks import Actor, Critic, env_action
+from .ppo import (
+    PPOBatch,
+    PPOLossInfo,
+    PPOStats,
+    combine_advantages,
+    explained_variance,
+    ppo_loss,
+    scheduled,
+)
+
+SIGNAL_TAG = {"extrinsic": "Extrinsic", "gail": "GAIL"}  # Policy/<tag> Reward, Value Estimate, ...
+
+
+class NonFiniteLossError(RuntimeError):
+    """A loss or weight became NaN / infinite; the run stops before writing anything from it."""
+
+
+@dataclass
+class Signal:
+    """One reward signal over the rollout: strength-scaled rewards (T, N), its gamma and the
+    termination mask its GAE uses."""
+
+    name: str
+    rewards: np.ndarray
+    gamma: float
+    terminated: np.ndarray
+
+
+@dataclass
+class UpdateBuffer:
+    """The rollout flattened to T * N rows, with advantages and returns."""
+
+    obs: np.ndarray
+    u: np.ndarray
+    k: np.ndarray
+    logp: np.ndarray
+    env_actions: np.ndarray
+    adv: np.ndarray
+    values: np.ndarray  # (T * N, n_signals), at collection time
+    returns: np.ndarray  # (T * N, n_signals)
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        return {k: torch.from_numpy(v) for k, v in self.__dict__.items()}
+
+
+class Trainer:
+    """Networks, optimisers, reward signals, BC and the rollout of one training run."""
+
+    def __init__(
+        self,
+        cfg: config_mod.TrainerConfig,
+        run_dir: Path,
+        demos_override: str | None,
+        max_steps: int,
+        *,
+        skip_bad_demos: bool = False,
+    ):
+        self.cfg = cfg
+        self.b = cfg.behavior
+        self.h = self.b.hyperparameters
+        self.run_dir = Path(run_dir)
+        self.max_steps = max_steps
+        self.seed = cfg.env_settings.seed
+        torch.set_num_threads(max(1, cfg.torch_settings.num_threads))
+        random.seed(self.seed)
+        np.random.seed(self.seed % 2**32)
+        torch.manual_seed(self.seed)
+        self.rng = np.random.default_rng(self.seed)
+
+        self.N = cfg.env_settings.num_envs
+        self.T = self.h.buffer_size // self.N
+        self.env = make_env(cfg.env_settings.env_id, self.N, self.seed)
+        self.obs_dim = int(self.env.single_observation_space.shape[0])
+
+        rs = self.b.reward_signals
+        self.signals: list[str] = [
+            name for name, s in (("extrinsic", rs.extrinsic), ("gail", rs.gail)) if s is not None
+        ]
+        ns = self.b.network_settings
+        self.actor = Actor(self.obs_dim, N_CONT, ns.hidden_units, ns.num_layers, ns.normalize)
+        self.critic = Critic(
+            self.obs_dim, len(self.signals), ns.hidden_units, ns.num_layers, ns.normalize
+        )
+        self.opt = torch.optim.Adam(
+            list(self.actor.parameters()) + list(self.critic.parameters()), lr=self.h.learning_rate
+        )
+
+        self.demos: dict[str, np.ndarray] | None = None
+        self.demo_steps_loaded = 0
+        self.demo_files_skipped: list[str] = []
+        if rs.gail is not None or self.b.behavioral_cloning is not None:
+            path = demos_override or cfg.demo_path
+            if not path:
+                raise config_mod.ConfigError("gail/behavioral_cloning need a demo_path or --demos")
+            loaded = read_demos(path, self.b.demo_episodes, skip_bad=skip_bad_demos)
+            self.demo_files_skipped = loaded.skipped
+            self.demo_steps_loaded = len(loaded.arrays["actions"])
+            self.demos = drop_idle_steps(loaded.arrays, self.b.demo_drop_idle)
+        self.gail: Gail | None = None
+        if rs.gail is not None:
+            assert self.demos is not None
+            g = rs.gail
+            self.gail = Gail(
+                self._disc_inputs(self.demos["obs"], self.demos["actions"]),
+                g.network_settings.hidden_units,
+                g.network_settings.num_layers,
+                g.learning_rate,
+            )
+        self.bc: BehavioralCloning | None = None
+        bcs = self.b.behavioral_cloning
+        if bcs is not None:
+            assert self.demos is not None
+            self.bc = BehavioralCloning(
+                self.actor,
+                self.demos["obs"],
+                self.demos["actions"],
+                initial_lr=self.h.learning_rate * bcs.strength,
+                steps=bcs.steps,
+                batch_size=bcs.batch_size or self.h.batch_size,
+                num_epoch=bcs.num_epoch or self.h.num_epoch,
+                samples_per_update=bcs.samples_per_update,
+            )
+
+        self.step = 0
+        self.update_idx = 0
+        self.last_summary_step = 0
+        self.rollout = Rollout(self.T, self.N, self.obs_dim, N_CONT)
+        self.obs: np.ndarray | None = None
+        self.episodes = EpisodeTracker(self.N)
+        self._window: list[Episode] = []  # episodes finished since the last summary
+        self._sig_window: dict[str, list[float]] = {s: [] for s in self.signals}
+        self._sig_acc = {s: np.zeros(self.N) for s in self.signals}
+        self._update_stats: dict[str, list[float]] = {}
+        self.recent_installed = 0.0
+        self.recent_picked = 0.0
+        self._t_summary = time.perf_counter()
+        self._steps_at_t = 0
+
+    def pretrain(self) -> None:
+        """Offline BC warm start (``behavioral_cloning.pretrain_steps``, a mimicrete extension).
+        The observation normalisers are first seeded with the demos' statistics so that the
+        warm-started policy sees the same inputs once agent data starts flowing in."""
+        bcs = self.b.behavioral_cloning
+        if self.bc is None or bcs is None or bcs.pretrain_steps <= 0:
+            return
+        demo_obs = torch.from_numpy(np.asarray(self.bc.obs))
+        self.actor.norm.update(demo_obs)
+        self.critic.norm.update(demo_obs)
+        losses = self.bc.pretrain(bcs.pretrain_steps, self.rng)
+        self._check_finite("BC warm-start", losses[-1] if losses else 0.0)
+        self._log("Losses/Pretraining Loss", float(np.mean(losses[-50:])))
+
+    def iterate(self) -> None:
+        """One update: rollout -> reward signals -> GAE -> PPO (+ GAIL) -> BC."""
+        self.collect()
+        buf = self.advantages(self.reward_signals())
+        self.update(buf)
+
+    # -- 1. rollout -------------------------------------------------------------------------------
+
+    def collect(self) -> None:
+        """``T`` steps of every env into :attr:`rollout`; finished episodes into the window."""
+        ro = self.rollout
+        if self.obs is None:
+            self._reset_envs()
+        obs = self.obs
+        assert obs is not None
+        for t in range(self.T):
+            u, k, logp = self.actor.sample(torch.from_numpy(obs))
+            act = env_action(u, k).numpy()
+            ro.obs[t] = obs
+            ro.u[t] = u.numpy()
+            ro.k[t] = k.numpy()
+            ro.logp[t] = logp.numpy()
+            ro.env_actions[t] = act
+            nobs, r, term, trunc, infos = self.env.step(act)
+            r = np.asarray(r, np.float32)
+            term = np.asarray(term, bool)
+            trunc = np.asarray(trunc, bool)
+            ro.rewards[t] = r
+            ro.terminated[t] = term
+            ro.truncated[t] = trunc
+            finished = self.episodes.step(infos, r, term, trunc)
+            if finished:
+                ro.final_obs[t, term | trunc] = final_obs_of(infos, term | trunc)
+                self._window.extend(ep for _, ep in finished)
+            obs = np.asarray(nobs, np.float32)
+        ro.last_obs[:] = obs
+        self.obs = obs
+        self.step += self.T * self.N
+
+    def _reset_envs(self) -> None:
+        """Reset every env with a seed derived from (seed, update index)."""
+        s = (self.seed * 1_000_003 + self.update_idx * 7919) % 2**31
+        self.obs, _ = self.env.reset(seed=s)
+        self.obs = np.asarray(self.obs, np.float32)
+        self.episodes.reset()
+        self._sig_acc = {k: np.zeros(self.N) for k in self.signals}
+
+    # -- 2. reward signals ------------------------------------------------------------------------
+
+    def reward_signals(self) -> list[Signal]:
+        """Update the observation normalisers with the rollout, then every reward signal on it
+        (strength-scaled); per-episode sums go to ``Policy/<Signal> Reward``."""
+        ro = self.rollout
+        T, N, D = self.T, self.N, self.obs_dim
+        obs_flat = torch.from_numpy(ro.obs.reshape(T * N, D))
+        self.actor.norm.update(obs_flat)
+        self.critic.norm.update(obs_flat)
+        rs = self.b.reward_signals
+        out = []
+        for name in self.signals:
+            if name == "extrinsic":
+                assert rs.extrinsic is not None
+                r = rs.extrinsic.strength * ro.rewards.astype(np.float64)
+                sig = Signal(name, r, rs.extrinsic.gamma, ro.terminated)
+            else:
+                assert rs.gail is not None and self.gail is not None
+                x = self._disc_inputs(ro.obs.reshape(T * N, D), ro.env_actions.reshape(T * N, -1))
+                r = rs.gail.strength * self.gail.rewards(torch.from_numpy(x)).reshape(T, N)
+                term = signal_terminated(ro.terminated, rs.gail.survivor_bias)
+                sig = Signal(name, r.astype(np.float64), rs.gail.gamma, term)
+            self._episode_signal_sums(sig)
+            out.append(sig)
+        return out
+
+    def _episode_signal_sums(self, sig: Signal) -> None:
+        """Per-episode sums of a (strength-scaled) signal, as ML-Agents' Policy/<Signal> Reward."""
+        acc = self._sig_acc[sig.name]
+        ended = self.rollout.ended
+        for t in range(self.T):
+            acc += sig.rewards[t]
+            if ended[t].any():
+                self._sig_window[sig.name].extend(acc[ended[t]].tolist())
+                acc[ended[t]] = 0.0
+
+    def _disc_inputs(self, obs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        g = self.b.reward_signals.gail
+        if g is not None and g.use_actions:
+            return np.concatenate([obs, actions], -1).astype(np.float32)
+        return np.asarray(obs, np.float32)
+
+    # -- 3. GAE -----------------------------------------------------------------------------------
+
+    def advantages(self, signals: list[Signal]) -> UpdateBuffer:
+        """Per-signal GAE with the signal's gamma and value head (cuts: episode ends, every
+        ``time_horizon`` steps, the rollout's end); the combined advantage; the flat buffer."""
+        ro = self.rollout
+        T, N, D = self.T, self.N, self.obs_dim
+        obs_flat = torch.from_numpy(ro.obs.reshape(T * N, D))
+        next_obs = torch.from_numpy(ro.next_obs().reshape(T * N, D))
+        with torch.no_grad():
+            values = self.critic(obs_flat).numpy().reshape(T, N, -1).astype(np.float64)
+            next_values = self.critic(next_obs).numpy().reshape(T, N, -1).astype(np.float64)
+        cut = ro.ended | horizon_cuts(T, N, self.b.time_horizon)
+        advs, rets = [], []
+        for i, sig in enumerate(signals):
+            v = values[..., i]
+            a, ret = gae(sig.rewards, v, next_values[..., i], sig.terminated, cut, sig.gamma,
+                         self.h.lambd)  # fmt: skip
+            tag = SIGNAL_TAG[sig.name]
+            self._log(f"Policy/{tag} Value Estimate", v.mean())
+            self._log(f"Policy/{tag} Explained Variance", explained_variance(v, ret))
+            advs.append(a)
+            rets.append(ret)
+        adv = combine_advantages(advs)
+        return UpdateBuffer(
+            obs=ro.obs.reshape(T * N, D),
+            u=ro.u.reshape(T * N, N_CONT),
+            k=ro.k.reshape(T * N),
+            logp=ro.logp.reshape(T * N, N_CONT + 1),
+            env_actions=ro.env_actions.reshape(T * N, N_CONT + 1),
+            adv=adv.reshape(T * N).astype(np.float32),
+            values=values.reshape(T * N, -1).astype(np.float32),
+            returns=np.stack(rets, -1).reshape(T * N, -1).astype(np.float32),
+        )
+
+    def process(self) -> UpdateBuffer:
+        """Steps 2 and 3 (reward signals, GAE) on the collected rollout."""
+        return self.advantages(self.reward_signals())
+
+    # -- 4.-6. PPO, GAIL, BC ----------------------------------------------------------------------
+
+    def update(self, buf: UpdateBuffer) -> None:
+        """PPO epochs over minibatches, each followed by one GAIL discriminator step; then one
+        BC round. Schedules (lr, epsilon, beta) follow the env step."""
+        h = self.h
+        lr = scheduled(
+            h.learning_rate_schedule, "linear", h.learning_rate, 1e-10, self.step, self.max_steps
+        )
+        eps = scheduled(
+            h.epsilon_schedule, h.learning_rate_schedule, h.epsilon, 0.1, self.step, self.max_steps
+        )
+        beta = scheduled(
+            h.beta_schedule, h.learning_rate_schedule, h.beta, 1e-5, self.step, self.max_steps
+        )
+        for g in self.opt.param_groups:
+            g["lr"] = lr
+        self._log("Policy/Learning Rate", lr)
+        self._log("Policy/Epsilon", eps)
+        self._log("Policy/Beta", beta)
+        t = buf.tensors()
+        n, bs = len(buf.adv), h.batch_size
+        stats = PPOStats()
+        for _ in range(h.num_epoch):
+            perm = torch.as_tensor(self.rng.permutation(n))
+            for s in range(0, n - bs + 1, bs):
+                idx = perm[s : s + bs]
+                stats.add(self._ppo_step(t, idx, eps, beta))
+                self._gail_step(buf, idx)
+        m = stats.mean()
+        self._log("Losses/Policy Loss", abs(m["policy_loss"]))
+        self._log("Losses/Value Loss", m["value_loss"])
+        self._log("Policy/Entropy", m["entropy"])
+        self._log("Policy/Approx KL", m["approx_kl"])
+        self._log("Policy/Clip Fraction", m["clipfrac"])
+        self._bc_round()
+        self.update_idx += 1
+
+    def _ppo_step(
+        self, t: dict[str, torch.Tensor], idx: torch.Tensor, eps: float, beta: float
+    ) -> PPOLossInfo:
+        batch = PPOBatch(
+            obs=t["obs"][idx],
+            u=t["u"][idx],
+            k=t["k"][idx],
+            old_logp=t["logp"][idx],
+            adv=t["adv"][idx],
+            old_values=t["values"][idx],
+            returns=t["returns"][idx],
+        )
+        loss, info = ppo_loss(self.actor, self.critic, batch, eps, beta)
+        self._check_finite("PPO", loss.item())
+        self.opt.zero_grad()
+        loss.backward()
+        self.opt.step()
+        return info
+
+    def _gail_step(self, buf: UpdateBuffer, idx: torch.Tensor) -> None:
+        if self.gail is None:
+            return
+        i = idx.numpy()
+        x = self._disc_inputs(buf.obs[i], buf.env_actions[i])
+        gs = self.gail.update(torch.from_numpy(x), self.rng)
+        self._check_finite("GAIL", gs["loss"])
+        self._log("Losses/GAIL Loss", gs["loss"])
+        self._log("Policy/GAIL Grad Mag Loss", gs["grad_penalty"])
+        self._log("Policy/GAIL Expert Estimate", gs["expert_estimate"])
+        self._log("Policy/GAIL Policy Estimate", gs["policy_estimate"])
+
+    def _bc_round(self) -> None:
+        if self.bc is None:
+            return
+        res = self.bc.update(self.step, self.rng)
+        if res is not None:
+            self._check_finite("BC", res[0])
+            self._log("Losses/Pretraining Loss", res[0])
+            self._log("Losses/Pretraining Learning Rate", res[1])
+
+    def _check_finite(self, what: str, loss: float) -> None:
+        if not math.isfinite(loss):
+            raise NonFiniteLossError(self._nonfinite_message(f"the {what} loss is {loss}"))
+
+    def _nonfinite_message(self, what: str) -> str:
+        ck = run_files.latest_checkpoint(self.run_dir)
+        kept = f"the last good checkpoint is {ck}" if ck else "no checkpoint was written yet"
+        return (
+            f"{what} at step {self.step} (update {self.update_idx}); training stopped, {kept} "
+            "(a smaller learning rate or strength may help)"
+        )
+
+    # -- 7. log -----------------------------------------------------------------------------------
+
+    def _log(self, key: str, value: float) -> None:
+        self._update_stats.setdefault(key, []).append(float(value))
+
+    def summary(self) -> dict[str, float] | None:
+        """Scalars since the last summary (None if nothing to report)."""
+        row: dict[str, float] = {}
+        if self._window:
+            st = EpisodeStats.of(self._window)
+            row["Environment/Cumulative Reward"] = st.mean_return
+            row["Environment/Episode Length"] = st.mean_length
+            row["Environment/Picked Rate"] = st.picked_rate
+            row["Environment/Installed Rate"] = st.installed_rate
+            row["Environment/Episodes"] = float(st.episodes)
+            self.recent_installed = st.installed_rate
+            self.recent_picked = st.picked_rate
+        for name in self.signals:
+            if self._sig_window.get(name):
+                row[f"Policy/{SIGNAL_TAG[name]} Reward"] = float(np.mean(self._sig_window[name]))
+        for k, v in self._update_stats.items():
+            row[k] = float(np.mean(v))
+        now = time.perf_counter()
+        row["Environment/Steps Per Second"] = (self.step - self._steps_at_t) / max(
+            now - self._t_summary, 1e-9
+        )
+        self._t_summary, self._steps_at_t = now, self.step
+        self._window.clear()
+        for v in self._sig_window.values():
+            v.clear()
+        self._update_stats.clear()
+        return row
+
+    # -- checkpoints ------------------------------------------------------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "opt": self.opt.state_dict(),
+            "gail": self.gail.state_dict() if self.gail is not None else None,
+            "bc_opt": self.bc.opt.state_dict() if self.bc is not None else None,
+            "step": self.step,
+            "update_idx": self.update_idx,
+            "last_summary_step": self.last_summary_step,
+            "rng": self.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "np_global_rng": np.random.get_state(),
+            "py_rng": random.getstate(),
+            "signals": self.signals,
+            "obs_dim": self.obs_dim,
+            "config": self.cfg.to_dict(),
+        }
+
+    def load_state_dict(self, s: dict[str, Any]) -> None:
+        self.actor.load_state_dict(s["actor"])
+        self.critic.load_state_dict(s["critic"])
+        self.opt.load_state_dict(s["opt"])
+        if self.gail is not None:
+            self.gail.load_state_dict(s["gail"])
+        if self.bc is not None:
+            self.bc.opt.load_state_dict(s["bc_opt"])
+        self.step = int(s["step"])
+        self.update_idx = int(s["update_idx"])
+        self.last_summary_step = int(s["last_summary_step"])
+        self.rng.bit_generator.state = s["rng"]
+        torch.set_rng_state(s["torch_rng"])
+        np.random.set_state(s["np_global_rng"])
+        random.setstate(s["py_rng"])
+        self._steps_at_t = self.step
+        self.obs = None  # envs are reset with the (seed, update index) seed, as after a save
+
+    def save_checkpoint(self) -> Path:
+        """``checkpoints/step_<step>.pt``; refuses (:class:`NonFiniteLossError`) when a weight
+        is not finite, so the last checkpoint on disk is always a good one."""
+        nets = [self.actor, self.critic] + ([self.gail.disc] if self.gail is not None else [])
+        for net in nets:
+            for name, p in net.named_parameters():
+                if not torch.isfinite(p).all():
+                    raise NonFiniteLossError(
+                        self._nonfinite_message(f"weight {name} is not finite")
+                    )
+        path = run_files.save_checkpoint(
+            self.run_dir, self.step, self.state_dict(), self.actor, self.obs_dim,
+            self.b.keep_checkpoints,
+        )  # fmt: skip
+        self.obs = None  # checkpoint boundary: envs are reset (see module docstring)
+        return path

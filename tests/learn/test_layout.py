@@ -1,0 +1,122 @@
+"""The learning half of the package reads by name: no import cycle inside ``mimicrete.learn`` and
+``mimicrete.experiments`` (module-level or inside functions), no module over 600 lines, the CLI's
+train / eval modules import no torch, ``python -m mimicrete.experiments`` answers."""
+
+from __future__ import annotations
+
+import ast
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[2] / "python" / "mimicrete"
+PACKAGES = ("learn", "experiments")
+MAX_LINES = 600
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for pkg in PACKAGES:
+        for p in sorted((PKG / pkg).glob("*.py")):
+            name = f"mimicrete.{pkg}" if p.stem == "__init__" else f"mimicrete.{pkg}.{p.stem}"
+            out[name] = p
+    return out
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """Every module ``name`` imports, anywhere in the file (relative imports resolved)."""
+    is_pkg = path.stem == "__init__"
+    base = name.split(".") if is_pkg else name.split(".")[:-1]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                root = base[: len(base) - node.level + 1]
+                mod = ".".join(root + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            found.add(mod)
+            found.update(f"{mod}.{a.name}" for a in node.names)  # `from . import x`
+    return found
+
+
+def test_no_import_cycle_in_learn_and_experiments():
+    mods = _modules()
+    graph = {m: {i for i in _imports(m, p) if i in mods and i != m} for m, p in mods.items()}
+    # a package's __init__ is imported by every submodule: only edges out of it can close a cycle
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for n in sorted(graph[m]):
+            if n.count(".") == 1 and m.startswith(n + "."):
+                continue  # a submodule importing its own package's name
+            if state.get(n) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(stack[stack.index(n) :] + [n]))
+            if n not in state:
+                visit(n)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+    assert "mimicrete.learn.trainer" in graph and "mimicrete.experiments.sweep" in graph
+
+
+def test_no_module_over_600_lines():
+    files = list(_modules().values()) + [PKG / "cli" / "train.py", PKG / "cli" / "eval.py"]
+    long = {
+        str(p.relative_to(PKG)): n
+        for p in files
+        if (n := len(p.read_text().splitlines())) > MAX_LINES
+    }
+    assert long == {}
+
+
+def _python(code: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(PKG.parent) + os.pathsep + env.get("PYTHONPATH", "")
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
+
+
+def test_cli_train_and_eval_import_no_torch():
+    r = _python(
+        "import sys, argparse\n"
+        "from mimicrete.cli import train, eval\n"
+        "for m in (train, eval):\n"
+        "    m.configure(argparse.ArgumentParser())\n"
+        "import mimicrete.learn, mimicrete.experiments\n"
+        "print(sorted(k for k in sys.modules if k == 'torch' or k.startswith('torch.')))\n"
+    )
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]"
+
+
+def test_experiments_entry_point_answers():
+    pytest.importorskip("mimicrete._native")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(PKG.parent) + os.pathsep + env.get("PYTHONPATH", "")
+    for mod in ("mimicrete.experiments", "mimicrete.experiments.report"):
+        r = subprocess.run(
+            [sys.executable, "-m", mod, "--help"], capture_output=True, text=True, env=env,
+            timeout=300,
+        )  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        assert "usage: python -m " + mod in r.stdout
+
+
+def test_every_module_imports():
+    import importlib
+
+    for name in _modules():
+        importlib.import_module(name)
