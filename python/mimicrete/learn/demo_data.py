@@ -189,18 +189,13 @@ def ensure_demos(
         f"demos: {demo_dir} has {have} episodes, making {n} (synth-hands into {hand_dir}, then "
         f"convert into {demo_dir}, as `make demos`)"
     )
-    # LEAD: call mimicrete.teleop.synth / mimicrete.teleop.convert directly once they exist.
-    from mimicrete import cli
+    from mimicrete.teleop import convert as cv
+    from mimicrete.teleop.synth import synth_hands
 
-    synth = ["synth-hands", "--task", task, "--episodes", str(n), "--seed", str(seed)]
-    rc = cli.main([*synth, "--out", str(hand_dir)])
-    if rc:
-        raise RuntimeError(f"mimicrete synth-hands exited {rc}")
-    rc = cli.main(
-        ["convert", str(hand_dir), "--task", task, "--out", str(demo_dir), "--no-progress"]
-    )
-    if rc:
-        raise RuntimeError(f"mimicrete convert exited {rc}")
+    logs = synth_hands(task, n, seed, hand_dir, progress=True)
+    plan = cv.plan_outputs(logs, demo_dir, overwrite=True)  # the same logs give the same demos
+    for i, path in enumerate(logs):
+        cv.convert_log(path, task, plan[path], episode_index=i)
     got = count_demo_episodes(demo_dir)
     if got < episodes:
         raise RuntimeError(f"{demo_dir}: {got} demo episodes after convert, need {episodes}")
