@@ -23,7 +23,9 @@ import ipaddress
 import json
 import secrets
 import ssl
+import socket
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -323,3 +325,56 @@ async def serve(
         await asyncio.Event().wait()
     finally:
         await runner.cleanup()
+
+
+class ServerThread:
+    """A :class:`TeleopServer` on a free loopback port, served by an event loop in a thread of its
+    own (tests and benchmarks drive it from the main thread)::
+
+        with ServerThread(TeleopServer(live)) as run:
+            url = f"http://127.0.0.1:{run.port}/"
+    """
+
+    def __init__(self, server: TeleopServer, host: str = "127.0.0.1") -> None:
+        self.server, self.host = server, host
+        with socket.socket() as s:
+            s.bind((host, 0))
+            self.port = int(s.getsockname()[1])
+        self.loop = asyncio.new_event_loop()
+        self.ready = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True, name="teleop-server")
+
+    def _run(self) -> None:
+        asyncio.set_event_loop(self.loop)
+        ready = asyncio.Event()
+
+        async def main() -> None:
+            task = asyncio.ensure_future(serve(self.server, self.host, self.port, None, ready))
+            await ready.wait()
+            self.ready.set()
+            await task
+
+        self.task = self.loop.create_task(main())
+        try:
+            self.loop.run_until_complete(self.task)
+        except asyncio.CancelledError:
+            pass
+
+    def call(self, fn: Any) -> Any:
+        """Run ``fn()`` on the server's loop (between messages) and return its result."""
+        done = threading.Event()
+        out: list[Any] = []
+        self.loop.call_soon_threadsafe(lambda: (out.append(fn()), done.set()))
+        if not done.wait(30):
+            raise TimeoutError("the server loop did not answer")
+        return out[0]
+
+    def __enter__(self) -> ServerThread:
+        self.thread.start()
+        if not self.ready.wait(30):
+            raise TimeoutError("the teleop server did not start")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.loop.call_soon_threadsafe(self.task.cancel)
+        self.thread.join(30)
