@@ -315,13 +315,14 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
             if kind == "screw":
                 ee.update(on=opening < 0.03, spin=0)
             drawn = _drawn_after(page, s, {"frames": frames, "ee": ee})
-            assert drawn["fingers"]["finger_left"] == pytest.approx(opening / 2 + half, abs=1e-6)
-            assert drawn["fingers"]["finger_right"] == pytest.approx(-(opening / 2 + half), abs=1e-6)
+            y = opening / 2 + half
+            assert drawn["fingers"]["finger_left"] == pytest.approx(y, abs=1e-6)
+            assert drawn["fingers"]["finger_right"] == pytest.approx(-y, abs=1e-6)
     if task == "screw":
         for spin, angle in ((1, -1.0), (-1, 0.5), (0, 0.5)):
             turned = dict(frames)
             p = frames["object"]
-            turned["object"] = [*p[:3], 0.0, 0.0, float(np.sin(angle / 2)), float(np.cos(angle / 2))]
+            turned["object"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
             ee = {"kind": "screw", "on": spin != 0, "spin": spin, "opening": 0.019}
             drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
             assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)

@@ -7,7 +7,7 @@ import * as THREE from 'three';
 // From the workspace towards the camera, in `local`: behind the user's left shoulder and above, so
 // the head shows on the right (the page's HUD covers the top left).
 const VIEW_DIRECTION = new THREE.Vector3(-0.75, 0.8, 0.9).normalize();
-const MARGIN_M = 0.12;
+const MARGIN_M = 0.1; // around each point that must be in view (the head's radius)
 
 /** Points that must be in view, in `local`: the head (origin), the robot's base, tool, object,
  * target (each a frame of the robot scene, mapped by view_from_base). */
@@ -23,19 +23,28 @@ function workspacePoints(robot) {
   return points;
 }
 
-/** Aim `camera` (a PerspectiveCamera) so the head and the workspace fill the view. */
+/** Aim `camera` (a PerspectiveCamera) along `direction` at the workspace: the closest distance
+ * at which the head and the workspace points, padded by MARGIN_M, are all inside the view. */
 export function frameWorkspace(camera, robot, direction = VIEW_DIRECTION) {
   const points = workspacePoints(robot);
   const centre = new THREE.Vector3();
   for (const p of points) centre.add(p);
   centre.divideScalar(points.length);
-  let radius = 0;
-  for (const p of points) radius = Math.max(radius, p.distanceTo(centre));
-  radius += MARGIN_M;
-  const vfov = THREE.MathUtils.degToRad(camera.fov);
-  const hfov = 2 * Math.atan(Math.tan(vfov / 2) * camera.aspect);
-  const distance = radius / Math.sin(Math.min(vfov, hfov) / 2);
-  camera.position.copy(centre).addScaledVector(direction, distance);
+  const back = direction.clone().normalize(); // from the centre towards the camera
+  const right = new THREE.Vector3(0, 1, 0).cross(back).normalize();
+  const up = back.clone().cross(right);
+  const tanV = Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2);
+  const tanH = tanV * camera.aspect;
+  let distance = 0.3;
+  const v = new THREE.Vector3();
+  for (const p of points) {
+    v.subVectors(p, centre);
+    const toward = v.dot(back);
+    const x = Math.abs(v.dot(right)) + MARGIN_M;
+    const y = Math.abs(v.dot(up)) + MARGIN_M;
+    distance = Math.max(distance, toward + x / tanH, toward + y / tanV);
+  }
+  camera.position.copy(centre).addScaledVector(back, distance);
   camera.lookAt(centre);
   camera.updateMatrixWorld(true);
 }

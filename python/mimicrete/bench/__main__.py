@@ -7,7 +7,7 @@ import importlib
 import sys
 import time
 
-AREAS = ["kin", "sim", "demo", "teleop", "train"]
+AREAS = ["kin", "sim", "demo", "teleop", "teleop_live", "train"]
 
 
 def main() -> int:
