@@ -51,9 +51,10 @@ def _pct(xs: Any) -> str:
     )
 
 
-def _hands(folder: Path) -> tuple[np.ndarray, np.ndarray, Any]:
+def _hands(folder: Path) -> tuple[np.ndarray, np.ndarray, Any, int]:
     """Right: a scripted suction demonstration (WebXR joints, ``local``, 90 Hz) standing at the
-    table; left: an open hand held still beside it (no pinch, so no episode control)."""
+    table; left: an open hand held still beside it (no pinch, so no episode control). Also the
+    calibration and the simulator seed the demonstration was made for."""
     from mimicrete.hands.layouts import to_layout
     from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
     from mimicrete.teleop import convert as cv
@@ -69,7 +70,7 @@ def _hands(folder: Path) -> tuple[np.ndarray, np.ndarray, Any]:
         GESTURE_SHAPES["opening"], np.eye(3), np.array([-0.35, -0.55, -0.35]), 1.0, "left"
     )
     left = to_layout(left[None], "webxr")[0]
-    return np.asarray(log.joints), left, calib
+    return np.asarray(log.joints), left, calib, int(log.header["episode_seed"])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -143,8 +144,8 @@ def server_latency(seconds: float = SECONDS) -> dict[str, Any]:
     from mimicrete.teleop.server import ServerThread, TeleopServer
 
     tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-live-"))
-    right, left, calib = _hands(tmp / "hands")
-    live = Live("suction", tmp / "out", calibration=calib, seed=0)
+    right, left, calib, seed = _hands(tmp / "hands")
+    live = Live("suction", tmp / "out", calibration=calib, seed=seed)
     server = TeleopServer(live)
     server.log = lambda msg: None
     with ServerThread(server) as run:
@@ -154,8 +155,14 @@ def server_latency(seconds: float = SECONDS) -> dict[str, Any]:
         proc.start()
         res = q.get(timeout=seconds + 120)
         proc.join(30)
-        stats = run.call(lambda: (list(server.stats.server_ms), dict(server.stats.dropped)))
-    res["server_ms"], res["dropped"] = stats
+        stats = run.call(
+            lambda: (
+                list(server.stats.server_ms),
+                list(server.stats.server_cpu_ms),
+                dict(server.stats.dropped),
+            )
+        )
+    res["server_ms"], res["server_cpu_ms"], res["dropped"] = stats
     return res
 
 
@@ -170,12 +177,12 @@ def browser_round_trip(seconds: float = SECONDS) -> dict[str, Any]:
     from mimicrete.teleop.server import ServerThread, TeleopServer
 
     tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-live-page-"))
-    right, left, calib = _hands(tmp / "hands")
+    right, left, calib, seed = _hands(tmp / "hands")
     n = int((seconds + 10) * RATE_HZ)
     t = np.arange(n) / RATE_HZ
     track_r = br.Track(t, np.ones(n, bool), right[np.arange(n) % len(right)])
     track_l = br.Track(t, np.ones(n, bool), np.repeat(left[None], n, axis=0))
-    live = Live("suction", tmp / "out", calibration=calib, seed=0)
+    live = Live("suction", tmp / "out", calibration=calib, seed=seed)
     server = TeleopServer(live)
     server.log = lambda msg: None
     with ServerThread(server) as run, br.launch() as browser:
@@ -225,6 +232,10 @@ def run(seconds: float = SECONDS) -> None:
         f"recording, {seconds:.0f} s, client in another process:"
     )
     print(f"  {_pct(a)}   goal p99 <= {SERVER_GOAL_MS} ms: {ok}")
+    print(
+        "  same span, the server thread's CPU time (no waiting for a core): "
+        f"{_pct(s['server_cpu_ms'])}"
+    )
     print(
         f"  sustained: {s['answered']} of {s['sent']} frames answered in {s['elapsed']:.1f} s "
         f"({s['answered'] / s['elapsed']:.1f} Hz), dropped at server {sum(s['dropped'].values())}"
