@@ -69,11 +69,18 @@ def _record_one(chromium, tmp_path, task: str, screenshot: Path | None = None):
         )
         try:
             br.enter_vr(page)
+            # the recording reaches the page first (seconds on a loaded machine), so that the
+            # hand starts moving as soon as the episode starts
+            rec = br.build_recording(right=log)
+            page.evaluate("(r) => { window.__pendingReplay = r; }", rec)
             page.click("#btn-start")
             page.wait_for_function(
                 "() => window.__mimicrete.state && window.__mimicrete.state.recording"
             )
-            br.replay(page, br.build_recording(right=log))
+            page.evaluate(
+                "(m) => window.__mimicrete.replay(window.__pendingReplay, m)",
+                rec["mimicrete"]["mode"],
+            )
             if screenshot is not None:  # mid-episode: the tile on the cups, on its way
                 page.wait_for_function(
                     "() => { const s = window.__mimicrete.state; return s && s.ee.on; }",

@@ -27,6 +27,7 @@ import ssl
 import sys
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,14 +59,15 @@ class Stats:
     dropped: dict[str, int] = field(
         default_factory=lambda: {"malformed": 0, "nan": 0, "unknown": 0, "not_driver": 0}
     )
-    frame_times: list[float] = field(default_factory=list)  # arrival times, last second
+    frame_times: deque[float] = field(default_factory=deque)  # arrival times, last second
     # per frame, received → state sent, ms (the benchmark reads it)
     server_ms: list[float] = field(default_factory=list)
     # the same span in this thread's CPU time: without the waits for a core on a busy machine
     server_cpu_ms: list[float] = field(default_factory=list)
 
     def fps(self, now: float) -> float:
-        self.frame_times = [t for t in self.frame_times if now - t <= 1.0]
+        while self.frame_times and now - self.frame_times[0] > 1.0:
+            self.frame_times.popleft()
         return float(len(self.frame_times))
 
 
