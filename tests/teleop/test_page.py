@@ -290,9 +290,10 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
     direction. Geometry comes from the server's scene entities (``cup``, ``finger_*``, ``nut``)."""
     hello = _scene_hello(task)
     fake: dict[str, FakeServer] = {}
+    pip = "&spectator=pip&spectator_hz=10" if task == "grip" else ""  # the corner view too
     page = br.open_page(
         chromium,
-        f"{base_url}/?emulate=quest3&devui=0",
+        f"{base_url}/?emulate=quest3&devui=0{pip}",
         viewport=(320, 240),
         before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
     )
@@ -327,5 +328,11 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
             drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
             assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)
             assert drawn["spinRing"] == (spin != 0) and drawn["spinDirection"] == spin
+    if pip:
+        page.wait_for_function("() => window.__mimicrete.spectator().frames > 2")
+        box = page.eval_on_selector("#spectator", "(c) => c.getBoundingClientRect().toJSON()")
+        assert 0 < box["width"] < 320 and box["x"] > 0  # a corner of the window
+    else:
+        assert page.evaluate("window.__mimicrete.spectator()") is None
     assert page.mimicrete_errors == []
     page.close()

@@ -86,6 +86,7 @@ def _client(port: int, right: np.ndarray, left: np.ndarray, seconds: float, q: A
 
     async def go() -> dict[str, Any]:
         rtt: list[float] = []
+        built: list[float] = []  # the server's own figure in each state: received → state built
         got: set[int] = set()
         late = 0
         saved = 0
@@ -104,6 +105,7 @@ def _client(port: int, right: np.ndarray, left: np.ndarray, seconds: float, q: A
                     m = msg.json()
                     if m["type"] == "state":
                         rtt.append(time.perf_counter() * 1000.0 - m["sent_ms"])
+                        built.append(m["server_ms"])
                         got.add(m["seq"])
                     elif m["type"] == "episode" and m["event"] == "saved":
                         saved += 1
@@ -132,6 +134,7 @@ def _client(port: int, right: np.ndarray, left: np.ndarray, seconds: float, q: A
             "answered": len(got),
             "elapsed": elapsed,
             "rtt": rtt,
+            "built": built,
             "late": late,
             "episodes_saved": saved,
         }
@@ -236,6 +239,7 @@ def run(seconds: float = SECONDS) -> None:
         "  same span, the server thread's CPU time (no waiting for a core): "
         f"{_pct(s['server_cpu_ms'])}"
     )
+    print(f"  of which received → state built (before JSON and the send) {_pct(s['built'])}")
     print(
         f"  sustained: {s['answered']} of {s['sent']} frames answered in {s['elapsed']:.1f} s "
         f"({s['answered'] / s['elapsed']:.1f} Hz), dropped at server {sum(s['dropped'].values())}"
