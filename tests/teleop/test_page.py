@@ -248,3 +248,91 @@ def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, m
     assert page.evaluate("window.__mimicrete.rtt.length") >= len(frames) - 5
     assert page.mimicrete_errors == []
     page.close()
+
+
+def _scene_hello(task: str) -> dict[str, Any]:
+    """A hello with the real scene of ``task`` (tile-sim's items as the server sends them)."""
+    from mimicrete.teleop.live import view_from_base
+    from mimicrete.teleop.session import Session
+    from mimicrete.teleop.view import frame_poses, scene_entities, standing_calibration
+
+    calib = standing_calibration()
+    env = Session(task, "webxr", "right", calib, 0).env
+    return {
+        "type": "hello",
+        "protocol": 1,
+        "role": "driver",
+        "task": task,
+        "layout": "webxr",
+        "control_dt": 0.04,
+        "scene": scene_entities(env.scene()),
+        "view_from_base": view_from_base(calib),
+        "frames": frame_poses(env.snapshot()),
+    }
+
+
+def _drawn_after(page: Any, fake: FakeServer, state: dict[str, Any]) -> dict[str, Any]:
+    """Answer the next frames with ``state`` and return what the page draws once it has it."""
+    fake.state = state
+    page.wait_for_function(
+        "(s) => { const t = window.__mimicrete.state;"
+        " return t && JSON.stringify(t.ee) === JSON.stringify(s.ee) &&"
+        " JSON.stringify(t.frames) === JSON.stringify(s.frames); }",
+        arg=state,
+    )
+    return page.evaluate("window.__mimicrete.scene()")
+
+
+@pytest.mark.parametrize("task", ["suction", "grip", "screw"])
+def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task: str) -> None:
+    """Suction cups light while suction is on; the gripper's fingers sit at ±(opening / 2 + half
+    their thickness) in the tool frame; the nut turns with its frame and a ring shows the spin's
+    direction. Geometry comes from the server's scene entities (``cup``, ``finger_*``, ``nut``)."""
+    hello = _scene_hello(task)
+    fake: dict[str, FakeServer] = {}
+    pip = "&spectator=pip&spectator_hz=10" if task == "grip" else ""  # the corner view too
+    page = br.open_page(
+        chromium,
+        f"{base_url}/?emulate=quest3&devui=0{pip}",
+        viewport=(320, 240),
+        before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
+    )
+    br.enter_vr(page)
+    page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
+    s = fake["s"]
+    frames = hello["frames"]
+    if task == "suction":
+        off = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": False}})
+        on = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": True}})
+        assert off["cups"] == on["cups"] == 4
+        assert off["cupsLit"] == 0 and on["cupsLit"] == 4
+    else:
+        kind = "gripper" if task == "grip" else "screw"
+        half = next(
+            e["cubes"][0]["size"]["y"] / 2 for e in hello["scene"] if e["id"].startswith("finger")
+        )
+        for opening in (0.085, 0.04, 0.0):
+            ee: dict[str, Any] = {"kind": kind, "opening": opening}
+            if kind == "screw":
+                ee.update(on=opening < 0.03, spin=0)
+            drawn = _drawn_after(page, s, {"frames": frames, "ee": ee})
+            y = opening / 2 + half
+            assert drawn["fingers"]["finger_left"] == pytest.approx(y, abs=1e-6)
+            assert drawn["fingers"]["finger_right"] == pytest.approx(-y, abs=1e-6)
+    if task == "screw":
+        for spin, angle in ((1, -1.0), (-1, 0.5), (0, 0.5)):
+            turned = dict(frames)
+            p = frames["object"]
+            turned["object"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
+            ee = {"kind": "screw", "on": spin != 0, "spin": spin, "opening": 0.019}
+            drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
+            assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)
+            assert drawn["spinRing"] == (spin != 0) and drawn["spinDirection"] == spin
+    if pip:
+        page.wait_for_function("() => window.__mimicrete.spectator().frames > 2")
+        box = page.eval_on_selector("#spectator", "(c) => c.getBoundingClientRect().toJSON()")
+        assert 0 < box["width"] < 320 and box["x"] > 0  # a corner of the window
+    else:
+        assert page.evaluate("window.__mimicrete.spectator()") is None
+    assert page.mimicrete_errors == []
+    page.close()

@@ -7,9 +7,15 @@ import {
 import { RobotScene } from './scene.js';
 import { HandReader, HandSpheres } from './hands.js';
 import { DomHud, HeadsetHud, hudLines } from './hud.js';
+import { Spectator, frameWorkspace } from './spectator.js';
 
 const params = new URLSearchParams(location.search);
 const emulateKind = ['quest3', 'quest2'].includes(params.get('emulate')) ? params.get('emulate') : null;
+// ?spectator=1 (or =full): while an XR session runs, the page shows a third-person view of the
+// scene (robot, tile, target, the user's head and hands) over the whole window; =pip: in a corner.
+// ?spectator_hz=N caps its frame rate (default 20).
+const spectatorMode = { 1: 'full', full: 'full', pip: 'pip' }[params.get('spectator')] ?? null;
+const spectatorHz = Number(params.get('spectator_hz') ?? 20);
 const MAX_BUFFERED_BYTES = 64 * 1024; // skip a frame rather than queue behind a slow link
 const MAX_SAMPLES = 200000;
 
@@ -30,6 +36,8 @@ const hook = {
   refSpace: () => renderer.xr.getReferenceSpace(),
   replay: null, // set when emulating: (recording, mode) => Promise<void>
   replayDone: () => (replay ? replay.done : true),
+  scene: () => robot.describe(), // what is drawn (end effector parts, view_from_base, frames)
+  spectator: () => (spectator ? { mode: spectatorMode, frames: spectator.frames } : null),
   // The page's own packer, exposed so tests can compare it with an independent decoder.
   pack: (seq, t, sentMs, right, left) => Array.from(new Uint8Array(new HandFramePacker().pack(
     seq, t, sentMs, right && Float32Array.from(right), left && Float32Array.from(left)))),
@@ -71,10 +79,11 @@ const floor = new THREE.GridHelper(4, 40, 0x556070, 0x39414c);
 floor.position.y = -1.6; // roughly the floor under a standing user's head
 scene.add(floor);
 
-// Desktop view (no session): from behind and above the user's head, looking at the workspace.
+// Desktop view (no session): the third-person view of the workspace (set again at each hello).
+// In a session three.js poses this camera as the headset.
 const camera = new THREE.PerspectiveCamera(60, window.innerWidth / window.innerHeight, 0.01, 50);
-camera.position.set(0.35, 0.25, 0.45);
-camera.lookAt(0, -0.35, -0.45);
+camera.position.set(0.8, 0.3, 0.6);
+camera.lookAt(0, -0.6, -0.5);
 scene.add(camera); // so the headset HUD (a child of the camera) is drawn
 
 const robot = new RobotScene(scene);
@@ -82,11 +91,15 @@ const readers = { right: new HandReader(), left: new HandReader() };
 const spheres = { right: new HandSpheres(scene, 0x6fb7ff), left: new HandSpheres(scene, 0xffa86f) };
 const domHud = new DomHud(document.getElementById('hud'));
 const headsetHud = new HeadsetHud(camera);
+const spectator = spectatorMode
+  ? new Spectator(document.getElementById('spectator'), scene, spectatorMode, spectatorHz)
+  : null;
 
 addEventListener('resize', () => {
   camera.aspect = window.innerWidth / window.innerHeight;
   camera.updateProjectionMatrix();
   renderer.setSize(window.innerWidth, window.innerHeight);
+  spectator?.resize();
 });
 
 // ---------------------------------------------------------------- WebSocket ----
@@ -129,6 +142,7 @@ function onMessage(msg) {
       view.task = msg.task;
       robot.build(msg.scene, msg.view_from_base);
       if (msg.frames) robot.update({ frames: msg.frames });
+      reframe();
       break;
     case 'state': {
       hook.state = msg;
@@ -146,6 +160,7 @@ function onMessage(msg) {
     }
     case 'calibration':
       robot.setView(msg.view_from_base);
+      reframe();
       hook.events.push(msg);
       view.lastEvent = 'recentred';
       break;
@@ -158,6 +173,14 @@ function onMessage(msg) {
       view.error = msg.message;
       break;
   }
+}
+
+/** Aim the desktop camera and the spectator at the workspace the server described. */
+function reframe() {
+  if (!session) {
+    frameWorkspace(camera, robot);
+  }
+  spectator?.frame(robot);
 }
 
 function control(action) {
@@ -184,6 +207,8 @@ async function enterVR() {
     session = null;
     hook.inSession = false;
     headsetHud.mesh.visible = false;
+    spectator?.show(false);
+    frameWorkspace(camera, robot);
     enterButton.textContent = 'Enter VR';
     replay?.stop();
     replay = null;
@@ -192,6 +217,7 @@ async function enterVR() {
   session = s;
   hook.inSession = true;
   headsetHud.mesh.visible = true;
+  spectator?.show(true);
   enterButton.textContent = 'Exit VR';
 }
 
@@ -275,6 +301,8 @@ renderer.setAnimationLoop((time, frame) => {
     headsetHud.update(lines);
   }
   renderer.render(scene, camera);
+  // In a session `camera` now holds the headset's pose: the spectator draws it as a head.
+  if (session && spectator) spectator.render(camera, [headsetHud.mesh]);
 });
 
 function median(xs) {

@@ -1,11 +1,27 @@
 // The robot cell the server describes: Foxglove-style SceneEntity primitives, each attached to a
 // named frame posed every state by `frames` (poses in the robot's Base frame, Z up, metres), all
 // under one group whose matrix is `view_from_base` (Base → XR `local`, column-major).
+//
+// The end effector's moving parts are found by the scene items' names (the entity id is
+// `name#index`, see python/mimicrete/teleop/view.py) and keep their geometry from the server:
+// - `cup`: the suction cups, lit while {"kind":"suction","on":true};
+// - `finger_left` / `finger_right`: drawn by tile-sim at the open limit; at run time each sits at
+//   tool-y ±(opening / 2 + its half thickness) (tile-sim world.rs), from {"kind":"gripper",
+//   "opening": m} or the screw task's gripper {"opening": m};
+// - `nut`: the screw task's nut. Its frame (`object`) already turns with the thread (the server's
+//   pose); a plain cylinder turning shows nothing, so the page adds a notch on its rim and, while
+//   {"kind":"screw","spin":±1} turns it, a ring of arrows around it going the same way.
 import * as THREE from 'three';
 
-const SUCTION_PREFIX = 'suction'; // entities lit when {"kind":"suction","on":true}
-const SCREW_PREFIX = 'screw'; // entities spun about their local Z while the screwdriver runs
-const SPIN_RAD_PER_S = 4 * Math.PI;
+const LIT = new THREE.Color(0.1, 0.95, 0.35);
+const SPIN_RAD_PER_S = 2 * Math.PI; // the ring's animation (the nut's own angle is the server's)
+
+/** The item name of an entity id (`cup#14` → `cup`). */
+export function itemName(id) {
+  const s = String(id ?? '');
+  const i = s.lastIndexOf('#');
+  return i >= 0 ? s.slice(0, i) : s;
+}
 
 function poseOf(p) {
   const pos = p?.position ?? {};
@@ -75,9 +91,12 @@ export class RobotScene {
     this.root.matrixAutoUpdate = false;
     scene.add(this.root);
     this.frames = new Map(); // frame_id → Object3D under root ('base' is root itself)
-    this.suction = []; // materials to light
-    this.screws = []; // groups to spin
+    this.cups = []; // materials lit while suction is on
+    this.fingers = []; // { group, sign, halfY, y0 }
+    this.nut = null; // { group, radius, halfHeight }
+    this.spinRing = null;
     this.spin = 0;
+    this.ee = {};
     this.target = new THREE.Mesh(
       new THREE.SphereGeometry(0.012, 16, 12),
       new THREE.MeshBasicMaterial({ color: 0xffcc00, transparent: true, opacity: 0.7 }),
@@ -89,19 +108,62 @@ export class RobotScene {
   /** Replace the scene with the hello's entities. */
   build(entities, viewFromBase) {
     for (const f of this.frames.values()) this.root.remove(f);
+    for (const c of [...this.root.children]) if (c !== this.target) this.root.remove(c);
     this.frames.clear();
-    this.suction = [];
-    this.screws = [];
+    this.cups = [];
+    this.fingers = [];
+    this.nut = null;
+    this.spinRing = null;
     this.setView(viewFromBase);
     for (const entity of entities ?? []) {
       const group = entityGroup(entity);
       this.frame(entity.frame_id ?? 'base').add(group);
-      const id = (entity.id ?? '').toLowerCase();
-      if (id.startsWith(SUCTION_PREFIX)) {
-        group.traverse((o) => o.material && this.suction.push(o.material));
+      const name = itemName(entity.id);
+      if (name === 'cup') {
+        group.traverse((o) => o.material && this.cups.push(o.material));
+      } else if (name === 'finger_left' || name === 'finger_right') {
+        const c = entity.cubes?.[0];
+        const y0 = c?.pose?.position?.y ?? 0;
+        const sign = y0 !== 0 ? Math.sign(y0) : name === 'finger_left' ? 1 : -1;
+        this.fingers.push({ name, group, sign, halfY: (c?.size?.y ?? 0) / 2, y0 });
+      } else if (name === 'nut') {
+        this.nut = this.decorateNut(group, entity.cylinders?.[0]);
       }
-      if (id.startsWith(SCREW_PREFIX)) this.screws.push(group);
     }
+  }
+
+  /** A notch on the nut's rim (turns with the nut's frame) and the spin ring (hidden). */
+  decorateNut(group, cyl) {
+    const radius = (cyl?.size?.x ?? 0.02) / 2;
+    const height = cyl?.size?.z ?? 0.01;
+    const { position } = poseOf(cyl?.pose);
+    const notch = new THREE.Mesh(unitBox, new THREE.MeshStandardMaterial({ color: 0x30343a }));
+    notch.scale.set(radius * 0.5, radius * 0.35, height * 1.08);
+    notch.position.set(position.x + radius * 0.8, position.y, position.z);
+    notch.name = 'nut-notch';
+    group.add(notch);
+    const ring = new THREE.Group();
+    ring.name = 'spin-ring';
+    const r = radius * 2.2;
+    const mat = new THREE.MeshBasicMaterial({ color: 0x38e0ff, side: THREE.DoubleSide });
+    for (let k = 0; k < 3; k++) { // three arcs with arrow heads, counter-clockwise seen from +Z
+      const a0 = (k * 2 * Math.PI) / 3;
+      const arc = new THREE.Mesh(new THREE.TorusGeometry(r, radius * 0.14, 6, 16, 1.4), mat);
+      arc.rotation.z = a0;
+      ring.add(arc);
+      const head = new THREE.Mesh(new THREE.ConeGeometry(radius * 0.35, radius * 0.8, 10), mat);
+      const a1 = a0 + 1.4;
+      head.position.set(r * Math.cos(a1), r * Math.sin(a1), 0);
+      head.rotation.z = a1; // the cone's +Y along the tangent (counter-clockwise)
+      ring.add(head);
+    }
+    ring.position.copy(position);
+    ring.visible = false;
+    // In the nut's frame beside the nut's group: it turns with the nut and, while spinning,
+    // a little more each render frame the same way, so the direction shows at any nut speed.
+    this.spinRing = ring;
+    group.parent?.add(ring);
+    return { group, radius, height };
   }
 
   frame(id) {
@@ -132,19 +194,51 @@ export class RobotScene {
       f.quaternion.set(p[3], p[4], p[5], p[6]);
     }
     const ee = state.ee ?? {};
-    const lit = ee.kind === 'suction' && ee.on;
-    for (const m of this.suction) {
-      m.emissive.setRGB(lit ? 0.1 : 0, lit ? 0.9 : 0, lit ? 0.3 : 0);
+    this.ee = ee;
+    const lit = ee.kind === 'suction' && ee.on === true;
+    for (const m of this.cups) m.emissive.copy(lit ? LIT : BLACK);
+    if (Number.isFinite(ee.opening)) {
+      for (const f of this.fingers) f.group.position.y = f.sign * (ee.opening / 2 + f.halfY) - f.y0;
     }
-    this.spin = ee.kind === 'screw' && ee.on ? Math.sign(ee.spin ?? 0) : 0;
+    this.spin = ee.kind === 'screw' && Number.isFinite(ee.spin) ? Math.sign(ee.spin) : 0;
+    if (this.spinRing) {
+      this.spinRing.visible = this.spin !== 0;
+      // tile-sim: spin +1 tightens, turning the nut clockwise seen from above (about −Z); the
+      // arrows are drawn counter-clockwise, so mirror them for +1.
+      this.spinRing.scale.y = this.spin > 0 ? -1 : 1;
+    }
     const t = state.target;
     this.target.visible = Array.isArray(t) && t.length >= 3;
     if (this.target.visible) this.target.position.set(t[0], t[1], t[2]);
   }
 
-  /** Per render frame: animate what moves between states (the screw's spin). */
+  /** Per render frame: animate what moves between states (the spin ring). */
   tick(dt) {
-    if (this.spin === 0) return;
-    for (const g of this.screws) g.rotateZ(this.spin * SPIN_RAD_PER_S * dt);
+    if (this.spin === 0 || !this.spinRing) return;
+    this.spinRing.rotateZ(-this.spin * SPIN_RAD_PER_S * dt);
+  }
+
+  /** What is drawn, for tests: lit cups, finger centres (tool y, m), the nut's angle about its
+   * frame's Z (rad) and whether the spin ring shows. */
+  describe() {
+    const fingers = {};
+    for (const f of this.fingers) fingers[f.name] = f.y0 + f.group.position.y;
+    let nutAngle = null;
+    if (this.nut) {
+      const q = this.nut.group.parent.quaternion;
+      nutAngle = 2 * Math.atan2(q.z, q.w);
+    }
+    return {
+      cups: this.cups.length,
+      cupsLit: this.cups.filter((m) => m.emissive.equals(LIT)).length,
+      fingers,
+      nutAngle,
+      spinRing: Boolean(this.spinRing?.visible),
+      spinDirection: this.spin,
+      viewFromBase: this.root.matrix.toArray(),
+      frames: Object.fromEntries([...this.frames].map(([k, f]) => [k, [...f.position.toArray(), ...f.quaternion.toArray()]])),
+    };
   }
 }
+
+const BLACK = new THREE.Color(0, 0, 0);

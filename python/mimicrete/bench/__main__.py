@@ -7,7 +7,7 @@ import importlib
 import sys
 import time
 
-AREAS = ["kin", "sim", "demo", "teleop", "train", "gestures"]
+AREAS = ["kin", "sim", "demo", "teleop", "teleop_live", "gestures", "train"]
 
 
 def main() -> int:

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete.kin import Calibration
+
 
 def _pose(t: Any, q: Any) -> dict[str, Any]:
     return {
@@ -120,4 +122,39 @@ def effector_state(task: str, snap: dict[str, Any]) -> dict[str, Any]:
         return {"kind": "suction", "on": bool(snap["suction_on"])}
     if task == "grip":
         return {"kind": "gripper", "opening": float(snap["gripper_width"])}
-    return {"kind": "screw", "on": bool(snap["held"]), "spin": int(snap["spin"])}
+    # the screw task's tool is the gripper too: its fingers close on the nut
+    return {
+        "kind": "screw",
+        "on": bool(snap["held"]),
+        "spin": int(snap["spin"]),
+        "opening": float(snap["gripper_width"]),
+    }
+
+
+#: Where a standing user works (metres): the table top :data:`STANDING_BELOW` under the head
+#: and the workspace's centre :data:`STANDING_AHEAD` in front of it.
+STANDING_BELOW = 0.8
+STANDING_AHEAD = 0.5
+#: The middle of the tasks' workspace in Base (x, y), m: between the pad (-0.22, 0.28) and the
+#: tile's start strip (x 0 … 0.15, y 0.32) of tile-sim's suction and grip scenes.
+WORKSPACE_CENTRE = (-0.035, 0.30)
+
+
+def standing_calibration(
+    below: float = STANDING_BELOW,
+    ahead: float = STANDING_AHEAD,
+    centre: tuple[float, float] = WORKSPACE_CENTRE,
+) -> Calibration:
+    """A calibration for a standing user at the table's +Y edge facing the robot (−Y in Base):
+    the ``local`` origin (the head when the session began) is ``below`` m above the table top
+    (Base z = 0) and ``ahead`` m behind the workspace's ``centre``, looking at it. The page draws
+    the scene with the inverse of the calibration (``live.view_from_base``), so the robot's tool
+    is drawn at the hand and the workspace sits in front of the user at a standing table's height.
+
+    ur3-kin's default calibration (operator at the robot's base facing +X, head 0.6 m above the
+    table) puts the pad 0.12 m *behind* the head and the tile 0.3 m to the left.
+    """
+    # rotation columns: where forward, left and up (FLU) point in Base
+    rotation = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    translation = np.array([centre[0], centre[1] + ahead, below])
+    return Calibration(rotation, translation, 1.0, Calibration().space)

@@ -1,0 +1,52 @@
+"""Where the page puts the robot cell: the scene is drawn through ``view_from_base`` (the inverse
+of the calibration the server maps hands with), so the proposed standing calibration must put the
+table top 0.8 m under the head and the workspace 0.5 m in front of it, and the tool at the hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mimicrete import kin
+from mimicrete.teleop.live import view_from_base
+from mimicrete.teleop.session import Session
+from mimicrete.teleop.view import effector_state, standing_calibration
+
+
+def _local(calib: kin.Calibration, base_points: np.ndarray) -> np.ndarray:
+    m = np.asarray(view_from_base(calib)).reshape(4, 4, order="F")
+    p = np.c_[base_points, np.ones(len(base_points))]
+    return (p @ m.T)[:, :3]
+
+
+def test_standing_calibration_puts_the_table_low_and_the_workspace_ahead():
+    calib = standing_calibration()
+    # WebXR local: x right, y up, z back; the head at the origin
+    for task in ("suction", "grip", "screw"):
+        for seed in range(6):
+            snap = Session(task, "webxr", "right", calib, seed).env.snapshot()
+            pts = np.array([snap["object"]["t"], snap["target"]["t"]])
+            local = _local(calib, pts)
+            ahead, side = -local[:, 2], local[:, 0]
+            assert np.all((ahead > 0.35) & (ahead < 0.65)), (task, local)
+            assert np.all(np.abs(side) < 0.25), (task, local)
+    table_top = _local(calib, np.array([[-0.035, 0.30, 0.0]]))[0]
+    np.testing.assert_allclose(table_top, [0.0, -0.8, -0.5], atol=1e-12)
+    # the hand maps back onto the same point: view_from_base is the calibration's inverse
+    back = kin.points_to_base(table_top[None], calib)[0]
+    np.testing.assert_allclose(back, [-0.035, 0.30, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize(("below", "ahead"), [(0.8, 0.5), (0.6, 0.4), (1.0, 0.7)])
+def test_standing_calibration_parameters(below, ahead):
+    c = standing_calibration(below=below, ahead=ahead, centre=(0.1, 0.2))
+    got = _local(c, np.array([[0.1, 0.2, 0.0]]))[0]
+    np.testing.assert_allclose(got, [0, -below, -ahead], atol=1e-12)
+    assert np.linalg.det(c.rotation) == pytest.approx(1.0)
+
+
+def test_effector_state_of_each_task():
+    snap = Session("screw", "webxr", "right", standing_calibration(), 0).env.snapshot()
+    ee = effector_state("screw", snap)
+    assert ee == {"kind": "screw", "on": False, "spin": 0, "opening": pytest.approx(0.085)}
+    assert effector_state("grip", snap)["opening"] == pytest.approx(0.085)
