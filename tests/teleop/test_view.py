@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mimicrete import kin
 from mimicrete.teleop.live import view_from_base
@@ -50,3 +52,16 @@ def test_effector_state_of_each_task():
     ee = effector_state("screw", snap)
     assert ee == {"kind": "screw", "on": False, "spin": 0, "opening": pytest.approx(0.085)}
     assert effector_state("grip", snap)["opening"] == pytest.approx(0.085)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_closed_form_quaternion_equals_scipy(seed):
+    from scipy.spatial.transform import Rotation
+
+    from mimicrete.teleop.live import quat_xyzw
+
+    r = Rotation.random(random_state=seed)
+    q = np.array(quat_xyzw(r.as_matrix()))
+    ref = r.as_quat()
+    assert min(np.abs(q - ref).max(), np.abs(q + ref).max()) < 1e-12

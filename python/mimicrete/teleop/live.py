@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,7 +29,7 @@ from mimicrete.kin import Calibration
 from .protocol import HandFrame
 from .record import DemoSink, episode_meta
 from .session import Session, Step
-from .view import effector_state, frame_poses
+from .view import effector_state, frame_poses, standing_calibration
 
 PINCH_M = 0.02  # thumb tip to index tip, left hand
 PINCH_HOLD_S = 1.0
@@ -45,6 +46,23 @@ def view_from_base(calibration: Calibration) -> list[float]:
     m[:3, :3] = (p[1:] - p[0]).T  # columns: images of the unit vectors
     m[:3, 3] = p[0]
     return np.linalg.inv(m).reshape(-1, order="F").tolist()
+
+
+def quat_xyzw(r: np.ndarray) -> list[float]:
+    """Unit quaternion ``[x, y, z, w]`` of a rotation matrix (Shepperd's method, closed form)."""
+    t = float(r[0, 0] + r[1, 1] + r[2, 2])
+    if t > 0.0:
+        k = 2.0 * np.sqrt(t + 1.0)
+        q = [(r[2, 1] - r[1, 2]) / k, (r[0, 2] - r[2, 0]) / k, (r[1, 0] - r[0, 1]) / k, k / 4.0]
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, m = (i + 1) % 3, (i + 2) % 3
+        k = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[m, m])
+        q = [0.0, 0.0, 0.0, (r[m, j] - r[j, m]) / k]
+        q[i] = k / 4.0
+        q[j] = (r[j, i] + r[i, j]) / k
+        q[m] = (r[m, i] + r[i, m]) / k
+    return [float(x) for x in q]
 
 
 @dataclass
@@ -91,13 +109,17 @@ class Live:
             calibration = parse_calibration(
                 json.loads(self.calib_path.read_text()), str(self.calib_path)
             )
-        self.calibration = calibration or Calibration()
+        self.calibration = calibration or standing_calibration()
         self.model = model or gest.load_default(self.task.name)
         self.next_index = self._first_free_index()
         self.seed = int(seed)
         self.episode: Episode | None = None
         self.last_result: str | None = None
-        self.last_saved: dict[str, Any] | None = None
+        self._last_saved: dict[str, Any] | None = None
+        # closing a demo and writing its hand log take tens of ms (more on a loaded machine): a
+        # worker thread does it, so the frames of the next episode are not held up
+        self._io = ThreadPoolExecutor(max_workers=1, thread_name_prefix="teleop-save")
+        self._pending: list[Future[None]] = []
         self.preview = self._session(self.seed + self.next_index, None)
         self.pinch_since: float | None = None
         self.pinch_fired = False
@@ -200,18 +222,25 @@ class Live:
             res = "time limit"
         else:
             res = result or "stopped"
+        self.last_result = res
+        finished = s.done or result is None
+        self._pending.append(self._io.submit(self._save, ep, res, finished))
+        self.preview = self._session(self.seed + self.next_index, None)
+        return {"index": ep.index, "result": res, "steps": o.steps, "finished": finished}
+
+    def _save(self, ep: Episode, res: str, finished: bool) -> None:
+        """Close the demo and write the hand log (in the worker thread)."""
+        s = ep.session
         name = f"{self.task.name}_{ep.index:04d}"
         demo = self.out / f"{name}.mcap"
         hand = self.out / f"{name}.handlog.jsonl"
         if ep.t:
             self._write_handlog(hand, ep)
-        finished = s.done or result is None
         if finished:
-            ep.sink.close(o.installed, s.counts, {"result": res})
+            ep.sink.close(s.installed, s.counts, {"result": res})
         else:  # cut short (disconnect, Ctrl-C): kept as a valid, unfinished .partial file
             ep.sink.abandon()
             demo = Path(str(demo) + ".partial")
-        self.last_result = res
         saved = {
             "type": "episode",
             "event": "saved",
@@ -219,13 +248,23 @@ class Live:
             "result": res,
             "demo": str(demo),
             "handlog": str(hand) if ep.t else None,
-            "steps": o.steps,
+            "steps": s.step_index,
             "finished": finished,
         }
-        self.last_saved = saved
+        self._last_saved = saved
         self.events.append(saved)
-        self.preview = self._session(self.seed + self.next_index, None)
-        return saved
+
+    def flush(self) -> None:
+        """Wait until every stopped episode is on disk (errors of a save are raised here)."""
+        pending, self._pending = self._pending, []
+        for f in pending:
+            f.result()
+
+    @property
+    def last_saved(self) -> dict[str, Any] | None:
+        """The newest saved episode (waits for saves in progress)."""
+        self.flush()
+        return self._last_saved
 
     def discard(self) -> None:
         """End the recording without keeping anything."""
@@ -240,10 +279,12 @@ class Live:
         self.preview = self._session(self.seed + self.next_index, None)
 
     def recentre(self) -> list[float] | None:
-        """Shift the calibration so the right hand's current target is tool0's current position;
-        saved to ``out/calibration.json`` and used by the next episodes."""
+        """Shift the calibration so the right hand's current target is tool0's current position
+        (the robot stays where it is); saved to ``out/calibration.json`` and used from now on.
+        Not during a recording (its hand log has one calibration): returns None then, and when
+        no hand has been seen yet."""
         s = self.session
-        if s.target is None:
+        if s.target is None or self.recording:
             return None
         tool0 = np.asarray(s.env.snapshot()["tool0"]["t"], dtype=np.float64)
         delta = tool0 - s.target[:3, 3]
@@ -252,8 +293,7 @@ class Live:
         tmp = self.calib_path.with_suffix(".json.tmp")
         tmp.write_text(json.dumps(self.calibration.to_dict(), indent=1))
         os.replace(tmp, self.calib_path)
-        if self.episode is None:
-            self.preview = self._session(self.seed + self.next_index, None)
+        s.set_calibration(self.calibration, shift=delta)
         return view_from_base(self.calibration)
 
     # ------------------------------------------------------------------ state out
@@ -272,9 +312,7 @@ class Live:
             why = "not recording"
         target = None
         if s.target is not None:
-            from scipy.spatial.transform import Rotation
-
-            target = [*s.target[:3, 3].tolist(), *Rotation.from_matrix(s.target[:3, :3]).as_quat()]
+            target = [*s.target[:3, 3].tolist(), *quat_xyzw(s.target[:3, :3])]
         margin = None if s.margin is None else round(s.margin, 3)
         return {
             "type": "state",

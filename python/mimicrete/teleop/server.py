@@ -136,8 +136,8 @@ class TeleopServer:
             if ws is self.driver:
                 self.driver = None
                 if self.live.recording:
-                    saved = self.live.stop("disconnected")
-                    self.log(f"driver disconnected mid-episode; kept {saved}")
+                    self.live.stop("disconnected")
+                    self.log(f"driver disconnected mid-episode; kept {self.live.last_saved}")
             self.viewers.discard(ws)
         return ws
 
@@ -198,6 +198,9 @@ class TeleopServer:
             m = live.recentre()
             if m is not None:
                 await self._broadcast({"type": "calibration", "view_from_base": m})
+            elif self.driver is not None:
+                why = "not while recording" if live.recording else "no tracked hand yet"
+                await self.driver.send_json({"type": "error", "message": f"recentre: {why}"})
         else:
             self.stats.dropped["unknown"] += 1
         await self._flush_events()
@@ -248,8 +251,10 @@ class TeleopServer:
 
     async def _shutdown(self, app: web.Application) -> None:
         if self.live.recording:
-            saved = self.live.stop("interrupted")
-            self.log(f"stopped mid-episode; kept {saved}")
+            self.live.stop("interrupted")
+        self.live.flush()  # every stopped episode on disk before the process ends
+        if self.live.last_saved and self.live.last_saved["result"] == "interrupted":
+            self.log(f"stopped mid-episode; kept {self.live.last_saved}")
         for ws in [self.driver, *self.viewers]:
             if ws is not None:
                 await ws.close()

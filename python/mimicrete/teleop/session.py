@@ -272,6 +272,15 @@ class Session:
             self.total_reward,
         )
 
+    def set_calibration(self, calibration: Any, shift: np.ndarray | None = None) -> None:
+        """Use another calibration from the next frame on; ``shift`` (Base, m) moves the current
+        target with it (a calibration that differs by a translation moves every target by it)."""
+        self.calibration = calibration
+        self._calib = kin._calib(calibration)
+        if shift is not None and self.target is not None:
+            self.target = self.target.copy()
+            self.target[:3, 3] += np.asarray(shift, dtype=np.float64)
+
     # ------------------------------------------------------------------ input
 
     def push(self, t: float, tracked: bool, joints: np.ndarray) -> list[Step]:
