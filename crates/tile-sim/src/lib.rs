@@ -69,6 +69,7 @@ pub mod world;
 
 pub use env::{
     Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
+    episode_scene, object_start,
 };
 pub use vecenv::{StepBuffers, StepOut, VecEnv};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
