@@ -223,7 +223,7 @@ impl Default for WriterOptions {
 }
 
 /// What [`DemoWriter::finish`] wrote.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct WriteStats {
     /// Final path of the file.
     pub path: PathBuf,

@@ -19,7 +19,7 @@ pub const HOME_Q: [f64; 6] = [
 ];
 
 /// A pose as plain numbers: translation (m) and quaternion `[x, y, z, w]`, Base frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct PoseRec {
     pub t: [f64; 3],
     pub q: [f64; 4],
@@ -56,7 +56,7 @@ pub struct StepOutcome {
 }
 
 /// Full state for demo recording. Poses in the Base frame.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Snapshot {
     pub task: Task,
     /// Joint angles, rad.

@@ -128,7 +128,8 @@ pub enum SimError {
 /// * `Screw`: grip the nut threaded on a fixed M12 bolt and spin it down [`SCREW_TURNS`] turns.
 ///   Grip the nut → +1 once; turns ≥ [`SCREW_TURNS`] → +1, terminated; loosened more than one turn
 ///   (the nut leaves the bolt and drops) → −0.5, terminated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(into = "&'static str")]
 pub enum Task {
     TileSuction,
     BlockGrip,
@@ -190,5 +191,11 @@ impl Task {
             Task::TileSuction | Task::BlockGrip => 7,
             Task::Screw => 8,
         }
+    }
+}
+
+impl From<Task> for &'static str {
+    fn from(t: Task) -> &'static str {
+        t.name()
     }
 }
