@@ -330,7 +330,9 @@ def load_log(path: str | os.PathLike[str]) -> HandLogData:
 
 def _require_frames(log: HandLogData, source: str) -> None:
     if len(log) == 0:
-        raise LogFormatError(f"{source}:2: no frames")
+        from mimicrete import _native
+
+        raise _native.log_format_error(source, 2, "no frames")
 
 
 def convert_log(

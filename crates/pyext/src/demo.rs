@@ -282,7 +282,9 @@ impl PyDemoWriter {
         self.w()?;
         let w = self.inner.take().expect("checked above");
         let s = py.detach(|| w.finish(&summary)).map_err(demo_err)?;
-        Ok(to_py(py, &s)?.cast_into()?)
+        let d = to_py(py, &s)?.cast_into::<PyDict>()?;
+        d.set_item("path", &s.path)?;
+        Ok(d)
     }
 
     /// Close without finishing: the file stays as `path + ".partial"` (valid, salvageable).
