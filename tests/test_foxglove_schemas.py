@@ -22,7 +22,9 @@ jsonschema = pytest.importorskip("jsonschema")
 
 ROOT = Path(__file__).resolve().parent.parent
 SCHEMAS = Path(
-    os.environ.get("MIMICRETE_FOXGLOVE_SCHEMAS", ROOT / "web" / "node_modules" / "@foxglove" / "schemas")
+    os.environ.get(
+        "MIMICRETE_FOXGLOVE_SCHEMAS", ROOT / "web" / "node_modules" / "@foxglove" / "schemas"
+    )
 )
 INDEX = SCHEMAS / "dist" / "jsonschema" / "index.js"
 
@@ -72,9 +74,12 @@ def test_every_tf_and_scene_message_validates(demo: Path):
             counts[channel.topic] += 1
             if channel.topic == "/scene" and first_scene is None:
                 first_scene = msg
-            assert schema.name == {"/tf": "foxglove.FrameTransforms", "/scene": "foxglove.SceneUpdate"}[
-                channel.topic
-            ]
+            assert (
+                schema.name
+                == {"/tf": "foxglove.FrameTransforms", "/scene": "foxglove.SceneUpdate"}[
+                    channel.topic
+                ]
+            )
     steps = _native.demo_read(str(demo))["rewards"].shape[0]
     assert counts["/tf"] == steps and counts["/scene"] >= 1
     ents = {e["id"]: e for e in first_scene["entities"]}

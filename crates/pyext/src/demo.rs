@@ -50,10 +50,7 @@ fn handlog_to_py<'py>(py: Python<'py>, log: &HandLog, rep: &ParseReport) -> PyRe
     Ok(d)
 }
 
-/// Parse a hand-log file. Returns a dict: `header` (dict), `t` (T,) float64 s, `tracked` (T,)
-/// bool, `joints` (T, J, 3) float64 m, `orientations` (T, J, 4) or None, `report` (dict:
-/// frame_lines, kept, untracked_skipped, invalid_skipped, skipped [(line, reason)]).
-/// Raises `LogFormatError` (`file`, `line`, `reason`; message `file:line: reason`).
+/// Parse a hand-log file → dict header, t, tracked, joints, orientations, report.
 #[pyfunction]
 #[pyo3(signature = (path, mode = "strict"))]
 fn demo_parse_handlog<'py>(py: Python<'py>, path: PathBuf, mode: &str) -> PyResult<Bound<'py, PyDict>> {
@@ -75,9 +72,7 @@ fn demo_parse_handlog_str<'py>(
     handlog_to_py(py, &log, &rep)
 }
 
-/// Write a hand log (atomically). `header` needs layout, space, handedness (task, episode_seed,
-/// source, extra optional); `t` (T,), `tracked` (T,), `joints` (T, J, 3), `orientations`
-/// (T, J, 4) or None. Raises `LogFormatError` for invalid content (nothing is written).
+/// Write a hand log atomically; invalid content raises `LogFormatError` and writes nothing.
 #[pyfunction]
 #[pyo3(signature = (path, header, t, tracked, joints, orientations = None))]
 fn demo_write_handlog(
@@ -138,14 +133,7 @@ fn str_map(d: Option<&Bound<'_, PyDict>>) -> PyResult<BTreeMap<String, String>> 
     })
 }
 
-/// Records one episode into an MCAP demo (written as `path + ".partial"` until `finish`).
-///
-/// `DemoWriter(path, meta, chunk_size=65536, flush_every_steps=50)`; `meta`: a dict of
-/// `demo_log::EPISODE_META_KEYS` (episode, task, seed, robot_model, source_handlog, gesture_model,
-/// control_dt, hand, scene, extra; see `EpisodeMeta::from_json`). The task's scene is added to
-/// `/scene` by the writer. A context manager: leaving the block normally finishes the episode with
-/// `success=False` if `finish` was not called; leaving it by an exception abandons it (the
-/// `.partial` file stays, closed and salvageable).
+/// Records one episode into an MCAP demo (`path + ".partial"` until `finish`); a context manager.
 #[pyclass(module = "mimicrete._native", name = "DemoWriter")]
 pub struct PyDemoWriter {
     inner: Option<RsWriter>,
@@ -177,9 +165,7 @@ impl PyDemoWriter {
         Ok(PyDemoWriter { inner: Some(w), path })
     }
 
-    /// Record one step. `obs`, `action`: 1-D float32 arrays; `joints` (6,) rad; `ee_pose`,
-    /// `tile_pose`: [x, y, z, qx, qy, qz, qw] or (4, 4); `events`: names ("pick", "install",
-    /// "fall"); `scene`: entity dicts to add/replace.
+    /// Record one step; poses are [x, y, z, qx, qy, qz, qw] or (4, 4); `scene`: entity dicts.
     #[pyo3(signature = (step, t, obs, action, reward, terminated, truncated, gesture, joints, ee_pose, tile_pose, events = None, scene = None))]
     #[allow(clippy::too_many_arguments)]
     fn write_step(
@@ -219,8 +205,7 @@ impl PyDemoWriter {
         self.w()?.write_step(&rec).map_err(demo_err)
     }
 
-    /// Record a raw hand frame at episode time `t`: `joints` (J, 3) m; `hand_t` is the frame's
-    /// own log time (defaults to `t`); `orientations` (J, 4) or None.
+    /// Record a raw hand frame (J, 3) at episode time `t` (`hand_t`: the frame's own time).
     #[pyo3(signature = (t, joints, tracked = true, hand_t = None, orientations = None))]
     fn write_hand_frame(
         &mut self,
@@ -269,8 +254,7 @@ impl PyDemoWriter {
         self.path.clone()
     }
 
-    /// End the episode (metadata record, summary) and rename the file into place. Returns a
-    /// dict: path, steps, messages, chunks, bytes.
+    /// End the episode and rename the file into place → dict path, steps, messages, chunks, bytes.
     #[pyo3(signature = (success, extra = None))]
     fn finish<'py>(
         &mut self,
@@ -324,8 +308,7 @@ fn f32_rows<'py>(
     Ok(Array2::from_shape_vec((n, d), v).map_err(|e| PyValueError::new_err(e.to_string()))?.into_pyarray(py))
 }
 
-/// Read one demo: dict obs (T, obs_dim) float32, actions (T, act_dim) float32, rewards (T,)
-/// float32, terminated (T,) bool, truncated (T,) bool, t (T,) float64, meta (dict of str).
+/// Read one demo → dict obs, actions, rewards, terminated, truncated, t, meta.
 #[pyfunction]
 fn demo_read<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let ep = py.detach(|| demo_log::read_demo(&path)).map_err(demo_err)?;
@@ -341,10 +324,7 @@ fn demo_read<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>
     Ok(d)
 }
 
-/// Read a demo file or every `*.mcap` of a directory (sorted by name), concatenated: dict obs
-/// (N, obs_dim) float32, actions (N, act_dim) float32, rewards (N,) float32, terminated (N,)
-/// bool, truncated (N,) bool, episode (N,) int64 (index into files), files (list of str),
-/// metas (list of dict).
+/// A demo file or every `*.mcap` of a directory (sorted), concatenated, with episode, files, metas.
 #[pyfunction]
 fn demo_load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let ds = py.detach(|| demo_log::load_dataset(&path)).map_err(demo_err)?;
@@ -361,8 +341,7 @@ fn demo_load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>
     Ok(d)
 }
 
-/// Every complete message of a (possibly cut) demo: (list of dicts topic, schema_name,
-/// log_time ns, sequence, data bytes; report dict).
+/// Every complete message of a (possibly cut) demo → (messages as dicts, report dict).
 #[pyfunction]
 fn demo_salvage<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyDict>)> {
     let (msgs, rep) = py.detach(|| demo_log::salvage(&path)).map_err(demo_err)?;
@@ -379,8 +358,7 @@ fn demo_salvage<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyL
     Ok((out, to_py(py, &rep)?.cast_into()?))
 }
 
-/// Rewrite what can be recovered from `path_in` as a valid MCAP file `path_out`; returns the
-/// report dict.
+/// Rewrite what can be recovered from `path_in` as a valid MCAP file `path_out` → report dict.
 #[pyfunction]
 fn demo_salvage_to<'py>(
     py: Python<'py>,

@@ -13,6 +13,10 @@ use ur3_kin::nalgebra::{Matrix4, Vector3};
 use ur3_kin::{Calibration, Handedness, IkOptions, Joints, KinError, Pose, Space, UrModel};
 
 type Arr1<'py> = Bound<'py, PyArray1<f64>>;
+type F1<'py> = PyReadonlyArray1<'py, f64>;
+type F2<'py> = PyReadonlyArray2<'py, f64>;
+type F3<'py> = PyReadonlyArray3<'py, f64>;
+type Ok1<'py> = Bound<'py, PyArray1<bool>>;
 type Arr2<'py> = Bound<'py, PyArray2<f64>>;
 type Arr3<'py> = Bound<'py, PyArray3<f64>>;
 
@@ -108,17 +112,13 @@ fn kin_dh(model_name: &str) -> PyResult<std::collections::BTreeMap<&'static str,
 
 /// FK: q (6,) → tool0 in Base (4, 4).
 #[pyfunction]
-fn kin_fk<'py>(py: Python<'py>, q: PyReadonlyArray1<'py, f64>, model_name: &str) -> PyResult<Arr2<'py>> {
+fn kin_fk<'py>(py: Python<'py>, q: F1<'py>, model_name: &str) -> PyResult<Arr2<'py>> {
     Ok(arr2(&ur3_kin::fk(model(model_name)?, &joints_from(q.as_array(), "q")?)).into_pyarray(py))
 }
 
 /// FK of many configurations: q (N, 6) → (N, 4, 4).
 #[pyfunction]
-fn kin_fk_batch<'py>(
-    py: Python<'py>,
-    q: PyReadonlyArray2<'py, f64>,
-    model_name: &str,
-) -> PyResult<Arr3<'py>> {
+fn kin_fk_batch<'py>(py: Python<'py>, q: F2<'py>, model_name: &str) -> PyResult<Arr3<'py>> {
     let m = model(model_name)?;
     let qs = rows::<6>(q.as_array(), "q", None)?;
     finite(qs.iter().flatten().copied(), "q")?;
@@ -127,17 +127,13 @@ fn kin_fk_batch<'py>(
 
 /// Every DH frame (Base, after joint 1, …, tool0): (7, 4, 4).
 #[pyfunction]
-fn kin_fk_all<'py>(py: Python<'py>, q: PyReadonlyArray1<'py, f64>, model_name: &str) -> PyResult<Arr3<'py>> {
+fn kin_fk_all<'py>(py: Python<'py>, q: F1<'py>, model_name: &str) -> PyResult<Arr3<'py>> {
     Ok(stack(&ur3_kin::fk_all(model(model_name)?, &joints_from(q.as_array(), "q")?)).into_pyarray(py))
 }
 
 /// Geometric Jacobian at tool0 in Base: (6, 6), rows linear then angular.
 #[pyfunction]
-fn kin_jacobian<'py>(
-    py: Python<'py>,
-    q: PyReadonlyArray1<'py, f64>,
-    model_name: &str,
-) -> PyResult<Arr2<'py>> {
+fn kin_jacobian<'py>(py: Python<'py>, q: F1<'py>, model_name: &str) -> PyResult<Arr2<'py>> {
     let j = ur3_kin::jacobian(model(model_name)?, &joints_from(q.as_array(), "q")?);
     Ok(Array2::from_shape_fn((6, 6), |(r, c)| j[(r, c)]).into_pyarray(py))
 }
@@ -147,8 +143,8 @@ fn kin_jacobian<'py>(
 #[pyo3(signature = (t, seed, model_name, tol=None))]
 fn kin_ik<'py>(
     py: Python<'py>,
-    t: PyReadonlyArray2<'py, f64>,
-    seed: Option<PyReadonlyArray1<'py, f64>>,
+    t: F2<'py>,
+    seed: Option<F1<'py>>,
     model_name: &str,
     tol: Option<f64>,
 ) -> PyResult<Arr1<'py>> {
@@ -162,8 +158,8 @@ fn kin_ik<'py>(
 #[pyo3(signature = (t, seed, model_name, tol=None, max_iters=100))]
 fn kin_ik_gn<'py>(
     py: Python<'py>,
-    t: PyReadonlyArray2<'py, f64>,
-    seed: PyReadonlyArray1<'py, f64>,
+    t: F2<'py>,
+    seed: F1<'py>,
     model_name: &str,
     tol: Option<f64>,
     max_iters: usize,
@@ -177,30 +173,24 @@ fn kin_ik_gn<'py>(
 /// Every closed-form solution: T (4, 4) → (k, 6), k ≤ 8 (k = 0 when unreachable).
 #[pyfunction]
 #[pyo3(signature = (t, model_name, q6_ref=0.0))]
-fn kin_ik_all<'py>(
-    py: Python<'py>,
-    t: PyReadonlyArray2<'py, f64>,
-    model_name: &str,
-    q6_ref: f64,
-) -> PyResult<Arr2<'py>> {
+fn kin_ik_all<'py>(py: Python<'py>, t: F2<'py>, model_name: &str, q6_ref: f64) -> PyResult<Arr2<'py>> {
     let (m, target) = (model(model_name)?, pose_from(t.as_array(), "T")?);
     finite([q6_ref], "q6_ref")?;
     let sols = ur3_kin::ik_all_with_q6(m, &target, q6_ref);
     Ok(Array2::from_shape_fn((sols.len(), 6), |(r, c)| sols[r][c]).into_pyarray(py))
 }
 
-/// Batched IK over threads (GIL released): Ts (N, 4, 4), seeds (N, 6) or None →
-/// (q (N, 6), ok (N,) bool). Rows that failed (ur3-kin's per-row policy) hold NaN and False.
+/// Batched IK, GIL released: Ts (N, 4, 4), seeds (N, 6) | None → (q (N, 6), ok (N,)); failed rows NaN.
 #[pyfunction]
 #[pyo3(signature = (ts, seeds, model_name, threads=0, tol=None))]
 fn kin_ik_batch<'py>(
     py: Python<'py>,
-    ts: PyReadonlyArray3<'py, f64>,
-    seeds: Option<PyReadonlyArray2<'py, f64>>,
+    ts: F3<'py>,
+    seeds: Option<F2<'py>>,
     model_name: &str,
     threads: usize,
     tol: Option<f64>,
-) -> PyResult<(Arr2<'py>, Bound<'py, PyArray1<bool>>)> {
+) -> PyResult<(Arr2<'py>, Ok1<'py>)> {
     let (m, a) = (model(model_name)?, ts.as_array());
     if a.shape()[1..] != [4, 4] {
         return Err(shape_err("Ts", "(N, 4, 4)", a.shape()));
@@ -219,11 +209,7 @@ fn kin_ik_batch<'py>(
     Ok((q.into_pyarray(py), ok.into_pyarray(py)))
 }
 
-fn calibration(
-    base_from_space: Option<PyReadonlyArray2<'_, f64>>,
-    scale: f64,
-    space: &str,
-) -> PyResult<Calibration> {
+fn calibration(base_from_space: Option<F2<'_>>, scale: f64, space: &str) -> PyResult<Calibration> {
     let space = Space::from_name(space).map_err(kin_err)?;
     let base_from_space = match base_from_space {
         Some(m) => pose_from(m.as_array(), "base_from_space")?,
@@ -235,18 +221,17 @@ fn calibration(
     Ok(Calibration { base_from_space, scale, space })
 }
 
-/// Hand joints → tool0 target (4, 4) in Base. Points (3,) in `space`; `base_from_space` (4, 4)
-/// or None for the default calibration's transform.
+/// Hand joints (3,) each, in `space` → tool0 target (4, 4) in Base (`base_from_space` None: default).
 #[pyfunction]
 #[pyo3(signature = (wrist, index_proximal, middle_proximal, handedness, base_from_space, scale, space))]
 #[allow(clippy::too_many_arguments)]
 fn kin_hand_to_target<'py>(
     py: Python<'py>,
-    wrist: PyReadonlyArray1<'py, f64>,
-    index_proximal: PyReadonlyArray1<'py, f64>,
-    middle_proximal: PyReadonlyArray1<'py, f64>,
+    wrist: F1<'py>,
+    index_proximal: F1<'py>,
+    middle_proximal: F1<'py>,
     handedness: &str,
-    base_from_space: Option<PyReadonlyArray2<'py, f64>>,
+    base_from_space: Option<F2<'py>>,
     scale: f64,
     space: &str,
 ) -> PyResult<Arr2<'py>> {
@@ -258,25 +243,24 @@ fn kin_hand_to_target<'py>(
     Ok(arr2(&ur3_kin::hand_to_target(&w, &i, &mp, hd, &cal).map_err(kin_err)?).into_pyarray(py))
 }
 
-/// Many frames: wrist, index_proximal, middle_proximal (N, 3) → (T (N, 4, 4), ok (N,)).
-/// Degenerate or non-finite frames give ok False and an identity T.
+/// Many frames (N, 3) each → (T (N, 4, 4), ok (N,)); degenerate frames: ok False, identity T.
 #[pyfunction]
 #[pyo3(signature = (wrist, index_proximal, middle_proximal, handedness, base_from_space, scale, space))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn kin_hand_to_target_batch<'py>(
     py: Python<'py>,
-    wrist: PyReadonlyArray2<'py, f64>,
-    index_proximal: PyReadonlyArray2<'py, f64>,
-    middle_proximal: PyReadonlyArray2<'py, f64>,
+    wrist: F2<'py>,
+    index_proximal: F2<'py>,
+    middle_proximal: F2<'py>,
     handedness: &str,
-    base_from_space: Option<PyReadonlyArray2<'py, f64>>,
+    base_from_space: Option<F2<'py>>,
     scale: f64,
     space: &str,
-) -> PyResult<(Arr3<'py>, Bound<'py, PyArray1<bool>>)> {
+) -> PyResult<(Arr3<'py>, Ok1<'py>)> {
     let hd = Handedness::from_name(handedness).map_err(kin_err)?;
     let cal = calibration(base_from_space, scale, space)?;
     let n = Some(wrist.as_array().shape()[0]);
-    let v = |a: &PyReadonlyArray2<'py, f64>, what| -> PyResult<Vec<Vector3<f64>>> {
+    let v = |a: &F2<'py>, what| -> PyResult<Vec<Vector3<f64>>> {
         Ok(rows::<3>(a.as_array(), what, n)?.into_iter().map(Vector3::from).collect())
     };
     let (w, i, m) =
@@ -292,8 +276,8 @@ fn kin_hand_to_target_batch<'py>(
 #[pyo3(signature = (points, base_from_space, scale, space))]
 fn kin_points_to_base<'py>(
     py: Python<'py>,
-    points: PyReadonlyArray2<'py, f64>,
-    base_from_space: Option<PyReadonlyArray2<'py, f64>>,
+    points: F2<'py>,
+    base_from_space: Option<F2<'py>>,
     scale: f64,
     space: &str,
 ) -> PyResult<Arr2<'py>> {

@@ -19,8 +19,7 @@ fn parse_task(name: &str) -> PyResult<Task> {
     Task::from_name(name).map_err(sim_err)
 }
 
-/// `Snapshot` as a dict (tile-sim's fields; poses `{"t": [x, y, z], "q": [x, y, z, w]}`) plus
-/// `links`: the DH frames' poses.
+/// tile-sim's `Snapshot` as a dict (poses `{"t": [x, y, z], "q": [x, y, z, w]}`) plus `links`.
 fn snapshot_dict<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyAny>> {
     let d = to_py(py, &env.snapshot())?;
     d.set_item("links", to_py(py, &env.link_poses())?)?;
@@ -47,8 +46,7 @@ fn flat<T: numpy::Element + Copy>(
     Ok(v.iter().copied().collect())
 }
 
-/// The Foxglove `SceneEntity` objects of episode `seed` of `task` (robot, table, pad, target, end
-/// effector, object), as written on a demo's `/scene`.
+/// The Foxglove `SceneEntity` objects a demo of episode `seed` of `task` carries on `/scene`.
 fn entities<'py>(py: Python<'py>, task: Task, seed: u64, model: &str) -> PyResult<Bound<'py, PyList>> {
     let m = ur3_kin::UrModel::by_name(model).map_err(crate::errors::kin_err)?;
     let ents = demo_log::episode_scene(m, task, seed);
@@ -65,17 +63,14 @@ fn frames(joints: [f64; 6], tile: demo_log::Pose, model: &str) -> PyResult<BTree
     Ok(f.into_iter().map(|(k, p)| (k, p.position.iter().chain(&p.orientation).copied().collect())).collect())
 }
 
-/// `scene_entities(task, seed=0, model="ur3")`: the Foxglove `SceneEntity` list (JSON-ready dicts)
-/// a demo of episode `seed` of `task` carries on `/scene`, frame-locked to `base`, the URDF links,
-/// `tool0` and `tile`.
+/// The Foxglove `SceneEntity` list (JSON-ready dicts) of episode `seed` of `task`.
 #[pyfunction]
 #[pyo3(signature = (task, seed = 0, model = "ur3"))]
 fn scene_entities<'py>(py: Python<'py>, task: &str, seed: u64, model: &str) -> PyResult<Bound<'py, PyList>> {
     entities(py, parse_task(task)?, seed, model)
 }
 
-/// `scene_frames(joints, tile_pose, model="ur3")`: `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base
-/// for the URDF links (`shoulder_link` … `tool0`) at `joints` (6,) and `tile` at `tile_pose` (7,).
+/// `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base: URDF links at `joints`, `tile` at `tile_pose`.
 #[pyfunction]
 #[pyo3(signature = (joints, tile_pose, model = "ur3"))]
 fn scene_frames(
@@ -90,12 +85,19 @@ fn scene_frames(
 /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
 type StepTuple<'py> = (Bound<'py, PyArray1<f32>>, f32, bool, bool, Bound<'py, PyDict>);
 
-/// One simulated environment. `SimEnv(task, seed=0)`; task "TileSuction" | "BlockGrip" |
-/// "Screw" (or "suction" | "grip" | "screw").
+/// One simulated environment: `SimEnv(task, seed=0)`, task "TileSuction" | "BlockGrip" | "Screw".
 #[pyclass(module = "mimicrete._native")]
 pub struct SimEnv {
     env: Env,
     obs: Vec<f32>,
+    #[pyo3(get)]
+    task: &'static str,
+    #[pyo3(get)]
+    obs_dim: usize,
+    #[pyo3(get)]
+    obs_frame_dim: usize,
+    #[pyo3(get)]
+    act_dim: usize,
 }
 
 #[pymethods]
@@ -104,24 +106,8 @@ impl SimEnv {
     #[pyo3(signature = (task, seed = 0))]
     fn new(task: &str, seed: u64) -> PyResult<Self> {
         let t = parse_task(task)?;
-        Ok(SimEnv { env: Env::new(t, seed), obs: vec![0.0; t.obs_dim()] })
-    }
-
-    #[getter]
-    fn task(&self) -> &'static str {
-        self.env.task().name()
-    }
-    #[getter]
-    fn obs_dim(&self) -> usize {
-        self.env.task().obs_dim()
-    }
-    #[getter]
-    fn obs_frame_dim(&self) -> usize {
-        self.env.task().obs_frame_dim()
-    }
-    #[getter]
-    fn act_dim(&self) -> usize {
-        self.env.task().act_dim()
+        let (task, obs_dim, obs_frame_dim, act_dim) = (t.name(), t.obs_dim(), t.obs_frame_dim(), t.act_dim());
+        Ok(SimEnv { env: Env::new(t, seed), obs: vec![0.0; obs_dim], task, obs_dim, obs_frame_dim, act_dim })
     }
 
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`.
@@ -131,8 +117,7 @@ impl SimEnv {
         Ok(Array1::from(self.obs.clone()).into_pyarray(py))
     }
 
-    /// One step → `(obs, reward, terminated, truncated, info)`; info holds `picked`
-    /// (ever this episode), `held`, `installed`, `fell`, `step`.
+    /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
     fn step<'py>(
         &mut self,
         py: Python<'py>,
@@ -160,8 +145,7 @@ impl SimEnv {
         snapshot_dict(py, &self.env)
     }
 
-    /// Scene items (dicts: name, frame "world"|"linkN"|"object", kind, sizes, translation,
-    /// rotation `[x, y, z, w]`, rgba).
+    /// tile-sim's scene items as dicts (name, frame, kind, sizes, translation, rotation, rgba).
     fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_py(py, &self.env.scene().items)
     }
@@ -192,13 +176,21 @@ impl SimEnv {
     }
 }
 
-/// N environments stepped in one call across `num_threads` threads (GIL released), same-step
-/// auto-reset. `SimVecEnv(task, num_envs, seed=0, num_threads=2)`; env i is created with
-/// seed `seed + i`.
+/// N envs stepped across threads, GIL released, same-step auto-reset; env i gets seed `seed + i`.
 #[pyclass(module = "mimicrete._native")]
 pub struct SimVecEnv {
     venv: VecEnv,
     buf: StepBuffers,
+    #[pyo3(get)]
+    task: &'static str,
+    #[pyo3(get)]
+    num_envs: usize,
+    #[pyo3(get)]
+    num_threads: usize,
+    #[pyo3(get)]
+    obs_dim: usize,
+    #[pyo3(get)]
+    act_dim: usize,
 }
 
 type VecStep<'py> = (
@@ -220,32 +212,19 @@ impl SimVecEnv {
     fn new(task: &str, num_envs: usize, seed: u64, num_threads: usize) -> PyResult<Self> {
         let t = parse_task(task)?;
         let venv = VecEnv::new(t, num_envs, seed, num_threads).map_err(sim_err)?;
-        Ok(SimVecEnv { venv, buf: StepBuffers::new(t, num_envs) })
+        let (task, num_threads, obs_dim, act_dim) = (t.name(), venv.num_threads(), t.obs_dim(), t.act_dim());
+        Ok(SimVecEnv {
+            venv,
+            buf: StepBuffers::new(t, num_envs),
+            task,
+            num_envs,
+            num_threads,
+            obs_dim,
+            act_dim,
+        })
     }
 
-    #[getter]
-    fn task(&self) -> &'static str {
-        self.venv.task().name()
-    }
-    #[getter]
-    fn num_envs(&self) -> usize {
-        self.venv.num_envs()
-    }
-    #[getter]
-    fn num_threads(&self) -> usize {
-        self.venv.num_threads()
-    }
-    #[getter]
-    fn obs_dim(&self) -> usize {
-        self.venv.task().obs_dim()
-    }
-    #[getter]
-    fn act_dim(&self) -> usize {
-        self.venv.task().act_dim()
-    }
-
-    /// Reset all envs (`seed`: env i gets `seed + i`; None: each env's own RNG) →
-    /// obs `(num_envs, obs_dim)`.
+    /// Reset all envs (env i gets `seed + i`; None: each env's own RNG) → obs (num_envs, obs_dim).
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
@@ -254,8 +233,7 @@ impl SimVecEnv {
         to2(py, obs, n, od)
     }
 
-    /// Reset the envs where `mask` (num_envs,) is true → obs `(num_envs, obs_dim)` (rows of
-    /// the other envs hold their current observation).
+    /// Reset the envs where `mask` (num_envs,) is true → obs (num_envs, obs_dim) of all envs.
     fn reset_mask<'py>(
         &mut self,
         py: Python<'py>,
@@ -271,10 +249,7 @@ impl SimVecEnv {
         to2(py, obs, n, od)
     }
 
-    /// Step all envs with `actions` (num_envs, act_dim) → `(obs, reward, terminated,
-    /// truncated, final_obs, has_final, picked, installed, fell)`; envs that ended are reset in
-    /// the same call: `obs` holds their new first observation, `final_obs` rows (where
-    /// `has_final`) the terminal one, other `final_obs` rows are zeros.
+    /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
     fn step<'py>(
         &mut self,
         py: Python<'py>,
@@ -282,7 +257,7 @@ impl SimVecEnv {
     ) -> PyResult<VecStep<'py>> {
         let (n, ad, od) = (self.venv.num_envs(), self.venv.task().act_dim(), self.venv.task().obs_dim());
         let acts = flat(&actions, &[n, ad], "actions")?;
-        let SimVecEnv { venv, buf } = self;
+        let SimVecEnv { venv, buf, .. } = self;
         py.detach(|| venv.step_buffers(&acts, buf)).map_err(sim_err)?;
         let b = &self.buf;
         let v = |x: &Vec<bool>| Array1::from(x.clone()).into_pyarray(py);
@@ -308,43 +283,18 @@ impl SimVecEnv {
     }
 }
 
-/// The decimal value an f32 constant was written as (0.04, not 0.03999999910593033).
-fn f32_exact(x: f32) -> f64 {
-    format!("{x}").parse().unwrap_or(x as f64)
-}
-
 fn to2(py: Python<'_>, v: Vec<f32>, n: usize, d: usize) -> PyResult<Bound<'_, PyArray2<f32>>> {
     let a = Array2::from_shape_vec((n, d), v).map_err(|e| PyValueError::new_err(e.to_string()))?;
     Ok(a.into_pyarray(py))
 }
 
-/// Simulator constants: frame stack, episode limit, control period (s), joint step (rad),
-/// physics substeps, pick/install distances (m), and per-task dims.
+/// The simulator's constants and per-task dims (`tile_sim::Constants`).
 #[pyfunction]
-fn sim_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("FRAME_STACK", tile_sim::FRAME_STACK)?;
-    d.set_item("MAX_EPISODE_STEPS", tile_sim::MAX_EPISODE_STEPS)?;
-    d.set_item("CONTROL_DT", f32_exact(tile_sim::CONTROL_DT))?;
-    d.set_item("MAX_JOINT_STEP", tile_sim::MAX_JOINT_STEP)?;
-    d.set_item("PHYSICS_SUBSTEPS", tile_sim::PHYSICS_SUBSTEPS)?;
-    d.set_item("PICK_DIST", f32_exact(tile_sim::PICK_DIST))?;
-    d.set_item("INSTALL_DIST", f32_exact(tile_sim::INSTALL_DIST))?;
-    d.set_item("HOME_Q", tile_sim::HOME_Q.to_vec())?;
-    let tasks = PyDict::new(py);
-    for t in Task::ALL {
-        let td = PyDict::new(py);
-        td.set_item("obs_frame_dim", t.obs_frame_dim())?;
-        td.set_item("obs_dim", t.obs_dim())?;
-        td.set_item("act_dim", t.act_dim())?;
-        tasks.set_item(t.name(), td)?;
-    }
-    d.set_item("tasks", tasks)?;
-    Ok(d)
+fn sim_constants(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    to_py(py, &tile_sim::Constants::get())
 }
 
-/// The scripted expert's action for a `SimEnv`'s current state (stateful: one per env;
-/// call `reset()` at each episode start).
+/// The scripted expert (stateful, one per env; `reset()` at each episode start).
 #[pyclass(module = "mimicrete._native")]
 pub struct SimExpert {
     ex: tile_sim::expert::Expert,
