@@ -29,6 +29,7 @@ __all__ = [
     "IkError",
     "SimError",
     "LogFormatError",
+    "log_format_error",
     "kin_models",
     "kin_dh",
     "kin_fk",
@@ -48,6 +49,8 @@ __all__ = [
     "SimVecEnv",
     "SimExpert",
     "sim_constants",
+    "scene_entities",
+    "scene_frames",
     "DemoWriter",
     "demo_parse_handlog",
     "demo_parse_handlog_str",
@@ -67,13 +70,31 @@ class MimicreteError(Exception):
     """Base class of every mimicrete error."""
 
 class IkError(MimicreteError):
-    """Inverse kinematics found no solution."""
+    """Inverse kinematics found no solution. ``reason``: why (the unreachable condition, or
+    ``"did not converge"``); ``iters``, ``pos_residual_m``, ``rot_residual_rad``: the solver's
+    iterations and best residuals when it did not converge, else None."""
+
+    reason: str | None
+    iters: int | None
+    pos_residual_m: float | None
+    rot_residual_rad: float | None
 
 class SimError(MimicreteError):
-    """The simulator refused an input or state."""
+    """The simulator refused an input or state (``reason``: what)."""
+
+    reason: str | None
 
 class LogFormatError(MimicreteError):
-    """A hand log or demo file is malformed (the message names file, line and reason)."""
+    """A hand log or demo file is malformed: ``str(e)`` is ``file:line: reason`` (``file: reason``
+    when no line applies); the parts are ``file``, ``line`` (1-based, or None) and ``reason``."""
+
+    file: str | None
+    line: int | None
+    reason: str | None
+
+def log_format_error(file: str, line: int | None, reason: str) -> LogFormatError:
+    """A ``LogFormatError`` with these fields and the native message rule (for Python code that
+    finds a malformed file itself)."""
 
 # ---------------------------------------------------------------------------------------------
 # Kinematics (kin.rs). `model_name` is one of `kin_models()`; poses are (4, 4) homogeneous
@@ -219,6 +240,10 @@ class SimEnv:
     def scene(self) -> list[dict[str, Any]]:
         """Scene items: name, frame, kind (box | cylinder | capsule) and its sizes, translation,
         rotation [x, y, z, w], rgba."""
+    def scene_entities(self) -> list[dict[str, Any]]:
+        """``scene_entities(task, seed)`` of the current episode."""
+    def scene_frames(self) -> dict[str, list[float]]:
+        """``scene_frames`` of the current state (links at the joints, ``tile`` at the object)."""
     def set_joints(self, q: _F64) -> None:
         """Test/tool API: teleport the arm to joint angles q (6,) rad."""
     def set_object_pose(
@@ -270,6 +295,18 @@ class SimExpert:
 
 def sim_constants() -> _SimConstants:
     """Simulator constants and per-task dims."""
+
+def scene_entities(task: str, seed: int = 0, model: str = "ur3") -> list[dict[str, Any]]:
+    """The Foxglove ``SceneEntity`` objects (JSON-ready dicts) a demo of episode ``seed`` of
+    ``task`` carries on ``/scene``: the robot (locked to the URDF links), table, pad, target, end
+    effector (locked to ``tool0``) and object (locked to ``tile``)."""
+
+def scene_frames(
+    joints: list[float] | tuple[float, ...], tile_pose: list[float], model: str = "ur3"
+) -> dict[str, list[float]]:
+    """``{frame_id: [x, y, z, qx, qy, qz, qw]}`` in Base of the frames the scene entities are
+    locked to: the URDF links (``shoulder_link`` … ``tool0``) at ``joints`` and ``tile`` at
+    ``tile_pose`` [x, y, z, qx, qy, qz, qw]."""
 
 # ---------------------------------------------------------------------------------------------
 # Demonstrations and hand logs (demo.rs)

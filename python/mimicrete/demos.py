@@ -132,16 +132,14 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
-    from mimicrete import LogFormatError
-
     p = Path(path)
     with p.open("rb") as f:
         try:
             reader = make_reader(f, validate_crcs=True)
             summary = reader.get_summary()
             if summary is None:
-                raise LogFormatError(
-                    f"{p}: no summary section (cut file?); try `mimicrete.demos.salvage_to`"
+                raise _native.log_format_error(
+                    str(p), None, "no summary section (cut file?); try `mimicrete.demos.salvage_to`"
                 )
             stats = summary.statistics
             counts = stats.channel_message_counts if stats else {}
@@ -164,7 +162,9 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
                 for a in reader.iter_attachments()
             ]
         except McapError as e:
-            raise LogFormatError(f"{p}: {e}; try `mimicrete.demos.salvage_to`") from e
+            raise _native.log_format_error(
+                str(p), None, f"{e}; try `mimicrete.demos.salvage_to`"
+            ) from e
     start = int(stats.message_start_time) if stats else 0
     end = int(stats.message_end_time) if stats else 0
     ep = metadata.get("episode") or metadata.get("episode_start") or {}

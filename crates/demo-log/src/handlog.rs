@@ -69,7 +69,9 @@ impl ParseMode {
 }
 
 /// A line the lenient parser dropped.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// Serialized as the pair `(line, reason)`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[serde(into = "(usize, String)")]
 pub struct SkippedLine {
     /// 1-based line number.
     pub line: usize,
@@ -78,8 +80,14 @@ pub struct SkippedLine {
     pub reason: String,
 }
 
+impl From<SkippedLine> for (usize, String) {
+    fn from(s: SkippedLine) -> (usize, String) {
+        (s.line, s.reason)
+    }
+}
+
 /// What a parse saw.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize)]
 pub struct ParseReport {
     /// Frame lines seen (non-blank lines after the header).
     pub frame_lines: usize,

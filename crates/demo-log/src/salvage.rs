@@ -30,7 +30,7 @@ pub struct RecoveredMessage {
 }
 
 /// What salvage found.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize)]
 pub struct SalvageReport {
     /// Size of the input, bytes.
     pub bytes_total: u64,

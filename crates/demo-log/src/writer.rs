@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
-use ur3_kin::nalgebra::{Translation3, UnitQuaternion, Vector3};
+use ur3_kin::nalgebra::{UnitQuaternion, Vector3};
 use ur3_kin::{UrModel, urdf};
 
 /// Format name written in the `episode` metadata record.
@@ -125,7 +125,8 @@ pub struct SceneEntity {
 pub struct EpisodeMeta {
     /// Episode index within its data set.
     pub episode: u64,
-    /// Task name (`"suction"`, `"gripping"`, `"screwing"`).
+    /// Task name (tile-sim's: `"TileSuction"` / `"suction"`, `"BlockGrip"`, `"Screw"`, ...); a
+    /// task tile-sim knows gets its scene ([`crate::task_scene`]) on `/scene`.
     pub task: String,
     /// Simulator seed of the episode.
     pub seed: u64,
@@ -139,7 +140,8 @@ pub struct EpisodeMeta {
     pub gesture_model: String,
     /// Seconds per environment step, if fixed (0 = unknown).
     pub control_dt: f64,
-    /// Static scene (table, target, tile, cups), published with the first step.
+    /// Further static entities, published with the first step after the robot and the task
+    /// scene; one with the id of a task-scene entity replaces it.
     pub scene: Vec<SceneEntity>,
     /// Any further facts, written into the metadata records.
     pub extra: BTreeMap<String, String>,
@@ -221,7 +223,7 @@ impl Default for WriterOptions {
 }
 
 /// What [`DemoWriter::finish`] wrote.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct WriteStats {
     /// Final path of the file.
     pub path: PathBuf,
@@ -398,6 +400,12 @@ fn rgba(c: [f32; 4]) -> Rgba {
     Rgba { r: c[0], g: c[1], b: c[2], a: c[3] }
 }
 
+/// One entity as the Foxglove `SceneEntity` JSON object written on `/scene` (frame-locked, no
+/// lifetime), stamped `t_ns`.
+pub fn foxglove_entity(e: &SceneEntity, t_ns: u64) -> serde_json::Value {
+    serde_json::to_value(entity_msg(e, Time::from_ns(t_ns))).unwrap_or(serde_json::Value::Null)
+}
+
 fn entity_msg<'a>(e: &'a SceneEntity, stamp: Time) -> Entity<'a> {
     let size = V3 { x: e.size[0], y: e.size[1], z: e.size[2] };
     let pose = PoseMsg::from(&e.pose);
@@ -427,50 +435,12 @@ fn entity_msg<'a>(e: &'a SceneEntity, stamp: Time) -> Entity<'a> {
     }
 }
 
-fn origin(xyz: &[f64; 3], rpy: &[f64; 3]) -> ur3_kin::Pose {
-    ur3_kin::Pose::from_parts(
-        Translation3::new(xyz[0], xyz[1], xyz[2]),
-        UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
-    )
-}
-
-/// The URDF joints in chain order: (parent, child, origin xyz, origin rpy, joint index or None
-/// for a fixed joint).
-/// (parent, child, origin xyz, origin rpy, revolute joint index).
-type ChainJoint = (&'static str, &'static str, [f64; 3], [f64; 3], Option<usize>);
-
-fn urdf_chain(model: &UrModel) -> Vec<ChainJoint> {
-    let mut v: Vec<_> = urdf::joint_origins(model)
-        .into_iter()
-        .enumerate()
-        .map(|(i, (_, parent, child, xyz, rpy))| (parent, child, xyz, rpy, Some(i)))
-        .collect();
-    v.extend(urdf::FIXED_JOINTS.iter().map(|&(_, parent, child, xyz, rpy)| (parent, child, xyz, rpy, None)));
-    v
-}
-
-/// Parent-to-child transforms of every URDF link at joint angles `q`, in chain order:
-/// `(parent, child, pose of child in parent)`. Composed from `base` they give `ur3_kin::fk` at
-/// `tool0`.
-pub fn link_transforms(model: &UrModel, q: &[f64; 6]) -> Vec<(&'static str, &'static str, ur3_kin::Pose)> {
-    urdf_chain(model)
-        .into_iter()
-        .map(|(parent, child, xyz, rpy, joint)| {
-            let mut p = origin(&xyz, &rpy);
-            if let Some(i) = joint {
-                p *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q[i]);
-            }
-            (parent, child, p)
-        })
-        .collect()
-}
-
 /// Cylinders drawing the robot as a stick figure, each frame-locked to a URDF link so it moves with
 /// `/tf`: link L gets a cylinder from its origin to the origin of the next joint (a constant point
 /// in L's frame).
 pub fn robot_link_entities(model: &UrModel) -> Vec<SceneEntity> {
     let mut out = Vec::new();
-    for (k, (parent, _child, xyz, _rpy, _)) in urdf_chain(model).into_iter().enumerate() {
+    for (k, (parent, _child, xyz, _rpy, _)) in urdf::chain(model).into_iter().enumerate() {
         let d = Vector3::new(xyz[0], xyz[1], xyz[2]);
         let len = d.norm();
         if len < 1e-9 {
@@ -545,6 +515,8 @@ pub struct DemoWriter {
     steps_since_flush: u64,
     opts: WriterOptions,
     scene_written: bool,
+    /// The entities of the first `/scene` message: robot, task scene, the caller's static scene.
+    first_scene: Vec<SceneEntity>,
     last_t: f64,
     ended: bool,
     handlog_sha256: Option<String>,
@@ -660,6 +632,7 @@ impl DemoWriter {
             steps_since_flush: 0,
             opts,
             scene_written: false,
+            first_scene: first_scene(model, meta),
             last_t: 0.0,
             ended: false,
             handlog_sha256,
@@ -787,7 +760,7 @@ impl DemoWriter {
         // /tf: the link chain, then the tile.
         let stamp = Time::from_ns(ns);
         let mut tfs = Vec::with_capacity(LINK_FRAMES.len() + 1);
-        for (parent, child, rel) in link_transforms(self.model, &rec.joints) {
+        for (parent, child, rel) in urdf::link_transforms(self.model, &rec.joints) {
             let pm = PoseMsg::from(&Pose::from_isometry(&rel));
             tfs.push(Tf {
                 timestamp: stamp,
@@ -812,8 +785,7 @@ impl DemoWriter {
         // /scene
         let mut entities: Vec<SceneEntity> = Vec::new();
         if !self.scene_written {
-            entities.extend(robot_link_entities(self.model));
-            entities.extend(self.meta.scene.iter().cloned());
+            entities.append(&mut self.first_scene);
             self.scene_written = true;
         }
         entities.extend(rec.scene.iter().cloned());
@@ -991,6 +963,23 @@ fn metadata_map(
         md.insert("success".into(), s.success.to_string());
     }
     md
+}
+
+/// The first `/scene` message of a demo: the robot, the task's scene for `meta.task` /
+/// `meta.seed` (when tile-sim knows the task), then `meta.scene`, whose entities replace those of
+/// the same id.
+fn first_scene(model: &UrModel, meta: &EpisodeMeta) -> Vec<SceneEntity> {
+    let mut v = match tile_sim::Task::from_name(&meta.task) {
+        Ok(task) => crate::scene::episode_scene(model, task, meta.seed),
+        Err(_) => robot_link_entities(model),
+    };
+    for e in &meta.scene {
+        match v.iter_mut().find(|x| x.id == e.id) {
+            Some(slot) => *slot = e.clone(),
+            None => v.push(e.clone()),
+        }
+    }
+    v
 }
 
 fn check_entity(e: &SceneEntity) -> Result<(), DemoError> {

@@ -1,10 +1,8 @@
-//! Bindings for ur3-kin: conversion between numpy arrays and the crate's types, error mapping,
-//! and releasing the interpreter lock around batched work. No kinematics lives here.
-//!
-//! Error mapping: `Unreachable` / `NotConverged` → `mimicrete.IkError`; bad shapes, unknown names,
-//! non-finite numbers, non-rigid matrices and degenerate hands → `ValueError`.
+//! Bindings for ur3-kin: numpy arrays ↔ the crate's types, error mapping (`errors::kin_err`), the
+//! interpreter lock released around batched work. The batch loops and their per-row failure
+//! policy are ur3-kin's (`fk_batch`, `ik_batch_matrices`, `hand_to_target_batch`).
 
-use crate::errors::IkError;
+use crate::errors::kin_err;
 use numpy::ndarray::{Array1, Array2, Array3, ArrayView1, ArrayView2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
@@ -14,12 +12,13 @@ use pyo3::prelude::*;
 use ur3_kin::nalgebra::{Matrix4, Vector3};
 use ur3_kin::{Calibration, Handedness, IkOptions, Joints, KinError, Pose, Space, UrModel};
 
-fn kin_err(e: KinError) -> PyErr {
-    match e {
-        KinError::Unreachable { .. } | KinError::NotConverged { .. } => IkError::new_err(e.to_string()),
-        other => PyValueError::new_err(other.to_string()),
-    }
-}
+type Arr1<'py> = Bound<'py, PyArray1<f64>>;
+type F1<'py> = PyReadonlyArray1<'py, f64>;
+type F2<'py> = PyReadonlyArray2<'py, f64>;
+type F3<'py> = PyReadonlyArray3<'py, f64>;
+type Ok1<'py> = Bound<'py, PyArray1<bool>>;
+type Arr2<'py> = Bound<'py, PyArray2<f64>>;
+type Arr3<'py> = Bound<'py, PyArray3<f64>>;
 
 fn model(name: &str) -> PyResult<&'static UrModel> {
     UrModel::by_name(name).map_err(kin_err)
@@ -29,19 +28,29 @@ fn shape_err(what: &str, expected: &str, got: &[usize]) -> PyErr {
     PyValueError::new_err(format!("{what} must have shape {expected}, got {got:?}"))
 }
 
+fn finite(it: impl IntoIterator<Item = f64>, what: &str) -> PyResult<()> {
+    match it.into_iter().all(f64::is_finite) {
+        true => Ok(()),
+        false => Err(PyValueError::new_err(format!("{what} holds a NaN or an infinity"))),
+    }
+}
+
 fn joints_from(v: ArrayView1<'_, f64>, what: &str) -> PyResult<Joints> {
     if v.len() != 6 {
         return Err(shape_err(what, "(6,)", v.shape()));
     }
-    if v.iter().any(|x| !x.is_finite()) {
-        return Err(PyValueError::new_err(format!("{what} holds a NaN or an infinity")));
-    }
+    finite(v.iter().copied(), what)?;
     Ok(std::array::from_fn(|i| v[i]))
 }
 
-/// The model and the joint vector `q` (6,) of a single-configuration call.
-fn model_and_q(model_name: &str, q: &PyReadonlyArray1<'_, f64>) -> PyResult<(&'static UrModel, Joints)> {
-    Ok((model(model_name)?, joints_from(q.as_array(), "q")?))
+/// Rows of an `(N, k)` array as `[f64; K]`.
+fn rows<const K: usize>(a: ArrayView2<'_, f64>, what: &str, n: Option<usize>) -> PyResult<Vec<[f64; K]>> {
+    let want = n.unwrap_or(a.shape()[0]);
+    if a.shape() != [want, K] {
+        let n = n.map_or("N".to_string(), |n| n.to_string());
+        return Err(shape_err(what, &format!("({n}, {K})"), a.shape()));
+    }
+    Ok(a.rows().into_iter().map(|r| std::array::from_fn(|k| r[k])).collect())
 }
 
 fn vec3_from(v: ArrayView1<'_, f64>, what: &str) -> PyResult<Vector3<f64>> {
@@ -51,21 +60,24 @@ fn vec3_from(v: ArrayView1<'_, f64>, what: &str) -> PyResult<Vector3<f64>> {
     Ok(Vector3::new(v[0], v[1], v[2]))
 }
 
+fn matrix(m: ArrayView2<'_, f64>) -> Matrix4<f64> {
+    Matrix4::from_fn(|r, c| m[[r, c]])
+}
+
 fn pose_from(m: ArrayView2<'_, f64>, what: &str) -> PyResult<Pose> {
     if m.shape() != [4, 4] {
         return Err(shape_err(what, "(4, 4)", m.shape()));
     }
-    let mat = Matrix4::from_fn(|r, c| m[[r, c]]);
-    ur3_kin::pose_from_matrix(&mat).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))
+    ur3_kin::pose_from_matrix(&matrix(m)).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))
 }
 
-fn pose_to_array(p: &Pose) -> Array2<f64> {
+fn arr2(p: &Pose) -> Array2<f64> {
     let h = p.to_homogeneous();
     Array2::from_shape_fn((4, 4), |(r, c)| h[(r, c)])
 }
 
-/// Homogeneous matrices → one `(N, 4, 4)` array.
-fn stack_homogeneous(hs: &[Matrix4<f64>]) -> Array3<f64> {
+fn stack(ps: &[Pose]) -> Array3<f64> {
+    let hs: Vec<Matrix4<f64>> = ps.iter().map(Pose::to_homogeneous).collect();
     Array3::from_shape_fn((hs.len(), 4, 4), |(i, r, c)| hs[i][(r, c)])
 }
 
@@ -75,10 +87,13 @@ fn options(tol: Option<f64>) -> PyResult<IkOptions> {
         if !(t.is_finite() && t > 0.0) {
             return Err(PyValueError::new_err(format!("tol must be a positive finite number, got {t}")));
         }
-        o.tol_pos_m = t;
-        o.tol_rot_rad = t;
+        (o.tol_pos_m, o.tol_rot_rad) = (t, t);
     }
     Ok(o)
+}
+
+fn joints_arr<'py>(py: Python<'py>, q: Joints) -> Arr1<'py> {
+    Array1::from(q.to_vec()).into_pyarray(py)
 }
 
 /// Names of the supported models.
@@ -89,79 +104,37 @@ fn kin_models() -> Vec<&'static str> {
 
 /// DH parameters of a model: dict d1, a2, a3, d4, d5, d6 (metres) and reach.
 #[pyfunction]
-fn kin_dh(py: Python<'_>, model_name: &str) -> PyResult<Py<pyo3::types::PyDict>> {
+fn kin_dh(model_name: &str) -> PyResult<std::collections::BTreeMap<&'static str, f64>> {
     let m = model(model_name)?;
-    let d = pyo3::types::PyDict::new(py);
-    for (k, v) in [
-        ("d1", m.d1),
-        ("a2", m.a2),
-        ("a3", m.a3),
-        ("d4", m.d4),
-        ("d5", m.d5),
-        ("d6", m.d6),
-        ("reach", m.reach()),
-    ] {
-        d.set_item(k, v)?;
-    }
-    Ok(d.unbind())
+    let kv = [("d1", m.d1), ("a2", m.a2), ("a3", m.a3), ("d4", m.d4), ("d5", m.d5), ("d6", m.d6)];
+    Ok(kv.into_iter().chain([("reach", m.reach())]).collect())
 }
 
 /// FK: q (6,) → tool0 in Base (4, 4).
 #[pyfunction]
-fn kin_fk<'py>(
-    py: Python<'py>,
-    q: PyReadonlyArray1<'py, f64>,
-    model_name: &str,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let (m, q) = model_and_q(model_name, &q)?;
-    Ok(pose_to_array(&ur3_kin::fk(m, &q)).into_pyarray(py))
+fn kin_fk<'py>(py: Python<'py>, q: F1<'py>, model_name: &str) -> PyResult<Arr2<'py>> {
+    Ok(arr2(&ur3_kin::fk(model(model_name)?, &joints_from(q.as_array(), "q")?)).into_pyarray(py))
 }
 
 /// FK of many configurations: q (N, 6) → (N, 4, 4).
 #[pyfunction]
-fn kin_fk_batch<'py>(
-    py: Python<'py>,
-    q: PyReadonlyArray2<'py, f64>,
-    model_name: &str,
-) -> PyResult<Bound<'py, PyArray3<f64>>> {
+fn kin_fk_batch<'py>(py: Python<'py>, q: F2<'py>, model_name: &str) -> PyResult<Arr3<'py>> {
     let m = model(model_name)?;
-    let a = q.as_array();
-    if a.shape()[1] != 6 {
-        return Err(shape_err("q", "(N, 6)", a.shape()));
-    }
-    if a.iter().any(|x| !x.is_finite()) {
-        return Err(PyValueError::new_err("q holds a NaN or an infinity"));
-    }
-    let hs: Vec<Matrix4<f64>> = (0..a.shape()[0])
-        .map(|i| {
-            let qi: Joints = std::array::from_fn(|k| a[[i, k]]);
-            ur3_kin::fk(m, &qi).to_homogeneous()
-        })
-        .collect();
-    Ok(stack_homogeneous(&hs).into_pyarray(py))
+    let qs = rows::<6>(q.as_array(), "q", None)?;
+    finite(qs.iter().flatten().copied(), "q")?;
+    Ok(stack(&ur3_kin::fk_batch(m, &qs)).into_pyarray(py))
 }
 
 /// Every DH frame (Base, after joint 1, …, tool0): (7, 4, 4).
 #[pyfunction]
-fn kin_fk_all<'py>(
-    py: Python<'py>,
-    q: PyReadonlyArray1<'py, f64>,
-    model_name: &str,
-) -> PyResult<Bound<'py, PyArray3<f64>>> {
-    let (m, q) = model_and_q(model_name, &q)?;
-    let hs: Vec<Matrix4<f64>> = ur3_kin::fk_all(m, &q).iter().map(Pose::to_homogeneous).collect();
-    Ok(stack_homogeneous(&hs).into_pyarray(py))
+fn kin_fk_all<'py>(py: Python<'py>, q: F1<'py>, model_name: &str) -> PyResult<Arr3<'py>> {
+    Ok(stack(&ur3_kin::fk_all(model(model_name)?, &joints_from(q.as_array(), "q")?)).into_pyarray(py))
 }
 
 /// Geometric Jacobian at tool0 in Base: (6, 6), rows linear then angular.
 #[pyfunction]
-fn kin_jacobian<'py>(
-    py: Python<'py>,
-    q: PyReadonlyArray1<'py, f64>,
-    model_name: &str,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let (m, q) = model_and_q(model_name, &q)?;
-    let j = ur3_kin::jacobian(m, &q);
+fn kin_jacobian<'py>(py: Python<'py>, q: F1<'py>, model_name: &str) -> PyResult<Arr2<'py>> {
+    let j = ur3_kin::jacobian(model(model_name)?, &joints_from(q.as_array(), "q")?);
     Ok(Array2::from_shape_fn((6, 6), |(r, c)| j[(r, c)]).into_pyarray(py))
 }
 
@@ -170,17 +143,14 @@ fn kin_jacobian<'py>(
 #[pyo3(signature = (t, seed, model_name, tol=None))]
 fn kin_ik<'py>(
     py: Python<'py>,
-    t: PyReadonlyArray2<'py, f64>,
-    seed: Option<PyReadonlyArray1<'py, f64>>,
+    t: F2<'py>,
+    seed: Option<F1<'py>>,
     model_name: &str,
     tol: Option<f64>,
-) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let m = model(model_name)?;
-    let target = pose_from(t.as_array(), "T")?;
+) -> PyResult<Arr1<'py>> {
+    let (m, target) = (model(model_name)?, pose_from(t.as_array(), "T")?);
     let seed = seed.map(|s| joints_from(s.as_array(), "seed")).transpose()?;
-    let opts = options(tol)?;
-    let q = ur3_kin::ik(m, &target, seed.as_ref(), &opts).map_err(kin_err)?;
-    Ok(Array1::from(q.to_vec()).into_pyarray(py))
+    Ok(joints_arr(py, ur3_kin::ik(m, &target, seed.as_ref(), &options(tol)?).map_err(kin_err)?))
 }
 
 /// The paper's Gauss-Newton alone from a seed (no closed form): T (4, 4), seed (6,) → q (6,).
@@ -188,102 +158,58 @@ fn kin_ik<'py>(
 #[pyo3(signature = (t, seed, model_name, tol=None, max_iters=100))]
 fn kin_ik_gn<'py>(
     py: Python<'py>,
-    t: PyReadonlyArray2<'py, f64>,
-    seed: PyReadonlyArray1<'py, f64>,
+    t: F2<'py>,
+    seed: F1<'py>,
     model_name: &str,
     tol: Option<f64>,
     max_iters: usize,
-) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let m = model(model_name)?;
-    let target = pose_from(t.as_array(), "T")?;
+) -> PyResult<Arr1<'py>> {
+    let (m, target) = (model(model_name)?, pose_from(t.as_array(), "T")?);
     let seed = joints_from(seed.as_array(), "seed")?;
     let opts = IkOptions { max_iters, use_analytic: false, max_step_rad: f64::INFINITY, ..options(tol)? };
-    let q = ur3_kin::ik_gn(m, &target, &seed, &opts).map_err(kin_err)?;
-    Ok(Array1::from(q.to_vec()).into_pyarray(py))
+    Ok(joints_arr(py, ur3_kin::ik_gn(m, &target, &seed, &opts).map_err(kin_err)?))
 }
 
 /// Every closed-form solution: T (4, 4) → (k, 6), k ≤ 8 (k = 0 when unreachable).
 #[pyfunction]
 #[pyo3(signature = (t, model_name, q6_ref=0.0))]
-fn kin_ik_all<'py>(
-    py: Python<'py>,
-    t: PyReadonlyArray2<'py, f64>,
-    model_name: &str,
-    q6_ref: f64,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let m = model(model_name)?;
-    let target = pose_from(t.as_array(), "T")?;
-    if !q6_ref.is_finite() {
-        return Err(PyValueError::new_err("q6_ref must be finite"));
-    }
+fn kin_ik_all<'py>(py: Python<'py>, t: F2<'py>, model_name: &str, q6_ref: f64) -> PyResult<Arr2<'py>> {
+    let (m, target) = (model(model_name)?, pose_from(t.as_array(), "T")?);
+    finite([q6_ref], "q6_ref")?;
     let sols = ur3_kin::ik_all_with_q6(m, &target, q6_ref);
     Ok(Array2::from_shape_fn((sols.len(), 6), |(r, c)| sols[r][c]).into_pyarray(py))
 }
 
-/// Batched IK over threads (GIL released): Ts (N, 4, 4), seeds (N, 6) or None →
-/// (q (N, 6), ok (N,) bool). Rows whose solve failed (or whose T is not a rigid transform) hold
-/// NaN in q and False in ok.
+/// Batched IK, GIL released: Ts (N, 4, 4), seeds (N, 6) | None → (q (N, 6), ok (N,)); failed rows NaN.
 #[pyfunction]
 #[pyo3(signature = (ts, seeds, model_name, threads=0, tol=None))]
-#[allow(clippy::type_complexity)]
 fn kin_ik_batch<'py>(
     py: Python<'py>,
-    ts: PyReadonlyArray3<'py, f64>,
-    seeds: Option<PyReadonlyArray2<'py, f64>>,
+    ts: F3<'py>,
+    seeds: Option<F2<'py>>,
     model_name: &str,
     threads: usize,
     tol: Option<f64>,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<bool>>)> {
-    let m = model(model_name)?;
-    let a = ts.as_array();
+) -> PyResult<(Arr2<'py>, Ok1<'py>)> {
+    let (m, a) = (model(model_name)?, ts.as_array());
     if a.shape()[1..] != [4, 4] {
         return Err(shape_err("Ts", "(N, 4, 4)", a.shape()));
     }
     let n = a.shape()[0];
-    let seeds: Option<Vec<Joints>> = match seeds {
-        None => None,
-        Some(s) => {
-            let s = s.as_array();
-            if s.shape() != [n, 6] {
-                return Err(shape_err("seeds", &format!("({n}, 6) to match Ts"), s.shape()));
-            }
-            if s.iter().any(|x| !x.is_finite()) {
-                return Err(PyValueError::new_err("seeds hold a NaN or an infinity"));
-            }
-            Some((0..n).map(|i| std::array::from_fn(|k| s[[i, k]])).collect())
-        }
-    };
+    let seeds = seeds.map(|s| rows::<6>(s.as_array(), "seeds", Some(n))).transpose()?;
+    let mats: Vec<Matrix4<f64>> = a.outer_iter().map(matrix).collect();
     let opts = options(tol)?;
-    // Invalid matrices become per-row failures (like unreachable targets), not an exception.
-    let mut valid = vec![true; n];
-    let targets: Vec<Pose> = (0..n)
-        .map(|i| {
-            let mat = Matrix4::from_fn(|r, c| a[[i, r, c]]);
-            ur3_kin::pose_from_matrix(&mat).unwrap_or_else(|_| {
-                valid[i] = false;
-                Pose::identity()
-            })
-        })
-        .collect();
-    let results = py.detach(|| ur3_kin::ik_batch(m, &targets, seeds.as_deref(), &opts, threads));
-    let mut q = Array2::<f64>::from_elem((n, 6), f64::NAN);
-    let mut ok = Array1::<bool>::from_elem(n, false);
-    for (i, r) in results.into_iter().enumerate() {
-        if let (true, Ok(s)) = (valid[i], r) {
-            ok[i] = true;
-            for k in 0..6 {
-                q[[i, k]] = s[k];
-            }
-        }
-    }
+    let res = py.detach(|| ur3_kin::ik_batch_matrices(m, &mats, seeds.as_deref(), &opts, threads));
+    let res = res.map_err(|e| match e {
+        KinError::NonFinite(_) => PyValueError::new_err("seeds hold a NaN or an infinity"),
+        e => kin_err(e),
+    })?;
+    let q = Array2::from_shape_fn((n, 6), |(i, k)| res[i].as_ref().map_or(f64::NAN, |s| s[k]));
+    let ok = Array1::from_iter(res.iter().map(Result::is_ok));
     Ok((q.into_pyarray(py), ok.into_pyarray(py)))
 }
 
-fn calibration(
-    base_from_space: Option<PyReadonlyArray2<'_, f64>>,
-    scale: f64,
-    space: &str,
-) -> PyResult<Calibration> {
+fn calibration(base_from_space: Option<F2<'_>>, scale: f64, space: &str) -> PyResult<Calibration> {
     let space = Space::from_name(space).map_err(kin_err)?;
     let base_from_space = match base_from_space {
         Some(m) => pose_from(m.as_array(), "base_from_space")?,
@@ -295,101 +221,78 @@ fn calibration(
     Ok(Calibration { base_from_space, scale, space })
 }
 
-/// Hand joints → tool0 target (4, 4) in Base. Points (3,) in `space`; `base_from_space` (4, 4)
-/// or None for the default calibration's transform.
+/// Hand joints (3,) each, in `space` → tool0 target (4, 4) in Base (`base_from_space` None: default).
 #[pyfunction]
 #[pyo3(signature = (wrist, index_proximal, middle_proximal, handedness, base_from_space, scale, space))]
 #[allow(clippy::too_many_arguments)]
 fn kin_hand_to_target<'py>(
     py: Python<'py>,
-    wrist: PyReadonlyArray1<'py, f64>,
-    index_proximal: PyReadonlyArray1<'py, f64>,
-    middle_proximal: PyReadonlyArray1<'py, f64>,
+    wrist: F1<'py>,
+    index_proximal: F1<'py>,
+    middle_proximal: F1<'py>,
     handedness: &str,
-    base_from_space: Option<PyReadonlyArray2<'py, f64>>,
+    base_from_space: Option<F2<'py>>,
     scale: f64,
     space: &str,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
+) -> PyResult<Arr2<'py>> {
     let hd = Handedness::from_name(handedness).map_err(kin_err)?;
     let cal = calibration(base_from_space, scale, space)?;
     let w = vec3_from(wrist.as_array(), "wrist")?;
     let i = vec3_from(index_proximal.as_array(), "index_proximal")?;
     let mp = vec3_from(middle_proximal.as_array(), "middle_proximal")?;
-    let t = ur3_kin::hand_to_target(&w, &i, &mp, hd, &cal).map_err(kin_err)?;
-    Ok(pose_to_array(&t).into_pyarray(py))
+    Ok(arr2(&ur3_kin::hand_to_target(&w, &i, &mp, hd, &cal).map_err(kin_err)?).into_pyarray(py))
 }
 
-/// Many frames: wrist, index_proximal, middle_proximal (N, 3) → (T (N, 4, 4), ok (N,)).
-/// Degenerate or non-finite frames give ok False and an identity T.
+/// Many frames (N, 3) each → (T (N, 4, 4), ok (N,)); degenerate frames: ok False, identity T.
 #[pyfunction]
 #[pyo3(signature = (wrist, index_proximal, middle_proximal, handedness, base_from_space, scale, space))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn kin_hand_to_target_batch<'py>(
     py: Python<'py>,
-    wrist: PyReadonlyArray2<'py, f64>,
-    index_proximal: PyReadonlyArray2<'py, f64>,
-    middle_proximal: PyReadonlyArray2<'py, f64>,
+    wrist: F2<'py>,
+    index_proximal: F2<'py>,
+    middle_proximal: F2<'py>,
     handedness: &str,
-    base_from_space: Option<PyReadonlyArray2<'py, f64>>,
+    base_from_space: Option<F2<'py>>,
     scale: f64,
     space: &str,
-) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray1<bool>>)> {
+) -> PyResult<(Arr3<'py>, Ok1<'py>)> {
     let hd = Handedness::from_name(handedness).map_err(kin_err)?;
     let cal = calibration(base_from_space, scale, space)?;
-    let (w, i, mp) = (wrist.as_array(), index_proximal.as_array(), middle_proximal.as_array());
-    let n = w.shape()[0];
-    for (name, a) in [("wrist", &w), ("index_proximal", &i), ("middle_proximal", &mp)] {
-        if a.shape() != [n, 3] {
-            return Err(shape_err(name, &format!("({n}, 3)"), a.shape()));
-        }
-    }
-    let mut ok = Array1::<bool>::from_elem(n, false);
-    let hs: Vec<Matrix4<f64>> = (0..n)
-        .map(|k| {
-            let v = |a: &ArrayView2<'_, f64>| Vector3::new(a[[k, 0]], a[[k, 1]], a[[k, 2]]);
-            match ur3_kin::hand_to_target(&v(&w), &v(&i), &v(&mp), hd, &cal) {
-                Ok(t) => {
-                    ok[k] = true;
-                    t.to_homogeneous()
-                }
-                Err(_) => Matrix4::identity(),
-            }
-        })
-        .collect();
-    Ok((stack_homogeneous(&hs).into_pyarray(py), ok.into_pyarray(py)))
+    let n = Some(wrist.as_array().shape()[0]);
+    let v = |a: &F2<'py>, what| -> PyResult<Vec<Vector3<f64>>> {
+        Ok(rows::<3>(a.as_array(), what, n)?.into_iter().map(Vector3::from).collect())
+    };
+    let (w, i, m) =
+        (v(&wrist, "wrist")?, v(&index_proximal, "index_proximal")?, v(&middle_proximal, "middle_proximal")?);
+    let res = ur3_kin::hand_to_target_batch(&w, &i, &m, hd, &cal).map_err(kin_err)?;
+    let ts: Vec<Pose> = res.iter().map(|r| r.as_ref().map_or(Pose::identity(), |p| *p)).collect();
+    let ok = Array1::from_iter(res.iter().map(Result::is_ok));
+    Ok((stack(&ts).into_pyarray(py), ok.into_pyarray(py)))
 }
 
-/// A point (3,) or points (N, 3) from `space` into the robot Base frame.
+/// Points (N, 3) from `space` into the robot Base frame.
 #[pyfunction]
 #[pyo3(signature = (points, base_from_space, scale, space))]
 fn kin_points_to_base<'py>(
     py: Python<'py>,
-    points: PyReadonlyArray2<'py, f64>,
-    base_from_space: Option<PyReadonlyArray2<'py, f64>>,
+    points: F2<'py>,
+    base_from_space: Option<F2<'py>>,
     scale: f64,
     space: &str,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
+) -> PyResult<Arr2<'py>> {
     let cal = calibration(base_from_space, scale, space)?;
-    let p = points.as_array();
-    if p.shape()[1] != 3 {
-        return Err(shape_err("points", "(N, 3)", p.shape()));
-    }
-    let n = p.shape()[0];
-    let mut out = Array2::<f64>::zeros((n, 3));
-    for k in 0..n {
-        let b = cal.point_to_base(&Vector3::new(p[[k, 0]], p[[k, 1]], p[[k, 2]]));
-        for c in 0..3 {
-            out[[k, c]] = b[c];
-        }
-    }
-    Ok(out.into_pyarray(py))
+    let p: Vec<Vector3<f64>> =
+        rows::<3>(points.as_array(), "points", None)?.into_iter().map(Vector3::from).collect();
+    let b = cal.points_to_base(&p);
+    Ok(Array2::from_shape_fn((b.len(), 3), |(k, c)| b[k][c]).into_pyarray(py))
 }
 
 /// The default calibration's base_from_space (4, 4), scale and space name.
 #[pyfunction]
-fn kin_default_calibration<'py>(py: Python<'py>) -> (Bound<'py, PyArray2<f64>>, f64, &'static str) {
+fn kin_default_calibration<'py>(py: Python<'py>) -> (Arr2<'py>, f64, &'static str) {
     let c = Calibration::default();
-    (pose_to_array(&c.base_from_space).into_pyarray(py), c.scale, c.space.name())
+    (arr2(&c.base_from_space).into_pyarray(py), c.scale, c.space.name())
 }
 
 /// The URDF (string) of a model, written from its DH table.

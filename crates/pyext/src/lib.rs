@@ -1,7 +1,8 @@
 //! `mimicrete._native`: the thin pyo3 layer over the Rust crates. No logic lives here, only
 //! conversion between numpy/Python values and the crates' types, error mapping, and releasing the
 //! interpreter lock around heavy work. One file per wrapped crate:
-//! `kin.rs` (ur3-kin), `sim.rs` (tile-sim), `demo.rs` (demo-log); `errors.rs` holds the exception tree.
+//! `kin.rs` (ur3-kin), `sim.rs` (tile-sim and the task scenes), `demo.rs` (demo-log); `errors.rs`
+//! holds the exception tree (with the Rust errors' fields) and the Python ↔ JSON value conversion.
 
 use pyo3::prelude::*;
 

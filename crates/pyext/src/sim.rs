@@ -1,124 +1,103 @@
 //! Bindings for tile-sim: `SimEnv` (one world) and `SimVecEnv` (N worlds stepped across threads
-//! with the interpreter lock released). Conversion and error mapping only; no simulation here.
+//! with the interpreter lock released), the scripted expert, the task scenes. Conversion and error
+//! mapping (`errors::sim_err`) only; the final-observation rule is tile-sim's, the scene
+//! demo-log's (`demo_log::episode_scene`, `frame_poses`).
 //!
 //! Shapes (f32 unless noted): single env obs `(obs_dim,)`, action `(act_dim,)`; vector env obs
 //! `(num_envs, obs_dim)`, actions `(num_envs, act_dim)`, per-env scalars `(num_envs,)`.
-//! Error mapping: wrong action/obs shapes, unknown task names, NaN actions and invalid states →
-//! `ValueError` naming the expected shape; stepping a finished episode → `mimicrete.SimError`.
 
-use crate::errors::SimError as PySimError;
+use crate::errors::{sim_err, to_py};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use tile_sim::{Env, PoseRec, SceneFrame, Shape, SimError, StepBuffers, Task, VecEnv};
-
-fn sim_err(e: SimError) -> PyErr {
-    match e {
-        SimError::EpisodeOver => PySimError::new_err(e.to_string()),
-        other => PyValueError::new_err(other.to_string()),
-    }
-}
+use std::collections::BTreeMap;
+use tile_sim::{Env, StepBuffers, Task, VecEnv};
 
 fn parse_task(name: &str) -> PyResult<Task> {
     Task::from_name(name).map_err(sim_err)
 }
 
-fn pose_dict<'py>(py: Python<'py>, p: &PoseRec) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("t", p.t.to_vec())?;
-    d.set_item("q", p.q.to_vec())?;
+/// tile-sim's `Snapshot` as a dict (poses `{"t": [x, y, z], "q": [x, y, z, w]}`) plus `links`.
+fn snapshot_dict<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyAny>> {
+    let d = to_py(py, &env.snapshot())?;
+    d.set_item("links", to_py(py, &env.link_poses())?)?;
     Ok(d)
 }
 
-fn snapshot_dict<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyDict>> {
-    let s = env.snapshot();
-    let d = PyDict::new(py);
-    d.set_item("task", s.task.name())?;
-    d.set_item("q", s.q.to_vec())?;
-    d.set_item("tool0", pose_dict(py, &s.tool0)?)?;
-    d.set_item("tcp", pose_dict(py, &s.tcp)?)?;
-    d.set_item("object", pose_dict(py, &s.object)?)?;
-    d.set_item("target", pose_dict(py, &s.target)?)?;
-    d.set_item("suction_on", s.suction_on)?;
-    d.set_item("held", s.held)?;
-    d.set_item("gripper_width", s.gripper_width)?;
-    d.set_item("spin", s.spin)?;
-    d.set_item("spin_angle", s.spin_angle)?;
-    d.set_item("step", s.step)?;
-    d.set_item("episode_seed", s.episode_seed)?;
-    d.set_item("picked", s.picked)?;
-    d.set_item("done", s.done)?;
-    let links = PyList::empty(py);
-    for p in env.link_poses().iter() {
-        links.append(pose_dict(py, p)?)?;
+fn shape_text(s: &[usize]) -> String {
+    match s {
+        [a] => format!("({a},)"),
+        _ => format!("({})", s.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")),
     }
-    d.set_item("links", links)?;
-    Ok(d)
 }
 
-fn scene_list<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyList>> {
-    let l = PyList::empty(py);
-    for it in env.scene().items {
-        let d = PyDict::new(py);
-        d.set_item("name", it.name)?;
-        let frame = match it.frame {
-            SceneFrame::World => "world".to_string(),
-            SceneFrame::Link(i) => format!("link{i}"),
-            SceneFrame::Object => "object".to_string(),
-        };
-        d.set_item("frame", frame)?;
-        match it.shape {
-            Shape::Box { half } => {
-                d.set_item("kind", "box")?;
-                d.set_item("half_extents", half.to_vec())?;
-            }
-            Shape::Cylinder { radius, half_height } => {
-                d.set_item("kind", "cylinder")?;
-                d.set_item("radius", radius)?;
-                d.set_item("half_height", half_height)?;
-            }
-            Shape::Capsule { a, b, radius } => {
-                d.set_item("kind", "capsule")?;
-                d.set_item("a", a.to_vec())?;
-                d.set_item("b", b.to_vec())?;
-                d.set_item("radius", radius)?;
-            }
-        }
-        d.set_item("translation", it.translation.to_vec())?;
-        d.set_item("rotation", it.rotation.to_vec())?;
-        d.set_item("rgba", it.rgba.to_vec())?;
-        l.append(d)?;
-    }
-    Ok(l)
-}
-
-fn flat_f32(a: &PyArrayLikeDyn<'_, f32, AllowTypeChange>, shape: &[usize], what: &str) -> PyResult<Vec<f32>> {
+fn flat<T: numpy::Element + Copy>(
+    a: &PyArrayLikeDyn<'_, T, AllowTypeChange>,
+    shape: &[usize],
+    what: &str,
+) -> PyResult<Vec<T>> {
     let v = a.as_array();
     if v.shape() != shape {
-        let fmt = |s: &[usize]| match s {
-            [a] => format!("({a},)"),
-            _ => format!("({})", s.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")),
-        };
-        return Err(PyValueError::new_err(format!(
-            "{what} must have shape {}, got {}",
-            fmt(shape),
-            fmt(v.shape())
-        )));
+        let msg = format!("{what} must have shape {}, got {}", shape_text(shape), shape_text(v.shape()));
+        return Err(PyValueError::new_err(msg));
     }
     Ok(v.iter().copied().collect())
+}
+
+/// The Foxglove `SceneEntity` objects a demo of episode `seed` of `task` carries on `/scene`.
+fn entities<'py>(py: Python<'py>, task: Task, seed: u64, model: &str) -> PyResult<Bound<'py, PyList>> {
+    let m = ur3_kin::UrModel::by_name(model).map_err(crate::errors::kin_err)?;
+    let ents = demo_log::episode_scene(m, task, seed);
+    PyList::new(
+        py,
+        ents.iter().map(|e| to_py(py, &demo_log::foxglove_entity(e, 0))).collect::<PyResult<Vec<_>>>()?,
+    )
+}
+
+/// Pose in Base, `[x, y, z, qx, qy, qz, qw]`, of every frame the scene entities are locked to.
+fn frames(joints: [f64; 6], tile: demo_log::Pose, model: &str) -> PyResult<BTreeMap<&'static str, Vec<f64>>> {
+    let m = ur3_kin::UrModel::by_name(model).map_err(crate::errors::kin_err)?;
+    let f = demo_log::frame_poses(m, &joints, &tile);
+    Ok(f.into_iter().map(|(k, p)| (k, p.position.iter().chain(&p.orientation).copied().collect())).collect())
+}
+
+/// The Foxglove `SceneEntity` list (JSON-ready dicts) of episode `seed` of `task`.
+#[pyfunction]
+#[pyo3(signature = (task, seed = 0, model = "ur3"))]
+fn scene_entities<'py>(py: Python<'py>, task: &str, seed: u64, model: &str) -> PyResult<Bound<'py, PyList>> {
+    entities(py, parse_task(task)?, seed, model)
+}
+
+/// `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base: URDF links at `joints`, `tile` at `tile_pose`.
+#[pyfunction]
+#[pyo3(signature = (joints, tile_pose, model = "ur3"))]
+fn scene_frames(
+    joints: [f64; 6],
+    tile_pose: Vec<f64>,
+    model: &str,
+) -> PyResult<BTreeMap<&'static str, Vec<f64>>> {
+    let tile = demo_log::Pose::from_numbers(&tile_pose, "tile_pose").map_err(crate::errors::demo_err)?;
+    frames(joints, tile, model)
 }
 
 /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
 type StepTuple<'py> = (Bound<'py, PyArray1<f32>>, f32, bool, bool, Bound<'py, PyDict>);
 
-/// One simulated environment. `SimEnv(task, seed=0)`; task "TileSuction" | "BlockGrip" |
-/// "Screw" (or "suction" | "grip" | "screw").
+/// One simulated environment: `SimEnv(task, seed=0)`, task "TileSuction" | "BlockGrip" | "Screw".
 #[pyclass(module = "mimicrete._native")]
 pub struct SimEnv {
     env: Env,
     obs: Vec<f32>,
+    #[pyo3(get)]
+    task: &'static str,
+    #[pyo3(get)]
+    obs_dim: usize,
+    #[pyo3(get)]
+    obs_frame_dim: usize,
+    #[pyo3(get)]
+    act_dim: usize,
 }
 
 #[pymethods]
@@ -127,24 +106,8 @@ impl SimEnv {
     #[pyo3(signature = (task, seed = 0))]
     fn new(task: &str, seed: u64) -> PyResult<Self> {
         let t = parse_task(task)?;
-        Ok(SimEnv { env: Env::new(t, seed), obs: vec![0.0; t.obs_dim()] })
-    }
-
-    #[getter]
-    fn task(&self) -> &'static str {
-        self.env.task().name()
-    }
-    #[getter]
-    fn obs_dim(&self) -> usize {
-        self.env.task().obs_dim()
-    }
-    #[getter]
-    fn obs_frame_dim(&self) -> usize {
-        self.env.task().obs_frame_dim()
-    }
-    #[getter]
-    fn act_dim(&self) -> usize {
-        self.env.task().act_dim()
+        let (task, obs_dim, obs_frame_dim, act_dim) = (t.name(), t.obs_dim(), t.obs_frame_dim(), t.act_dim());
+        Ok(SimEnv { env: Env::new(t, seed), obs: vec![0.0; obs_dim], task, obs_dim, obs_frame_dim, act_dim })
     }
 
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`.
@@ -154,21 +117,20 @@ impl SimEnv {
         Ok(Array1::from(self.obs.clone()).into_pyarray(py))
     }
 
-    /// One step → `(obs, reward, terminated, truncated, info)`; info holds `picked`
-    /// (ever this episode), `held`, `installed`, `fell`, `step`.
+    /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         action: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
     ) -> PyResult<StepTuple<'py>> {
-        let ad = self.env.task().act_dim();
-        let a = flat_f32(&action, &[ad], "action")?;
+        let a = flat(&action, &[self.env.task().act_dim()], "action")?;
         let out = self.env.step(&a, &mut self.obs).map_err(sim_err)?;
         let info = PyDict::new(py);
-        info.set_item("picked", out.picked)?;
-        info.set_item("held", out.held)?;
-        info.set_item("installed", out.installed)?;
-        info.set_item("fell", out.fell)?;
+        for (k, b) in
+            [("picked", out.picked), ("held", out.held), ("installed", out.installed), ("fell", out.fell)]
+        {
+            info.set_item(k, b)?;
+        }
         info.set_item("step", self.env.snapshot().step)?;
         Ok((Array1::from(self.obs.clone()).into_pyarray(py), out.reward, out.terminated, out.truncated, info))
     }
@@ -179,14 +141,24 @@ impl SimEnv {
     }
 
     /// State for demo recording (poses: `t` metres, `q` quaternion `[x, y, z, w]`, Base frame).
-    fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         snapshot_dict(py, &self.env)
     }
 
-    /// Scene items (dicts: name, frame "world"|"linkN"|"object", kind, sizes, translation,
-    /// rotation `[x, y, z, w]`, rgba).
-    fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        scene_list(py, &self.env)
+    /// tile-sim's scene items as dicts (name, frame, kind, sizes, translation, rotation, rgba).
+    fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.env.scene().items)
+    }
+
+    /// `scene_entities(task, episode_seed)` of the current episode.
+    fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        entities(py, self.env.task(), self.env.snapshot().episode_seed, "ur3")
+    }
+
+    /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.
+    fn scene_frames(&self) -> PyResult<BTreeMap<&'static str, Vec<f64>>> {
+        let s = self.env.snapshot();
+        frames(s.q, demo_log::Pose { position: s.object.t, orientation: s.object.q }, "ur3")
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.
@@ -204,15 +176,34 @@ impl SimEnv {
     }
 }
 
-/// N environments stepped in one call across `num_threads` threads (GIL released), same-step
-/// auto-reset. `SimVecEnv(task, num_envs, seed=0, num_threads=2)`; env i is created with
-/// seed `seed + i`.
+/// N envs stepped across threads, GIL released, same-step auto-reset; env i gets seed `seed + i`.
 #[pyclass(module = "mimicrete._native")]
 pub struct SimVecEnv {
     venv: VecEnv,
     buf: StepBuffers,
-    actions: Vec<f32>,
+    #[pyo3(get)]
+    task: &'static str,
+    #[pyo3(get)]
+    num_envs: usize,
+    #[pyo3(get)]
+    num_threads: usize,
+    #[pyo3(get)]
+    obs_dim: usize,
+    #[pyo3(get)]
+    act_dim: usize,
 }
+
+type VecStep<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<f32>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<bool>>,
+);
 
 #[pymethods]
 impl SimVecEnv {
@@ -221,32 +212,19 @@ impl SimVecEnv {
     fn new(task: &str, num_envs: usize, seed: u64, num_threads: usize) -> PyResult<Self> {
         let t = parse_task(task)?;
         let venv = VecEnv::new(t, num_envs, seed, num_threads).map_err(sim_err)?;
-        Ok(SimVecEnv { venv, buf: StepBuffers::new(t, num_envs), actions: vec![0.0; num_envs * t.act_dim()] })
+        let (task, num_threads, obs_dim, act_dim) = (t.name(), venv.num_threads(), t.obs_dim(), t.act_dim());
+        Ok(SimVecEnv {
+            venv,
+            buf: StepBuffers::new(t, num_envs),
+            task,
+            num_envs,
+            num_threads,
+            obs_dim,
+            act_dim,
+        })
     }
 
-    #[getter]
-    fn task(&self) -> &'static str {
-        self.venv.task().name()
-    }
-    #[getter]
-    fn num_envs(&self) -> usize {
-        self.venv.num_envs()
-    }
-    #[getter]
-    fn num_threads(&self) -> usize {
-        self.venv.num_threads()
-    }
-    #[getter]
-    fn obs_dim(&self) -> usize {
-        self.venv.task().obs_dim()
-    }
-    #[getter]
-    fn act_dim(&self) -> usize {
-        self.venv.task().act_dim()
-    }
-
-    /// Reset all envs (`seed`: env i gets `seed + i`; None: each env's own RNG) →
-    /// obs `(num_envs, obs_dim)`.
+    /// Reset all envs (env i gets `seed + i`; None: each env's own RNG) → obs (num_envs, obs_dim).
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
@@ -255,8 +233,7 @@ impl SimVecEnv {
         to2(py, obs, n, od)
     }
 
-    /// Reset the envs where `mask` (num_envs,) is true → obs `(num_envs, obs_dim)` (rows of
-    /// the other envs hold their current observation).
+    /// Reset the envs where `mask` (num_envs,) is true → obs (num_envs, obs_dim) of all envs.
     fn reset_mask<'py>(
         &mut self,
         py: Python<'py>,
@@ -267,69 +244,38 @@ impl SimVecEnv {
         if m.shape() != [n] {
             return Err(PyValueError::new_err(format!("mask must have shape ({n},), got {:?}", m.shape())));
         }
-        let mv: Vec<bool> = m.iter().copied().collect();
         let mut obs = vec![0.0; n * od];
-        self.venv.reset_mask(&mv, &mut obs).map_err(sim_err)?;
+        self.venv.reset_mask(&m.iter().copied().collect::<Vec<_>>(), &mut obs).map_err(sim_err)?;
         to2(py, obs, n, od)
     }
 
-    /// Step all envs with `actions` (num_envs, act_dim) → `(obs, reward, terminated,
-    /// truncated, final_obs, has_final, picked, installed, fell)`; envs that ended are reset in
-    /// the same call: `obs` holds their new first observation, `final_obs` rows (where
-    /// `has_final`) the terminal one, other `final_obs` rows are zeros.
-    #[allow(clippy::type_complexity)]
+    /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         actions: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
-    ) -> PyResult<(
-        Bound<'py, PyArray2<f32>>,
-        Bound<'py, PyArray1<f32>>,
-        Bound<'py, PyArray1<bool>>,
-        Bound<'py, PyArray1<bool>>,
-        Bound<'py, PyArray2<f32>>,
-        Bound<'py, PyArray1<bool>>,
-        Bound<'py, PyArray1<bool>>,
-        Bound<'py, PyArray1<bool>>,
-        Bound<'py, PyArray1<bool>>,
-    )> {
+    ) -> PyResult<VecStep<'py>> {
         let (n, ad, od) = (self.venv.num_envs(), self.venv.task().act_dim(), self.venv.task().obs_dim());
-        {
-            let v = actions.as_array();
-            if v.shape() != [n, ad] {
-                return Err(PyValueError::new_err(
-                    format!("actions must have shape ({n}, {ad}), got {:?}", v.shape())
-                        .replace('[', "(")
-                        .replace(']', ")"),
-                ));
-            }
-            for (dst, src) in self.actions.iter_mut().zip(v.iter()) {
-                *dst = *src;
-            }
-        }
-        let SimVecEnv { venv, buf, actions: acts } = self;
-        py.detach(|| venv.step_buffers(acts, buf)).map_err(sim_err)?;
-        for (i, hf) in buf.has_final.iter().enumerate() {
-            if !hf {
-                buf.final_obs[i * od..(i + 1) * od].iter_mut().for_each(|x| *x = 0.0);
-            }
-        }
+        let acts = flat(&actions, &[n, ad], "actions")?;
+        let SimVecEnv { venv, buf, .. } = self;
+        py.detach(|| venv.step_buffers(&acts, buf)).map_err(sim_err)?;
         let b = &self.buf;
+        let v = |x: &Vec<bool>| Array1::from(x.clone()).into_pyarray(py);
         Ok((
             to2(py, b.obs.clone(), n, od)?,
             Array1::from(b.reward.clone()).into_pyarray(py),
-            Array1::from(b.terminated.clone()).into_pyarray(py),
-            Array1::from(b.truncated.clone()).into_pyarray(py),
+            v(&b.terminated),
+            v(&b.truncated),
             to2(py, b.final_obs.clone(), n, od)?,
-            Array1::from(b.has_final.clone()).into_pyarray(py),
-            Array1::from(b.picked.clone()).into_pyarray(py),
-            Array1::from(b.installed.clone()).into_pyarray(py),
-            Array1::from(b.fell.clone()).into_pyarray(py),
+            v(&b.has_final),
+            v(&b.picked),
+            v(&b.installed),
+            v(&b.fell),
         ))
     }
 
     /// Snapshot of env `i` (see `SimEnv.snapshot`).
-    fn snapshot<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
+    fn snapshot<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyAny>> {
         let env = self.venv.env(i).ok_or_else(|| {
             PyValueError::new_err(format!("env index {i} out of range 0..{}", self.venv.num_envs()))
         })?;
@@ -337,43 +283,18 @@ impl SimVecEnv {
     }
 }
 
-/// The decimal value an f32 constant was written as (0.04, not 0.03999999910593033).
-fn f32_exact(x: f32) -> f64 {
-    format!("{x}").parse().unwrap_or(x as f64)
-}
-
 fn to2(py: Python<'_>, v: Vec<f32>, n: usize, d: usize) -> PyResult<Bound<'_, PyArray2<f32>>> {
     let a = Array2::from_shape_vec((n, d), v).map_err(|e| PyValueError::new_err(e.to_string()))?;
     Ok(a.into_pyarray(py))
 }
 
-/// Simulator constants: frame stack, episode limit, control period (s), joint step (rad),
-/// physics substeps, pick/install distances (m), and per-task dims.
+/// The simulator's constants and per-task dims (`tile_sim::Constants`).
 #[pyfunction]
-fn sim_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("FRAME_STACK", tile_sim::FRAME_STACK)?;
-    d.set_item("MAX_EPISODE_STEPS", tile_sim::MAX_EPISODE_STEPS)?;
-    d.set_item("CONTROL_DT", f32_exact(tile_sim::CONTROL_DT))?;
-    d.set_item("MAX_JOINT_STEP", tile_sim::MAX_JOINT_STEP)?;
-    d.set_item("PHYSICS_SUBSTEPS", tile_sim::PHYSICS_SUBSTEPS)?;
-    d.set_item("PICK_DIST", f32_exact(tile_sim::PICK_DIST))?;
-    d.set_item("INSTALL_DIST", f32_exact(tile_sim::INSTALL_DIST))?;
-    d.set_item("HOME_Q", tile_sim::HOME_Q.to_vec())?;
-    let tasks = PyDict::new(py);
-    for t in Task::ALL {
-        let td = PyDict::new(py);
-        td.set_item("obs_frame_dim", t.obs_frame_dim())?;
-        td.set_item("obs_dim", t.obs_dim())?;
-        td.set_item("act_dim", t.act_dim())?;
-        tasks.set_item(t.name(), td)?;
-    }
-    d.set_item("tasks", tasks)?;
-    Ok(d)
+fn sim_constants(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    to_py(py, &tile_sim::Constants::get())
 }
 
-/// The scripted expert's action for a `SimEnv`'s current state (stateful: one per env;
-/// call `reset()` at each episode start).
+/// The scripted expert (stateful, one per env; `reset()` at each episode start).
 #[pyclass(module = "mimicrete._native")]
 pub struct SimExpert {
     ex: tile_sim::expert::Expert,
@@ -401,5 +322,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimVecEnv>()?;
     m.add_class::<SimExpert>()?;
     m.add_function(wrap_pyfunction!(sim_constants, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_entities, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_frames, m)?)?;
     Ok(())
 }

@@ -19,7 +19,7 @@ pub const HOME_Q: [f64; 6] = [
 ];
 
 /// A pose as plain numbers: translation (m) and quaternion `[x, y, z, w]`, Base frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct PoseRec {
     pub t: [f64; 3],
     pub q: [f64; 4],
@@ -56,7 +56,7 @@ pub struct StepOutcome {
 }
 
 /// Full state for demo recording. Poses in the Base frame.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Snapshot {
     pub task: Task,
     /// Joint angles, rad.
@@ -123,6 +123,24 @@ pub struct Env {
     skip_idle_physics: bool,
 }
 
+/// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset: x
+/// uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` from the seed, y = `OBJECT_Y`, resting height.
+pub fn object_start(task: Task, seed: u64) -> Vector {
+    let mut ep = ChaCha8Rng::seed_from_u64(seed);
+    let x: f32 = ep.random_range(world::OBJECT_X_MIN..=world::OBJECT_X_MAX);
+    match task {
+        Task::TileSuction => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::TILE_HALF[2]),
+        Task::BlockGrip => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::BLOCK_HALF),
+        Task::Screw => Vector::new(x, world::OBJECT_Y, world::NUT_START_Z),
+    }
+}
+
+/// The static scene of episode `seed` of `task` (what [`Env::scene`] gives after `reset(seed)`),
+/// without building a world.
+pub fn episode_scene(task: Task, seed: u64) -> Scene {
+    world::scene(task, object_start(task, seed))
+}
+
 impl Env {
     /// A new env; its episode seeds are drawn from a ChaCha8 RNG seeded with `seed`. The env is
     /// already reset (with the first drawn seed); call [`Env::reset`] to get the observation.
@@ -174,13 +192,8 @@ impl Env {
     }
 
     fn reset_with(&mut self, seed: u64) {
-        let mut ep = ChaCha8Rng::seed_from_u64(seed);
-        let x: f32 = ep.random_range(world::OBJECT_X_MIN..=world::OBJECT_X_MAX);
-        let start = match self.task {
-            Task::TileSuction => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::TILE_HALF[2]),
-            Task::BlockGrip => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::BLOCK_HALF),
-            Task::Screw => Vector::new(x, world::OBJECT_Y, world::NUT_START_Z),
-        };
+        let start = object_start(self.task, seed);
+        let x = start.x;
         let (w, h) = world::build(self.task, start);
         self.world = w;
         self.h = h;

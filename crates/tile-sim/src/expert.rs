@@ -3,8 +3,8 @@
 //! The expert reads a [`Snapshot`] and returns the action a human demonstration would record:
 //! joint part `clip((q_goal − q)/MAX_JOINT_STEP, −1, 1)` towards the current waypoint's joint
 //! solution, end-effector command ∈ {−1, 0, +1}. Waypoints are Cartesian TCP poses (flange pointing
-//! straight down) solved to joint angles by a damped-least-squares IK on `ur3_kin::fk`, seeded
-//! with the current joints so consecutive solutions stay on one branch.
+//! straight down) solved to joint angles by `ur3_kin::ik` (the project's one IK), seeded with the
+//! current joints so consecutive solutions stay on one branch.
 //!
 //! TileSuction: above the tile's grasp point (+8 cm) → down to 1.2 cm above it → suction →
 //! lift 10 cm → carry the tile 8 cm above the target → lower it onto the target (install ends
@@ -15,52 +15,15 @@
 use crate::env::Snapshot;
 use crate::world;
 use crate::{MAX_JOINT_STEP, Task};
-use nalgebra::{Isometry3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
 
-/// Damped-least-squares IK to a tool0 pose (position + orientation) on the UR3, from `seed`.
-/// Returns `None` when the residual stays above 1e-6 (position m / orientation rad).
+/// IK to a tool0 pose on the UR3 nearest `seed`: [`ur3_kin::ik`] with its default options
+/// (closed form + Gauss-Newton, residual below 1e-10 m / rad, joints wrapped to [−π, π]), so
+/// consecutive solutions seeded with the current joints stay on one branch. `None` when the pose
+/// is unreachable. (The name is kept from the damped-least-squares solver this replaced.)
 pub fn ik_dls(target: &Isometry3<f64>, seed: &[f64; 6]) -> Option<[f64; 6]> {
-    let mut q = *seed;
-    let mut e = pose_error(target, &ur3_kin::fk(&ur3_kin::UR3, &q));
-    let mut lambda2 = 1e-3;
-    for _ in 0..300 {
-        if e.norm() < 1e-10 {
-            return Some(q);
-        }
-        let mut jac = Matrix6::zeros();
-        let h = 1e-7;
-        for j in 0..6 {
-            let mut qp = q;
-            qp[j] += h;
-            let ep = pose_error(target, &ur3_kin::fk(&ur3_kin::UR3, &qp));
-            // e(q) = target ⊖ fk(q): d e/dq = −J.
-            jac.set_column(j, &((e - ep) / h));
-        }
-        let jjt = jac * jac.transpose() + Matrix6::identity() * lambda2;
-        let dq = jac.transpose() * jjt.lu().solve(&e)?;
-        let step = dq.amax();
-        let scale = if step > 0.5 { 0.5 / step } else { 1.0 };
-        let mut qn = q;
-        for j in 0..6 {
-            qn[j] = (q[j] + scale * dq[j]).clamp(-PI, PI);
-        }
-        let en = pose_error(target, &ur3_kin::fk(&ur3_kin::UR3, &qn));
-        if en.norm() < e.norm() {
-            q = qn;
-            e = en;
-            lambda2 = (lambda2 * 0.3).max(1e-12);
-        } else {
-            lambda2 = (lambda2 * 10.0).min(1e2);
-        }
-    }
-    (e.norm() < 1e-6).then_some(q)
-}
-
-fn pose_error(target: &Isometry3<f64>, cur: &Isometry3<f64>) -> Vector6<f64> {
-    let dp = target.translation.vector - cur.translation.vector;
-    let dr = (target.rotation * cur.rotation.inverse()).scaled_axis();
-    Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+    ur3_kin::ik(&ur3_kin::UR3, target, Some(seed), &ur3_kin::IkOptions::default()).ok()
 }
 
 /// Flange orientation used by the experts: tool Z straight down, tool X along Base X.

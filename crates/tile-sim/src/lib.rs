@@ -69,6 +69,7 @@ pub mod world;
 
 pub use env::{
     Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
+    episode_scene, object_start,
 };
 pub use vecenv::{StepBuffers, StepOut, VecEnv};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
@@ -127,7 +128,8 @@ pub enum SimError {
 /// * `Screw`: grip the nut threaded on a fixed M12 bolt and spin it down [`SCREW_TURNS`] turns.
 ///   Grip the nut → +1 once; turns ≥ [`SCREW_TURNS`] → +1, terminated; loosened more than one turn
 ///   (the nut leaves the bolt and drops) → −0.5, terminated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(into = "&'static str")]
 pub enum Task {
     TileSuction,
     BlockGrip,
@@ -188,6 +190,69 @@ impl Task {
         match self {
             Task::TileSuction | Task::BlockGrip => 7,
             Task::Screw => 8,
+        }
+    }
+}
+
+impl From<Task> for &'static str {
+    fn from(t: Task) -> &'static str {
+        t.name()
+    }
+}
+
+/// The simulator's constants in one record (serialized with the upper-case names of the
+/// constants, plus `tasks`: per-task `obs_frame_dim`, `obs_dim`, `act_dim`). `f32` constants are
+/// given as the decimals they were written as (0.04, not 0.03999999910593033).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[allow(non_snake_case)]
+pub struct Constants {
+    pub FRAME_STACK: usize,
+    pub MAX_EPISODE_STEPS: u32,
+    pub CONTROL_DT: f64,
+    pub MAX_JOINT_STEP: f64,
+    pub PHYSICS_SUBSTEPS: usize,
+    pub PICK_DIST: f64,
+    pub INSTALL_DIST: f64,
+    pub HOME_Q: [f64; 6],
+    pub tasks: std::collections::BTreeMap<&'static str, TaskDims>,
+}
+
+/// Observation and action sizes of one task.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct TaskDims {
+    pub obs_frame_dim: usize,
+    pub obs_dim: usize,
+    pub act_dim: usize,
+}
+
+/// The decimal value an f32 constant was written as.
+fn f32_exact(x: f32) -> f64 {
+    format!("{x}").parse().unwrap_or(x as f64)
+}
+
+impl Constants {
+    /// The constants of this build.
+    pub fn get() -> Constants {
+        Constants {
+            FRAME_STACK,
+            MAX_EPISODE_STEPS,
+            CONTROL_DT: f32_exact(CONTROL_DT),
+            MAX_JOINT_STEP,
+            PHYSICS_SUBSTEPS,
+            PICK_DIST: f32_exact(PICK_DIST),
+            INSTALL_DIST: f32_exact(INSTALL_DIST),
+            HOME_Q,
+            tasks: Task::ALL
+                .iter()
+                .map(|t| {
+                    let d = TaskDims {
+                        obs_frame_dim: t.obs_frame_dim(),
+                        obs_dim: t.obs_dim(),
+                        act_dim: t.act_dim(),
+                    };
+                    (t.name(), d)
+                })
+                .collect(),
         }
     }
 }

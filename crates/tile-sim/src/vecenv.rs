@@ -20,7 +20,7 @@ pub struct StepOut<'a> {
     pub reward: &'a mut [f32],
     pub terminated: &'a mut [bool],
     pub truncated: &'a mut [bool],
-    /// Terminal observation of envs that ended this step (rows of other envs are left untouched).
+    /// Terminal observation of envs that ended this step; the rows of the other envs are zeros.
     pub final_obs: &'a mut [f32],
     /// Row `i` of `final_obs` is valid (env `i` ended this step).
     pub has_final: &'a mut [bool],
@@ -286,6 +286,9 @@ impl Part<'_> {
                 let _ = env.reset(None, row);
             } else {
                 self.has_final[i] = false;
+                // The final-observation rule: rows of envs that did not end are zeros, never a
+                // stale terminal observation of an earlier step.
+                self.final_obs[i * od..(i + 1) * od].fill(0.0);
                 row.copy_from_slice(env.observation());
             }
         }

@@ -466,3 +466,41 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
     }
     Scene { task, items }
 }
+
+/// A scene item as a flat map: `name`, `frame` (`"world"`, `"link<i>"`, `"object"`), `kind`
+/// (`"box"` with `half_extents`; `"cylinder"` with `radius`, `half_height`; `"capsule"` with `a`,
+/// `b`, `radius`), `translation`, `rotation` `[x, y, z, w]`, `rgba`.
+impl serde::Serialize for SceneItem {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("name", self.name)?;
+        let frame = match self.frame {
+            SceneFrame::World => "world".to_string(),
+            SceneFrame::Link(i) => format!("link{i}"),
+            SceneFrame::Object => "object".to_string(),
+        };
+        m.serialize_entry("frame", &frame)?;
+        match self.shape {
+            Shape::Box { half } => {
+                m.serialize_entry("kind", "box")?;
+                m.serialize_entry("half_extents", &half)?;
+            }
+            Shape::Cylinder { radius, half_height } => {
+                m.serialize_entry("kind", "cylinder")?;
+                m.serialize_entry("radius", &radius)?;
+                m.serialize_entry("half_height", &half_height)?;
+            }
+            Shape::Capsule { a, b, radius } => {
+                m.serialize_entry("kind", "capsule")?;
+                m.serialize_entry("a", &a)?;
+                m.serialize_entry("b", &b)?;
+                m.serialize_entry("radius", &radius)?;
+            }
+        }
+        m.serialize_entry("translation", &self.translation)?;
+        m.serialize_entry("rotation", &self.rotation)?;
+        m.serialize_entry("rgba", &self.rgba)?;
+        m.end()
+    }
+}

@@ -221,6 +221,42 @@ fn vecenv_same_step_autoreset_keeps_final_obs() {
     assert!(VecEnv::new(task, 0, 0, 1).is_err());
 }
 
+/// The final-observation rule: after a step, `final_obs` rows of envs that did not end are zeros,
+/// whatever the buffer held before (a terminal row of an earlier step included).
+#[test]
+fn final_obs_rows_of_running_envs_are_zeros() {
+    let task = Task::TileSuction;
+    let (n, od) = (2, task.obs_dim());
+    let mut v = VecEnv::new(task, n, 0, 1).unwrap();
+    let mut o = vec![0.0; n * od];
+    v.reset(Some(0), &mut o).unwrap();
+    v.env_mut(1).unwrap().set_object_pose([0.9, 0.0, 0.1], [0.0, 0.0, 0.0, 1.0]).unwrap();
+    let mut buf = StepBuffers::new(task, n);
+    buf.final_obs.fill(7.0);
+    let zeros = vec![0.0f32; n * task.act_dim()];
+    let mut seen_final = false;
+    for _ in 0..40 {
+        v.step_buffers(&zeros, &mut buf).unwrap();
+        for i in 0..n {
+            let row = &buf.final_obs[i * od..(i + 1) * od];
+            if buf.has_final[i] {
+                assert!(row.iter().any(|&x| x != 0.0 && x != 7.0));
+                seen_final = true;
+            } else {
+                assert!(row.iter().all(|&x| x == 0.0), "env {i}: stale final_obs row");
+            }
+        }
+        if seen_final {
+            // The next step: env 1 runs again, its old terminal row must be gone.
+            v.step_buffers(&zeros, &mut buf).unwrap();
+            assert!(!buf.has_final[1]);
+            assert!(buf.final_obs[od..2 * od].iter().all(|&x| x == 0.0));
+            break;
+        }
+    }
+    assert!(seen_final);
+}
+
 /// A million random-action env steps over 64 worlds: no NaN, no escaped body.
 #[test]
 fn million_random_steps_stay_finite() {

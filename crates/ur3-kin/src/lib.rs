@@ -7,11 +7,15 @@
 //! - [`fk`], [`fk_all`], [`jacobian`]: forward kinematics and the geometric Jacobian;
 //! - [`ik`] (nearest solution to a seed), [`ik_gn`] (the paper's Gauss-Newton alone),
 //!   [`ik_all`] (closed form, up to 8 solutions), [`ik_batch`] (threads);
+//! - [`fk_batch`], [`ik_batch_matrices`], [`hand_to_target_batch`]: many rows per call, a failed
+//!   row an `Err` in its slot (the policy the Python binding exposes as NaN rows and `ok` flags);
+//! - [`urdf::link_transforms`] / [`urdf::link_poses`]: every URDF link at a configuration;
 //! - [`urdf::to_urdf_string`]: a URDF of any model;
 //! - [`hand_to_target`] with [`Calibration`]: tracked hand joints → tool0 target (paper §3.2).
 //!
 //! Errors: one enum, [`KinError`]; [`IkError`] is an alias of it.
 
+mod batch;
 mod error;
 mod fk;
 mod hand;
@@ -20,6 +24,7 @@ mod jacobian;
 mod model;
 pub mod urdf;
 
+pub use batch::{fk_batch, hand_to_target_batch, ik_batch_matrices};
 pub use error::{IkError, KinError};
 pub use fk::{fk, fk_all, fk_matrix};
 pub use hand::{

@@ -12,7 +12,8 @@
 //! Joint limits follow ROS-Industrial `config/<model>/joint_limits.yaml`: position ±2π except the
 //! elbow ±π (ROS1); velocity and effort per model.
 
-use crate::UrModel;
+use crate::{Joints, Pose, UrModel};
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::fmt::Write;
 
@@ -66,6 +67,57 @@ pub const LINKS: [&str; 9] = [
     "flange",
     "tool0",
 ];
+
+/// One joint of the chain: (parent link, child link, origin xyz, origin rpy, index of the
+/// revolute joint or `None` for a fixed joint).
+pub type ChainJoint = (&'static str, &'static str, [f64; 3], [f64; 3], Option<usize>);
+
+/// The eight joints of the chain in order (six revolute, then the two fixed ones).
+pub fn chain(model: &UrModel) -> Vec<ChainJoint> {
+    let mut v: Vec<ChainJoint> = joint_origins(model)
+        .into_iter()
+        .enumerate()
+        .map(|(i, (_, parent, child, xyz, rpy))| (parent, child, xyz, rpy, Some(i)))
+        .collect();
+    v.extend(FIXED_JOINTS.iter().map(|&(_, parent, child, xyz, rpy)| (parent, child, xyz, rpy, None)));
+    v
+}
+
+fn origin(xyz: &[f64; 3], rpy: &[f64; 3]) -> Pose {
+    Pose::from_parts(
+        Translation3::new(xyz[0], xyz[1], xyz[2]),
+        UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+    )
+}
+
+/// Parent-to-child transforms of every link at joint angles `q`, in chain order:
+/// `(parent, child, pose of child in parent)`. Composed from `base` they give [`crate::fk`] at
+/// `tool0`.
+pub fn link_transforms(model: &UrModel, q: &Joints) -> Vec<(&'static str, &'static str, Pose)> {
+    chain(model)
+        .into_iter()
+        .map(|(parent, child, xyz, rpy, joint)| {
+            let mut p = origin(&xyz, &rpy);
+            if let Some(i) = joint {
+                p *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q[i]);
+            }
+            (parent, child, p)
+        })
+        .collect()
+}
+
+/// Pose in `base` of every link after `base` (`shoulder_link` … `tool0`) at joint angles `q`:
+/// [`link_transforms`] composed down the chain.
+pub fn link_poses(model: &UrModel, q: &Joints) -> Vec<(&'static str, Pose)> {
+    let mut acc = Pose::identity();
+    link_transforms(model, q)
+        .into_iter()
+        .map(|(_, child, rel)| {
+            acc *= rel;
+            (child, acc)
+        })
+        .collect()
+}
 
 fn v3(v: &[f64; 3]) -> String {
     // 17 significant digits: the file round-trips the f64 values exactly.

@@ -71,7 +71,10 @@ def main(args: argparse.Namespace) -> int:
     if args.calibration:
         try:
             calib = parse_calibration(
-                json.loads(Path(args.calibration).read_text()), args.calibration
+                json.loads(Path(args.calibration).read_text()),
+                args.calibration,
+                None,
+                "calibration",
             )
         except (OSError, ValueError) as e:
             raise UsageError(f"--calibration {args.calibration}: {e}") from None

@@ -68,40 +68,42 @@ def calibration_of(log: HandLogData, source: str = "handlog") -> Calibration:
     extra = log.header.get("extra") or {}
     cal = extra.get("calibration") if isinstance(extra, dict) else None
     if cal is not None:
-        return parse_calibration(cal, f"{source}:1: extra.calibration")
+        return parse_calibration(cal, source, 1, "extra.calibration")
     space = str(log.header.get("space", "openxr"))
     if space == "robot_base":
         return Calibration(np.eye(3), np.zeros(3), 1.0, "robot_base")
     return Calibration(space="openxr" if space in ("openxr", "webxr") else space)
 
 
-def parse_calibration(d: Any, where: str) -> Calibration:
-    """A calibration from its JSON form (:meth:`Calibration.to_dict`); ``where`` names the place in
-    errors (``file:line: field``)."""
+def parse_calibration(d: Any, file: str, line: int | None, field: str) -> Calibration:
+    """A calibration from its JSON form (:meth:`Calibration.to_dict`). Errors are
+    ``mimicrete.LogFormatError`` naming ``file``, ``line`` and the ``field``."""
+
+    def bad(reason: str) -> Exception:
+        return _native.log_format_error(file, line, f"{field}: {reason}")
+
     if not isinstance(d, dict):
-        raise LogFormatError(f"{where}: must be an object with rotation, translation, scale, space")
+        raise bad("must be an object with rotation, translation, scale, space")
     missing = [k for k in ("rotation", "translation", "scale", "space") if k not in d]
     if missing:
-        raise LogFormatError(f"{where}: missing {', '.join(missing)}")
+        raise bad(f"missing {', '.join(missing)}")
     try:
         rot = np.asarray(d["rotation"], dtype=np.float64)
         tr = np.asarray(d["translation"], dtype=np.float64)
         scale = float(d["scale"])
     except (TypeError, ValueError) as e:
-        raise LogFormatError(f"{where}: not numbers ({e})") from None
+        raise bad(f"not numbers ({e})") from None
     if rot.shape != (3, 3) or tr.shape != (3,):
-        raise LogFormatError(
-            f"{where}: rotation must be 3×3 and translation 3 numbers, got {rot.shape}, {tr.shape}"
-        )
+        raise bad(f"rotation must be 3×3 and translation 3 numbers, got {rot.shape}, {tr.shape}")
     if not (np.all(np.isfinite(rot)) and np.all(np.isfinite(tr)) and np.isfinite(scale)):
-        raise LogFormatError(f"{where}: NaN or infinite values")
+        raise bad("NaN or infinite values")
     if not scale > 0:
-        raise LogFormatError(f"{where}: scale must be > 0, got {scale}")
+        raise bad(f"scale must be > 0, got {scale}")
     if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
-        raise LogFormatError(f"{where}: rotation is not a rotation matrix")
+        raise bad("rotation is not a rotation matrix")
     space = d["space"]
     if space not in ("openxr", "webxr", "unity", "robot_base"):
-        raise LogFormatError(f"{where}: unknown space {space!r} (openxr, webxr, unity, robot_base)")
+        raise bad(f"unknown space {space!r} (openxr, webxr, unity, robot_base)")
     return Calibration(rot, tr, scale, space)
 
 
@@ -115,7 +117,7 @@ def load_log(path: str | os.PathLike[str], mode: str = "strict") -> HandLogData:
 
 def _require_frames(log: HandLogData, source: str) -> None:
     if len(log) == 0:
-        raise LogFormatError(f"{source}:2: no frames")
+        raise _native.log_format_error(source, 2, "no frames")
 
 
 def find_logs(path: str | Path) -> list[Path]:

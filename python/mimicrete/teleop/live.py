@@ -107,7 +107,7 @@ class Live:
             from .convert import parse_calibration
 
             calibration = parse_calibration(
-                json.loads(self.calib_path.read_text()), str(self.calib_path)
+                json.loads(self.calib_path.read_text()), str(self.calib_path), None, "calibration"
             )
         self.calibration = calibration or standing_calibration()
         self.model = model or gest.load_default(self.task.name)

@@ -1,0 +1,72 @@
+//! The complete scene of a demo, from one place: the robot (cylinders locked to the URDF links),
+//! and the task's table, pad, target, end effector (locked to `tool0`) and object (locked to
+//! [`TILE_FRAME`]) taken from tile-sim's geometry. The writer publishes it on `/scene` with the
+//! first step of every demo; the bindings hand the same entities, as Foxglove `SceneEntity` JSON,
+//! to anything else that draws the scene (the live server).
+
+use crate::writer::{BASE_FRAME, Pose, SceneEntity, Shape, TILE_FRAME, robot_link_entities};
+use tile_sim::{SceneFrame, Task};
+use ur3_kin::UrModel;
+
+/// An `f32` constant as the decimal it was written as (0.075, not 0.07500000298023224).
+fn dec(x: f32) -> f64 {
+    format!("{x}").parse().unwrap_or(x as f64)
+}
+
+/// tile-sim's scene of episode `seed` of `task` as demo entities (no arm: the robot is drawn by
+/// [`robot_link_entities`]). Frames: tile-sim's world → `base`, its tool frame → `tool0`, its
+/// object → [`TILE_FRAME`] (the object frame of every task: tile, block or nut). Ids are the
+/// items' names, numbered when a name repeats (`cup_0` … `cup_3`).
+pub fn task_scene(task: Task, seed: u64) -> Vec<SceneEntity> {
+    let scene = tile_sim::episode_scene(task, seed);
+    let count = |n: &str| scene.items.iter().filter(|i| i.name == n).count();
+    let mut seen = std::collections::BTreeMap::<&str, usize>::new();
+    let mut out = Vec::new();
+    for it in &scene.items {
+        let frame_id = match it.frame {
+            SceneFrame::World => BASE_FRAME,
+            SceneFrame::Link(6) => "tool0",
+            SceneFrame::Link(_) => continue,
+            SceneFrame::Object => TILE_FRAME,
+        };
+        let (kind, size) = match it.shape {
+            tile_sim::Shape::Box { half } => (Shape::Cube, half.map(|h| dec(2.0 * h))),
+            tile_sim::Shape::Cylinder { radius, half_height } => {
+                (Shape::Cylinder, [dec(2.0 * radius), dec(2.0 * radius), dec(2.0 * half_height)])
+            }
+            tile_sim::Shape::Capsule { .. } => continue,
+        };
+        let k = seen.entry(it.name).or_insert(0);
+        let id = if count(it.name) > 1 { format!("{}_{}", it.name, k) } else { it.name.to_string() };
+        *k += 1;
+        out.push(SceneEntity {
+            id,
+            frame_id: frame_id.to_string(),
+            kind,
+            size,
+            pose: Pose { position: it.translation.map(dec), orientation: it.rotation.map(dec) },
+            color: it.rgba,
+        });
+    }
+    out
+}
+
+/// Everything `/scene` draws for episode `seed` of `task`: [`robot_link_entities`] then
+/// [`task_scene`].
+pub fn episode_scene(model: &UrModel, task: Task, seed: u64) -> Vec<SceneEntity> {
+    let mut v = robot_link_entities(model);
+    v.extend(task_scene(task, seed));
+    v
+}
+
+/// Pose in `base` of every frame the scene's entities are locked to, at joint angles `joints`
+/// with the object at `tile_pose`: the URDF links (`shoulder_link` … `tool0`), then
+/// [`TILE_FRAME`]. The same transforms `/tf` publishes, composed from `base`.
+pub fn frame_poses(model: &UrModel, joints: &[f64; 6], tile_pose: &Pose) -> Vec<(&'static str, Pose)> {
+    let mut v: Vec<(&'static str, Pose)> = ur3_kin::urdf::link_poses(model, joints)
+        .into_iter()
+        .map(|(name, p)| (name, Pose::from_isometry(&p)))
+        .collect();
+    v.push((TILE_FRAME, *tile_pose));
+    v
+}
