@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import LogFormatError, _native, tasks
+from mimicrete import _native, tasks
 from mimicrete import gestures as gest
 from mimicrete.hands import log as handlog
 from mimicrete.hands.log import HandLogData
