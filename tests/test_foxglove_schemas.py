@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from mimicrete import _native
-from mimicrete import convert as cv
-from mimicrete import synth as sy
+from mimicrete.teleop import convert as cv
+from mimicrete.teleop import synth as sy
 
 jsonschema = pytest.importorskip("jsonschema")
 

@@ -60,13 +60,13 @@ def test_handlog_error_fields(tmp_path: Path):
     p = tmp_path / "bad.jsonl"
     p.write_text("\n".join(json.dumps(x) for x in (header, frame, bad)) + "\n")
     with pytest.raises(mc.LogFormatError) as ei:
-        mc.handlog.parse(p)
+        mc.hands.parse(p)
     e = ei.value
     assert (e.file, e.line) == (str(p), 3)
     assert e.reason == "wrong joint count: 20 joints, layout mediapipe has 21"
     assert str(e) == f"{e.file}:{e.line}: {e.reason}"
     with pytest.raises(mc.LogFormatError) as ei:
-        mc.handlog.parse_text(json.dumps(header) + "\n" + '{"t": "x"}\n', "mem")
+        mc.hands.parse_text(json.dumps(header) + "\n" + '{"t": "x"}\n', "mem")
     assert (ei.value.file, ei.value.line) == ("mem", 2)
 
 
@@ -88,7 +88,7 @@ def test_python_raised_log_errors_have_the_same_fields(tmp_path: Path):
     plain = mc.LogFormatError("free text")
     assert (plain.file, plain.line, plain.reason) == (None, None, None)
     # The converter's own check (a log with a header and no frames) uses it.
-    from mimicrete import convert as cv
+    from mimicrete.teleop import convert as cv
 
     p = tmp_path / "empty.jsonl"
     p.write_text(
