@@ -333,11 +333,12 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
     let mut report = SalvageReport { bytes_total: buf.len() as u64, ..Default::default() };
     // A demo whose chunk 0 (schemas, channels) is lost and that has no intact summary: its
     // channels are the writer's fixed layout.
-    let needs_layout = m.chunks.iter().any(|c| {
-        c.content.iter().flatten().any(
-            |r| matches!(r, Record::Message { header, .. } if !channels.contains_key(&header.channel_id)),
-        )
-    });
+    let needs_layout = !channels.values().any(|c: &ChannelInfo| c.topic == TOPIC_STEP)
+        || m.chunks.iter().any(|c| {
+            c.content.iter().flatten().any(
+                |r| matches!(r, Record::Message { header, .. } if !channels.contains_key(&header.channel_id)),
+            )
+        });
     if needs_layout {
         if let Some(meta) = written_by_demo_log(&m) {
             for (id, sc, ch) in demo_log_layout(&meta) {
@@ -568,11 +569,24 @@ pub fn salvage(path: impl AsRef<Path>) -> Result<(Vec<RecoveredMessage>, Salvage
 /// so that [`crate::read_demo`] loads the result. `path_out` may not equal `path_in`.
 ///
 /// # Errors
-/// As [`salvage`], plus [`DemoError::Mcap`]/[`DemoError::Io`] when writing fails.
+/// As [`salvage`]; [`DemoError::Format`] when nothing recognisable as a demo survives (no
+/// `/demo/step` channel and no sign that demo-log wrote the file), instead of writing a file the
+/// reader would refuse; [`DemoError::Mcap`]/[`DemoError::Io`] when writing fails.
 pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Result<SalvageReport, DemoError> {
     let (path_in, path_out) = (path_in.as_ref(), path_out.as_ref());
     let buf = std::fs::read(path_in).map_err(|e| DemoError::Io { path: path_in.to_path_buf(), source: e })?;
     let s = salvage_bytes(&buf, path_in)?;
+    if !s.channels.values().any(|c| c.topic == TOPIC_STEP) {
+        return Err(DemoError::Format {
+            path: path_in.to_path_buf(),
+            reason: format!(
+                "nothing recognisable as a demo survives (no {TOPIC_STEP} channel, and neither the MCAP header, \
+                 the episode metadata nor any intact step message says it was written by demo-log); \
+                 {} messages recovered",
+                s.report.messages
+            ),
+        });
+    }
     let tmp: PathBuf = crate::partial_path(path_out);
     let file = std::fs::File::create(&tmp).map_err(|e| DemoError::Io { path: tmp.clone(), source: e })?;
     let me = |e| DemoError::Mcap { path: path_out.to_path_buf(), source: e };

@@ -487,16 +487,18 @@ fn resync(buf: &[u8], from: usize, limit: usize, data_end_at: Option<usize>) -> 
     })
 }
 
-/// Messages listed by the Message Index records that follow a chunk ending at `end`.
+/// Messages listed by the Message Index records that follow a chunk ending at `pos` (0 when the
+/// next record is not a message index: a chunk without messages has none); `None` when nothing
+/// readable follows.
 fn indexed_messages(buf: &[u8], mut pos: usize, limit: usize) -> Option<u64> {
     let mut n = 0u64;
-    let mut any = false;
+    let mut any = pos == limit;
     while let Ok((op, start, end)) = frame(buf, pos, limit) {
+        any = true;
         if op != mcap::records::op::MESSAGE_INDEX || !exact(op, &buf[start..end]) {
             break;
         }
         n += (end - start - 6) as u64 / 16;
-        any = true;
         pos = end;
     }
     any.then_some(n)
@@ -637,7 +639,8 @@ fn push_good(chunks: &mut Vec<ChunkSlot>, offset: usize, end: usize, g: GoodChun
     chunks.push(ChunkSlot {
         offset,
         end: Some(end),
-        log_times: g.log_times,
+        // A chunk without messages (schemas and channels only) has the header's times.
+        log_times: g.log_times.or(Some((g.header.message_start_time, g.header.message_end_time))),
         messages: Some(g.messages),
         content: Ok(g.records),
         header_times_wrong,
