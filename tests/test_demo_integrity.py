@@ -77,9 +77,15 @@ def _flip_in(data: bytes, chunk: dict) -> bytes:
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(Path(mc.__file__).parent.parent), env.get("PYTHONPATH", "")])
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(mc.__file__).parent.parent), env.get("PYTHONPATH", "")]
+    )
     return subprocess.run(
-        [sys.executable, "-m", "mimicrete", *args], capture_output=True, text=True, env=env, timeout=120
+        [sys.executable, "-m", "mimicrete", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
     )
 
 
@@ -103,7 +109,10 @@ def test_inspect_verifies_by_default_and_names_the_damaged_chunk(demo: Path, tmp
         if k < len(chunks) - 1:
             r = _cli("inspect", str(bad))
             assert r.returncode == 1, r.stdout + r.stderr
-            assert f"integrity: DAMAGED (1 of {len(chunks)} chunks damaged, {lost} messages lost)" in r.stdout
+            assert (
+                f"integrity: DAMAGED (1 of {len(chunks)} chunks damaged, {lost} messages lost)"
+                in r.stdout
+            )
             assert f"chunk {k} at byte {chunks[k]['offset']}: " in r.stdout
             assert "salvage_to" in r.stdout
             continue
@@ -112,7 +121,9 @@ def test_inspect_verifies_by_default_and_names_the_damaged_chunk(demo: Path, tmp
         assert r.returncode == 1
         info = json.loads(r.stdout)
         damaged = [c for c in info["integrity"]["chunks"] if c["error"] is not None]
-        assert [(c["index"], c["offset"], c["messages"]) for c in damaged] == [(k, chunks[k]["offset"], lost)]
+        assert [(c["index"], c["offset"], c["messages"]) for c in damaged] == [
+            (k, chunks[k]["offset"], lost)
+        ]
         assert info["steps"] == N  # the summary itself is intact
     # --no-verify reads only the summary, as before.
     r = _cli("inspect", "--no-verify", str(tmp_path / "bad0.mcap"))
@@ -134,7 +145,9 @@ def _steps(msgs) -> list[int]:
 
 
 @pytest.mark.parametrize("which", ["first", "middle"])
-def test_salvage_recovers_every_other_chunk_and_the_result_loads(demo: Path, tmp_path: Path, which: str):
+def test_salvage_recovers_every_other_chunk_and_the_result_loads(
+    demo: Path, tmp_path: Path, which: str
+):
     chunks = _chunks(demo)
     k = 0 if which == "first" else len(chunks) // 2
     bad = tmp_path / "bad.mcap"
