@@ -140,9 +140,11 @@ def verify(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """What is in a demo, read with the official ``mcap`` reader (CRCs checked): channels with
+    """What is in a demo, read from its summary with the official ``mcap`` reader: channels with
     schema, encoding and message count, metadata records, attachments, start/end log time,
-    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage."""
+    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage.
+    The summary says nothing about the chunks' integrity: ``verify`` checks every chunk's CRC
+    (``mimicrete inspect`` runs both)."""
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
