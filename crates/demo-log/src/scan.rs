@@ -125,14 +125,20 @@ impl Check<'_> {
 /// 0.26 reserves memory for a string from its length prefix before reading it, so a corrupt prefix
 /// would otherwise ask for gigabytes (found by cargo fuzz).
 pub fn plausible(op: u8, body: &[u8]) -> bool {
+    fields_end(op, body).is_some()
+}
+
+/// Where the fields of a record body end, if every length prefix fits (see [`plausible`]);
+/// message index records are included.
+fn fields_end(op: u8, body: &[u8]) -> Option<usize> {
     use mcap::records::op;
     let mut c = Check { b: body, pos: 0 };
-    let ok = match op {
+    match op {
         op::HEADER => c.str().and_then(|_| c.str()),
         op::FOOTER => c.take(20),
         op::SCHEMA => c.take(2).and_then(|_| c.str()).and_then(|_| c.str()).and_then(|_| c.str()),
         op::CHANNEL => c.take(4).and_then(|_| c.str()).and_then(|_| c.str()).and_then(|_| c.string_map()),
-        op::MESSAGE => c.take(22),
+        op::MESSAGE => c.take(body.len().max(22) as u64),
         op::CHUNK => c.take(28).and_then(|_| c.str()).and_then(|_| {
             let n = c.u64()?;
             c.take(n)
@@ -144,9 +150,14 @@ pub fn plausible(op: u8, body: &[u8]) -> bool {
         }),
         op::METADATA => c.str().and_then(|_| c.string_map()),
         op::DATA_END => c.take(4),
+        op::MESSAGE_INDEX => c.take(2).and_then(|_| {
+            let n = c.u32()? as u64;
+            (n % 16 == 0).then_some(())?;
+            c.take(n)
+        }),
         _ => None,
-    };
-    ok.is_some()
+    }
+    .map(|_| c.pos)
 }
 
 /// [`mcap::parse_record`] after [`plausible`].
@@ -177,25 +188,11 @@ pub fn is_parsed_kind(op: u8) -> bool {
 /// The MCAP magic, at both ends of a file.
 pub const MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
-/// Whether a record body is consumed exactly by its fields (as every MCAP v0 writer writes them),
-/// for the kinds whose framing a bit flip can silently shift: Metadata, Message index, Chunk.
+/// Whether a record body is consumed exactly by its fields, as every MCAP v0 writer writes them: a
+/// bit flip in a record's length would otherwise shift the framing silently (a Header whose
+/// length grew swallowing the chunks after it, found by the `salvage_damage` fuzz target).
 fn exact(op: u8, body: &[u8]) -> bool {
-    use mcap::records::op;
-    let mut c = Check { b: body, pos: 0 };
-    let ok = match op {
-        op::METADATA => c.str().and_then(|_| c.string_map()),
-        op::MESSAGE_INDEX => c.take(2).and_then(|_| {
-            let n = c.u32()? as u64;
-            (n % 16 == 0).then_some(())?;
-            c.take(n)
-        }),
-        op::CHUNK => c.take(28).and_then(|_| c.str()).and_then(|_| {
-            let n = c.u64()?;
-            c.take(n)
-        }),
-        _ => return true,
-    };
-    ok.is_some() && c.pos == body.len()
+    fields_end(op, body) == Some(body.len())
 }
 
 /// `(opcode, body start, record end)` of the record at `pos` if its header and body fit before
@@ -487,6 +484,11 @@ fn resync(buf: &[u8], from: usize, limit: usize, data_end_at: Option<usize>) -> 
     })
 }
 
+/// The first intact chunk record that starts inside `start..end` (the body of another record).
+fn hidden_chunk(buf: &[u8], start: usize, end: usize, limit: usize) -> Option<usize> {
+    (start..end).find(|&p| buf[p] == mcap::records::op::CHUNK && is_sync_chunk(buf, p, limit))
+}
+
 /// Messages listed by the Message Index records that follow a chunk ending at `pos` (0 when the
 /// next record is not a message index: a chunk without messages has none); `None` when nothing
 /// readable follows.
@@ -553,6 +555,15 @@ pub fn map_file(buf: &[u8]) -> FileMap {
                         }
                         m.bytes_used = end;
                         break;
+                    }
+                    // Records without a CRC of their own are accepted only if no intact chunk
+                    // starts inside them: a damaged length cannot swallow chunks.
+                    _ if opc != op::ATTACHMENT && hidden_chunk(buf, start, end, limit).is_some() => {
+                        let p = hidden_chunk(buf, start, end, limit).unwrap_or(end);
+                        format!(
+                            "record (opcode 0x{opc:02x}) at byte {pos} runs over the intact chunk at byte {p} \
+                             (its length is damaged)"
+                        )
                     }
                     op::MESSAGE_INDEX if exact(opc, body) => {
                         m.bytes_used = end;

@@ -397,6 +397,32 @@ fn a_flipped_chunk_length_or_opcode_resynchronises() {
     }
 }
 
+/// Found by the `salvage_damage` fuzz target: a flipped bit in the MCAP Header's length made the
+/// Header (which has no CRC) swallow the chunks after it.
+#[test]
+fn a_record_whose_length_grew_swallows_no_chunk() {
+    let (d, t) = base("swallow", 60);
+    for (k, x) in [(10usize, 0x3bu8), (10, 0x01), (11, 0x01)] {
+        let mut b = t.buf.clone();
+        b[k] ^= x;
+        // Without the summary (cut in the last chunk) only the walk finds the chunks.
+        let last = t.chunks.last().unwrap();
+        b.truncate(last.start + 20);
+        check(&t, &b, &d, &format!("header{k}x{x}")).unwrap();
+        let v = verify_bytes(&b, Path::new("x.mcap")).unwrap();
+        // Only the cut last chunk is damaged; the header is reported as unreadable bytes.
+        let bad: Vec<u64> = v.damaged_chunks().map(|c| c.offset).collect();
+        assert_eq!(bad, [last.start as u64], "{:?}", v.problems);
+        assert!(v.problems.iter().any(|p| p.starts_with("bytes 8..")), "{:?}", v.problems);
+    }
+    // The same for the `episode_start` metadata record's length.
+    let md = t.buf[..t.chunks[0].start].iter().position(|&x| x == 0x0c).unwrap();
+    let mut b = t.buf.clone();
+    b[md + 2] ^= 0x40;
+    b.truncate(t.summary_start - 20);
+    check(&t, &b, &d, "metadata-length").unwrap();
+}
+
 #[test]
 fn metadata_damage_is_found_by_the_data_crc() {
     let (_d, t) = base("md", 30);

@@ -118,9 +118,13 @@ fuzz_target!(|data: &[u8]| {
     let got: Vec<Msg> = s.messages.iter().map(|m| (m.topic.clone(), m.log_time, m.data.clone())).collect();
     assert!(
         got.len() == expected.len() && got.iter().zip(&expected).all(|(g, e)| g == *e),
-        "recovered {} messages, the intact chunks hold {}",
+        "recovered {} messages, the intact chunks hold {}; changed bytes {:?}, length {}; chunks {:?}; verify {:?}",
         got.len(),
-        expected.len()
+        expected.len(),
+        (0..b.len()).filter(|&i| b[i] != orig[i]).collect::<Vec<_>>(),
+        b.len(),
+        base.chunks.iter().map(|c| (c.0, c.1, intact(c, orig, &b))).collect::<Vec<_>>(),
+        verify_bytes(&b, name).map(|v| v.problems).unwrap_or_default()
     );
     let v = verify_bytes(&b, name).unwrap();
     assert_eq!(v.is_ok(), b == *orig, "{:?}", v.problems);
