@@ -489,21 +489,17 @@ fn hidden_chunk(buf: &[u8], start: usize, end: usize, limit: usize) -> Option<us
     (start..end).find(|&p| buf[p] == mcap::records::op::CHUNK && is_sync_chunk(buf, p, limit))
 }
 
-/// Messages listed by the Message Index records that follow a chunk ending at `pos` (0 when the
-/// next record is not a message index: a chunk without messages has none); `None` when nothing
-/// readable follows.
-fn indexed_messages(buf: &[u8], mut pos: usize, limit: usize) -> Option<u64> {
+/// Messages listed by the run of Message Index records starting at `pos`, and where the run ends.
+fn index_run(buf: &[u8], mut pos: usize, limit: usize) -> (u64, usize) {
     let mut n = 0u64;
-    let mut any = pos == limit;
     while let Ok((op, start, end)) = frame(buf, pos, limit) {
-        any = true;
         if op != mcap::records::op::MESSAGE_INDEX || !exact(op, &buf[start..end]) {
             break;
         }
         n += (end - start - 6) as u64 / 16;
         pos = end;
     }
-    any.then_some(n)
+    (n, pos)
 }
 
 /// Walk a (possibly damaged or cut) MCAP file: every intact chunk wherever it is, the other
@@ -543,7 +539,7 @@ pub fn map_file(buf: &[u8]) -> FileMap {
                             continue;
                         }
                         Err(b) => {
-                            m.chunks.push(bad_slot(buf, pos, b.header.as_ref(), Some(end), limit, &b.reason));
+                            m.chunks.push(bad_slot(pos, b.header.as_ref(), Some(end), &b.reason));
                             format!("damaged chunk at byte {pos}: {}", b.reason)
                         }
                     },
@@ -597,7 +593,7 @@ pub fn map_file(buf: &[u8]) -> FileMap {
             // A chunk whose length runs past the end: cut, or its length field is damaged (`pos`
             // is always a record boundary, so the opcode says it is a chunk).
             let h = chunk_at(buf, pos, limit).err().and_then(|b| b.header);
-            m.chunks.push(bad_slot(buf, pos, h.as_ref(), None, limit, &bad));
+            m.chunks.push(bad_slot(pos, h.as_ref(), None, &bad));
         }
         let next = resync(buf, pos + 1, limit, data_end_at);
         let skip_end = next.unwrap_or(limit);
@@ -623,9 +619,41 @@ pub fn map_file(buf: &[u8]) -> FileMap {
     }
     if let Some(s) = &summary {
         add_from_summary(buf, s, limit, &mut m);
+        // With an intact summary, a damaged "chunk" that its chunk index does not list was some
+        // other record whose opcode changed (a message index 0x07 with its low bit flipped).
+        let listed: Vec<u64> = s.chunk_indexes.iter().map(|c| c.chunk_start_offset).collect();
+        let (real, phantom): (Vec<ChunkSlot>, Vec<ChunkSlot>) = std::mem::take(&mut m.chunks)
+            .into_iter()
+            .partition(|c| c.content.is_ok() || listed.contains(&(c.offset as u64)));
+        m.chunks = real;
+        for c in phantom {
+            let end = c.end.unwrap_or(c.offset + 9).min(limit);
+            let reason =
+                format!("not a chunk of the summary's index: {}", c.content.err().unwrap_or_default());
+            m.skipped.push(Skipped { start: c.offset, end, reason });
+        }
+        m.skipped.sort_by_key(|k| k.start);
     }
     m.chunks.sort_by_key(|c| c.offset);
     m.records.sort_by_key(|r| r.0);
+    // A damaged chunk's message count comes from the message index records after it, trusted only
+    // if their run ends where reading resumed and (with an intact summary) has the length its
+    // chunk index gives.
+    let mut starts: Vec<usize> = m.chunks.iter().filter(|c| c.content.is_ok()).map(|c| c.offset).collect();
+    starts.extend(m.records.iter().map(|r| r.0));
+    starts.extend(m.data_end.map(|d| d.0));
+    starts.push(limit);
+    for c in m.chunks.iter_mut().filter(|c| c.content.is_err()) {
+        let Some(end) = c.end else { continue };
+        let (n, stop) = index_run(buf, end, limit);
+        let len_ok = summary.as_ref().is_none_or(|s| {
+            s.chunk_indexes
+                .iter()
+                .find(|ci| ci.chunk_start_offset == c.offset as u64)
+                .is_none_or(|ci| ci.message_index_length == (stop - end) as u64)
+        });
+        c.messages = (len_ok && starts.contains(&stop)).then_some(n);
+    }
     if complete && m.data_end.is_some() && m.summary_problem.is_none() && summary.is_some() {
         m.bytes_used = buf.len();
     }
@@ -658,19 +686,12 @@ fn push_good(chunks: &mut Vec<ChunkSlot>, offset: usize, end: usize, g: GoodChun
     });
 }
 
-fn bad_slot(
-    buf: &[u8],
-    offset: usize,
-    header: Option<&ChunkHeader>,
-    end: Option<usize>,
-    limit: usize,
-    reason: &str,
-) -> ChunkSlot {
+fn bad_slot(offset: usize, header: Option<&ChunkHeader>, end: Option<usize>, reason: &str) -> ChunkSlot {
     ChunkSlot {
         offset,
         end,
         log_times: header.map(|h| (h.message_start_time, h.message_end_time)),
-        messages: end.and_then(|e| indexed_messages(buf, e, limit)),
+        messages: None,
         content: Err(reason.to_string()),
         header_times_wrong: false,
     }
@@ -685,9 +706,6 @@ fn add_from_summary(buf: &[u8], s: &SummaryInfo, limit: usize, m: &mut FileMap) 
         if let Some(c) = m.chunks.iter_mut().find(|c| c.offset == off) {
             if c.content.is_err() {
                 c.log_times = Some((ci.message_start_time, ci.message_end_time));
-                if c.messages.is_none() {
-                    c.messages = end.and_then(|e| indexed_messages(buf, e, limit));
-                }
             }
             continue;
         }
@@ -701,7 +719,7 @@ fn add_from_summary(buf: &[u8], s: &SummaryInfo, limit: usize, m: &mut FileMap) 
                 v.pop()
             }
             Err(b) => {
-                let mut c = bad_slot(buf, off, None, end.filter(|&e| e <= limit), limit, &b.reason);
+                let mut c = bad_slot(off, None, end.filter(|&e| e <= limit), &b.reason);
                 c.log_times = Some((ci.message_start_time, ci.message_end_time));
                 Some(c)
             }
