@@ -59,6 +59,7 @@ __all__ = [
     "demo_load",
     "demo_salvage",
     "demo_salvage_to",
+    "demo_verify",
     "DEMO_FORMAT_VERSION",
     "HANDLOG_VERSION",
 ]
@@ -362,6 +363,16 @@ class _SalvagedMessage(TypedDict):
     sequence: int
     data: bytes
 
+class _ChunkCheck(TypedDict):
+    index: int
+    offset: int
+    length: int | None
+    messages: int | None
+    log_time_start: int | None
+    log_time_end: int | None
+    error: str | None
+    recoverable: bool
+
 class _SalvageReport(TypedDict):
     bytes_total: int
     bytes_used: int
@@ -372,6 +383,22 @@ class _SalvageReport(TypedDict):
     attachments: int
     complete: bool
     stopped_because: str | None
+    lost_chunks: list[_ChunkCheck]
+    step_gaps: list[tuple[int, int]]
+    messages_unattributed: int
+    layout_assumed: bool
+
+class _VerifyReport(TypedDict):
+    ok: bool
+    bytes: int
+    complete: bool
+    chunks: list[_ChunkCheck]
+    skipped: list[tuple[int, int, str]]
+    data_crc_ok: bool | None
+    summary_problem: str | None
+    messages_ok: int
+    messages_lost: int | None
+    problems: list[str]
 
 def demo_parse_handlog(path: _StrPath, mode: str = "strict") -> _HandLog:
     """Parse a hand-log file (mode "strict" | "lenient").
@@ -467,3 +494,6 @@ def demo_salvage(path: _StrPath) -> tuple[list[_SalvagedMessage], _SalvageReport
 
 def demo_salvage_to(path_in: _StrPath, path_out: _StrPath) -> _SalvageReport:
     """Rewrite what can be recovered from path_in as a valid MCAP file path_out."""
+
+def demo_verify(path: _StrPath) -> _VerifyReport:
+    """Check every chunk's CRC, the data-section and summary CRCs and completeness."""

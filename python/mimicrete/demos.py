@@ -3,8 +3,8 @@
 The file format (one MCAP file per episode; channels ``/demo/step``, ``/hand/joints``, ``/tf``,
 ``/scene``, ``/events``; metadata records ``episode_start`` / ``episode``; the URDF attached) is
 described in ``docs/formats.md``. The work is done by the Rust crate ``demo-log`` through
-``mimicrete._native``; ``inspect`` reads files with the official ``mcap`` Python reader instead, so
-the CLI doubles as an independent check.
+``mimicrete._native``; ``inspect`` reads the summary with the official ``mcap`` Python reader, so
+the CLI doubles as an independent check, and ``verify`` (Rust) checks every chunk's CRC.
 
     >>> d = mc.demos.load("demos/")          # every *.mcap in the directory, sorted by name
     >>> d.obs.shape, d.actions.shape, d.episode[:3]
@@ -32,6 +32,7 @@ __all__ = [
     "read",
     "salvage",
     "salvage_to",
+    "verify",
 ]
 
 STEP_TOPIC = "/demo/step"
@@ -111,24 +112,39 @@ def read(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def salvage(path: str | os.PathLike[str]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Every complete message of a (possibly cut) demo, and a report (chunks_ok, chunks_lost,
-    messages, bytes_used, complete, stopped_because, ...)."""
+    """Every message of every intact chunk of a (possibly cut or damaged) demo, wherever the
+    damage is, and a report (chunks_ok, chunks_lost, lost_chunks, messages, step_gaps,
+    bytes_used, complete, stopped_because, ...)."""
     msgs, report = _native.demo_salvage(os.fspath(path))
     return list(msgs), dict(report)
 
 
 def salvage_to(path_in: str | os.PathLike[str], path_out: str | os.PathLike[str]) -> dict[str, Any]:
-    """Rewrite what can be recovered from ``path_in`` as a complete demo ``path_out``."""
+    """Rewrite what can be recovered from ``path_in`` as a complete demo ``path_out`` that
+    ``load`` accepts: its ``salvage`` metadata record declares the lost steps (``step_gaps``,
+    ranges ``a..b``), the row before each gap is marked truncated, and ``load(...).metas`` carry
+    the record as ``salvage.<key>``."""
     return dict(_native.demo_salvage_to(os.fspath(path_in), os.fspath(path_out)))
+
+
+def verify(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Check a demo's integrity: every chunk's CRC, the data-section and summary CRCs, and that
+    the file is complete. Returns ok, chunks (index, offset, length, messages, log_time_start,
+    log_time_end, error, recoverable), skipped byte ranges, data_crc_ok, summary_problem,
+    messages_ok, messages_lost and problems (one line each; empty when healthy). Raises
+    ``mimicrete.LogFormatError`` for a file that is not MCAP at all."""
+    return dict(_native.demo_verify(os.fspath(path)))
 
 
 # ---- inspect -------------------------------------------------------------------------------
 
 
 def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """What is in a demo, read with the official ``mcap`` reader (CRCs checked): channels with
+    """What is in a demo, read from its summary with the official ``mcap`` reader: channels with
     schema, encoding and message count, metadata records, attachments, start/end log time,
-    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage."""
+    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage.
+    The summary says nothing about the chunks' integrity: ``verify`` checks every chunk's CRC
+    (``mimicrete inspect`` runs both)."""
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
@@ -213,9 +229,32 @@ def _print_report(info: dict[str, Any]) -> None:
         print(f"    {a['name']}  {a['media_type']}  {a['bytes']} bytes")
 
 
+def _print_integrity(f: str, rep: dict[str, Any]) -> None:
+    chunks = rep["chunks"]
+    if rep["ok"]:
+        print(f"  integrity: OK ({len(chunks)} chunks, every CRC checked)")
+        return
+    bad = [c for c in chunks if c["error"] is not None]
+    lost = rep["messages_lost"]
+    print(
+        f"  integrity: DAMAGED ({len(bad)} of {len(chunks)} chunks damaged, "
+        f"{'an unknown number of' if lost is None else lost} messages lost)"
+    )
+    for line in rep["problems"]:
+        print(f"    {line}")
+    print(f"  recover the intact chunks: mimicrete.demos.salvage_to({f!r}, 'fixed.mcap')")
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("files", nargs="+", metavar="FILE.mcap", help="demo file(s) to inspect")
     parser.add_argument("--json", action="store_true", help="print one JSON object per file")
+    parser.add_argument(
+        "--no-verify",
+        dest="verify",
+        action="store_false",
+        help="read only the summary; skip checking every chunk's CRC (by default a damaged "
+        "chunk is reported and the exit code is 1)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
@@ -223,14 +262,34 @@ def main(args: argparse.Namespace) -> int:
 
     status = 0
     for f in args.files:
+        rep: dict[str, Any] | None = None
+        if getattr(args, "verify", True):
+            try:
+                rep = verify(f)
+            except (LogFormatError, OSError) as e:
+                print(f"error: {e}")
+                status = 1
+                continue
+        info: dict[str, Any] | None = None
+        error = None
         try:
             info = inspect(f)
         except (LogFormatError, OSError) as e:
-            print(f"error: {e}")
+            error = str(e)
+        if error is not None or (rep is not None and not rep["ok"]):
             status = 1
-            continue
         if args.json:
-            print(json.dumps(info, sort_keys=True))
-        else:
+            out = dict(info) if info is not None else {"path": str(f), "error": error}
+            if rep is not None:
+                out["integrity"] = rep
+            print(json.dumps(out, sort_keys=True))
+            continue
+        if info is not None:
             _print_report(info)
+        elif rep is None:
+            print(f"error: {error}")
+        else:
+            print(f"{f}  ({rep['bytes']} bytes; summary unreadable: {error})")
+        if rep is not None:
+            _print_integrity(str(f), rep)
     return status

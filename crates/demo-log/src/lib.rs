@@ -46,9 +46,11 @@
 //! obs_dim, act_dim, terminated). Attachment `<model>.urdf` (`ur3.urdf`): the robot description from
 //! `ur3_kin::urdf::to_urdf_string`.
 //!
-//! The writer writes `PATH.partial` and renames it on finish. [`salvage`] / [`salvage_to`] give back
-//! every message of every complete chunk of a cut file. [`read_demo`] / [`load_dataset`] turn demos
-//! into flat arrays.
+//! The writer writes `PATH.partial` and renames it on finish. [`verify`] checks every chunk's CRC,
+//! the data-section and summary CRCs and names the damaged chunks. [`salvage`] / [`salvage_to`]
+//! give back every message of every intact chunk of a cut or damaged file, wherever the damage is;
+//! [`salvage_to`] declares the lost steps so that the result loads. [`read_demo`] /
+//! [`load_dataset`] turn demos into flat arrays.
 
 mod handlog;
 mod meta;
@@ -65,7 +67,10 @@ pub use handlog::{
 };
 pub use meta::{DEFAULT_ENTITY_COLOR, EPISODE_META_KEYS, value_text};
 pub use reader::{Dataset, Episode, demo_files, load_dataset, read_demo, read_demo_bytes};
-pub use salvage::{RecoveredMessage, SalvageReport, Salvaged, salvage, salvage_bytes, salvage_to};
+pub use salvage::{
+    ChunkCheck, RecoveredMessage, SalvageReport, Salvaged, VerifyReport, salvage, salvage_bytes, salvage_to,
+    verify, verify_bytes,
+};
 pub use scene::{episode_scene, frame_poses, task_scene};
 /// tile-sim's task names (the scene of a demo is the task's).
 pub use tile_sim::Task;

@@ -63,7 +63,10 @@ fn fmt_err(path: &Path, reason: impl Into<String>) -> DemoError {
 /// # Errors
 /// [`DemoError::Format`] for a file that is not a complete MCAP demo, has no `/demo/step` channel
 /// with schema [`STEP_SCHEMA_NAME`], has a step that does not parse, or steps that are not 0, 1, 2,
-/// ... with constant obs/action lengths. A cut file is refused: use [`crate::salvage_to`] first.
+/// ... with constant obs/action lengths. A cut or damaged file is refused: use
+/// [`crate::salvage_to`] first. A salvaged file may skip the step ranges its `salvage` metadata
+/// record declares lost (`step_gaps`); the row before each gap is marked truncated, and the
+/// salvage record's entries are in `meta` as `salvage.<key>`.
 pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
     let mut st = ReadState {
         name,
@@ -72,7 +75,10 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
         step_schemas: Vec::new(),
         start_meta: None,
         end_meta: None,
+        salvage_meta: None,
         saw_footer: false,
+        next_step: 0,
+        jumps: Vec::new(),
     };
     const MAGIC: &[u8] = b"\x89MCAP0\r\n";
     if buf.len() < 2 * MAGIC.len() || &buf[..MAGIC.len()] != MAGIC {
@@ -163,8 +169,12 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
     if st.step_channels.is_empty() {
         return Err(fmt_err(name, format!("no {TOPIC_STEP} channel: not a mimicrete demo")));
     }
+    st.check_gaps()?;
     let mut ep = st.ep;
     ep.meta = st.end_meta.or(st.start_meta).unwrap_or_default();
+    for (k, v) in st.salvage_meta.unwrap_or_default() {
+        ep.meta.insert(format!("salvage.{k}"), v);
+    }
     Ok(ep)
 }
 
@@ -175,7 +185,12 @@ struct ReadState<'p> {
     step_schemas: Vec<u16>,
     start_meta: Option<BTreeMap<String, String>>,
     end_meta: Option<BTreeMap<String, String>>,
+    /// The last `salvage` metadata record (written by [`crate::salvage_to`]).
+    salvage_meta: Option<BTreeMap<String, String>>,
     saw_footer: bool,
+    next_step: u64,
+    /// Steps skipped: `(row, expected step, step found)`.
+    jumps: Vec<(usize, u64, u64)>,
 }
 
 impl ReadState<'_> {
@@ -200,10 +215,39 @@ impl ReadState<'_> {
             Record::Metadata(m) => match m.name.as_str() {
                 "episode" => self.end_meta = Some(m.metadata),
                 "episode_start" => self.start_meta = Some(m.metadata),
+                "salvage" => self.salvage_meta = Some(m.metadata),
                 _ => {}
             },
             Record::Footer(_) => self.saw_footer = true,
             _ => {}
+        }
+        Ok(())
+    }
+
+    /// Steps may be missing only where the `salvage` record's `step_gaps` says they were lost;
+    /// the row before each gap is then marked truncated (the rows around a gap are not
+    /// consecutive).
+    fn check_gaps(&mut self) -> Result<(), DemoError> {
+        let Some(&(_, want, got)) = self.jumps.first() else { return Ok(()) };
+        let undeclared = || fmt_err(self.name, format!("step {got} found where step {want} was expected"));
+        let declared = self
+            .salvage_meta
+            .as_ref()
+            .and_then(|m| m.get("step_gaps"))
+            .and_then(|g| crate::salvage::parse_gaps(g))
+            .ok_or_else(undeclared)?;
+        for &(row, a, b) in &self.jumps {
+            if !declared.contains(&(a, b)) {
+                return Err(fmt_err(
+                    self.name,
+                    format!(
+                        "step {b} found where step {a} was expected, and the salvage record does not declare steps {a}..{b} lost"
+                    ),
+                ));
+            }
+            if row > 0 {
+                self.ep.truncated[row - 1] = true;
+            }
         }
         Ok(())
     }
@@ -213,9 +257,17 @@ impl ReadState<'_> {
         let name = self.name;
         let s: StepIn = serde_json::from_slice(data)
             .map_err(|e| fmt_err(name, format!("step message {} does not parse: {e}", ep.len())))?;
-        if s.step as usize != ep.len() {
-            return Err(fmt_err(name, format!("step {} found where step {} was expected", s.step, ep.len())));
+        if s.step < self.next_step {
+            return Err(fmt_err(
+                name,
+                format!("step {} found where step {} was expected", s.step, self.next_step),
+            ));
         }
+        if s.step > self.next_step {
+            // Allowed only where a `salvage` record declares the steps lost (checked at the end).
+            self.jumps.push((ep.len(), self.next_step, s.step));
+        }
+        self.next_step = s.step.saturating_add(1);
         if ep.is_empty() {
             ep.obs_dim = s.obs.len();
             ep.act_dim = s.action.len();

@@ -1,11 +1,18 @@
-//! Recovery of demos cut off mid-write (crash, full disk, killed process).
+//! Recovery of damaged demos (crash, full disk, killed process, flipped bits) and verification.
 //!
-//! The file is scanned record by record from the start. Every complete chunk whose CRC checks
-//! gives back all its messages; a chunk that is cut or damaged is lost whole (the writer closes
-//! chunks at least every `flush_every_steps` steps, so little is at risk) and scanning goes on after
-//! it when its length is intact. Metadata records and attachments before the cut are kept.
+//! [`crate::scan::map_file`] walks the file record by record; after an unreadable record it
+//! resynchronises on the next intact chunk (a Chunk record whose lengths add up and whose
+//! decompressed records match its CRC), so every intact chunk is found wherever the damage is. A
+//! chunk that is cut or damaged is lost whole. Schemas and channels come from every intact chunk,
+//! the top-level records and an intact summary; when none of these has them (chunk 0 lost in a cut
+//! file) and the file says it was written by demo-log, the writer's fixed channel layout is used.
+//! [`salvage_to`] writes what was recovered as a complete file whose `salvage` metadata record
+//! declares the lost step ranges (`step_gaps`), so that [`crate::read_demo`] accepts it.
 
 use crate::DemoError;
+use crate::scan::{FileMap, MAGIC};
+use crate::schemas;
+use crate::writer::{DEMO_FORMAT, TOPIC_EVENTS, TOPIC_HAND, TOPIC_SCENE, TOPIC_STEP, TOPIC_TF};
 use mcap::records::Record;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -29,35 +36,67 @@ pub struct RecoveredMessage {
     pub data: Vec<u8>,
 }
 
+/// One chunk as [`verify`] (and salvage) found it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChunkCheck {
+    /// Position among the chunks of the file (0-based, file order).
+    pub index: u64,
+    /// Byte offset of the chunk record.
+    pub offset: u64,
+    /// Record length in bytes, when known.
+    pub length: Option<u64>,
+    /// Messages in the chunk (counted when intact, else from its message index records).
+    pub messages: Option<u64>,
+    /// First and last log time (ns) of its messages, when known.
+    pub log_times: Option<(u64, u64)>,
+    /// What is wrong with it (`None`: intact).
+    pub error: Option<String>,
+    /// Its messages can be recovered (intact, or only the header's log-time fields, which the CRC
+    /// does not cover, are wrong).
+    pub recoverable: bool,
+}
+
 /// What salvage found.
-#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct SalvageReport {
     /// Size of the input, bytes.
     pub bytes_total: u64,
     /// Offset just past the last record that was read whole.
     pub bytes_used: u64,
-    /// Complete chunks whose messages were recovered.
+    /// Intact chunks whose messages were recovered.
     pub chunks_ok: u64,
     /// Chunks lost (cut at the end, or damaged).
     pub chunks_lost: u64,
+    /// The lost chunks.
+    pub lost_chunks: Vec<ChunkCheck>,
     /// Messages recovered.
     pub messages: u64,
+    /// Messages of intact chunks that could not be attributed to a channel (dropped).
+    pub messages_unattributed: u64,
     /// Metadata records recovered.
     pub metadata: u64,
     /// Attachments recovered.
     pub attachments: u64,
+    /// Half-open ranges `[a, b)` of `/demo/step` step numbers that are missing between (or
+    /// before) the recovered steps, and after them up to the episode's recorded `length`.
+    pub step_gaps: Vec<(u64, u64)>,
+    /// The channel layout was taken from the demo-log writer's fixed layout (the file's own
+    /// Schema/Channel records were lost).
+    pub layout_assumed: bool,
     /// The input was already a complete MCAP file (footer and end magic present).
     pub complete: bool,
-    /// Why reading stopped early, if it did.
+    /// Why reading stopped early or skipped bytes, if it did (the first such reason).
     pub stopped_because: Option<String>,
 }
 
+#[derive(Clone)]
 struct SchemaInfo {
     name: String,
     encoding: String,
     data: Vec<u8>,
 }
 
+#[derive(Clone)]
 struct ChannelInfo {
     topic: String,
     schema_id: u16,
@@ -80,67 +119,190 @@ pub struct Salvaged {
     channel_order: Vec<u16>,
 }
 
-const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+/// The chunks of a file map as [`ChunkCheck`]s, in file order.
+fn chunk_checks(m: &FileMap) -> Vec<ChunkCheck> {
+    m.chunks
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let error = match (&c.content, c.header_times_wrong) {
+                (Err(e), _) => Some(e.clone()),
+                (Ok(_), true) => Some(
+                    "the chunk header's log-time fields disagree with its messages (the messages are intact)"
+                        .into(),
+                ),
+                (Ok(_), false) => None,
+            };
+            ChunkCheck {
+                index: i as u64,
+                offset: c.offset as u64,
+                length: c.end.map(|e| (e - c.offset) as u64),
+                messages: c.messages,
+                log_times: c.log_times,
+                error,
+                recoverable: c.content.is_ok(),
+            }
+        })
+        .collect()
+}
 
-fn handle_inner(
-    rec: Record<'_>,
-    out: &mut Salvaged,
+fn add_schema_or_channel(
+    r: &Record<'_>,
     schemas: &mut BTreeMap<u16, SchemaInfo>,
     channels: &mut BTreeMap<u16, ChannelInfo>,
-    channel_order: &mut Vec<u16>,
+    order: &mut Vec<u16>,
 ) {
-    match rec {
+    match r {
         Record::Schema { header, data } => {
-            schemas.entry(header.id).or_insert(SchemaInfo {
-                name: header.name,
-                encoding: header.encoding,
-                data: data.into_owned(),
+            schemas.entry(header.id).or_insert_with(|| SchemaInfo {
+                name: header.name.clone(),
+                encoding: header.encoding.clone(),
+                data: data.to_vec(),
             });
         }
         Record::Channel(c) => {
             if let std::collections::btree_map::Entry::Vacant(v) = channels.entry(c.id) {
-                channel_order.push(c.id);
+                order.push(c.id);
                 v.insert(ChannelInfo {
-                    topic: c.topic,
+                    topic: c.topic.clone(),
                     schema_id: c.schema_id,
-                    message_encoding: c.message_encoding,
-                    metadata: c.metadata,
+                    message_encoding: c.message_encoding.clone(),
+                    metadata: c.metadata.clone(),
                 });
             }
         }
-        Record::Message { header, data } => {
-            let (topic, enc, schema_name) = match channels.get(&header.channel_id) {
-                Some(c) => (
-                    c.topic.clone(),
-                    c.message_encoding.clone(),
-                    schemas.get(&c.schema_id).map(|s| s.name.clone()).unwrap_or_default(),
-                ),
-                // A message whose channel record was lost cannot be attributed; skip it.
-                None => return,
-            };
-            out.messages.push(RecoveredMessage {
-                topic,
-                schema_name,
-                message_encoding: enc,
-                log_time: header.log_time,
-                publish_time: header.publish_time,
-                sequence: header.sequence,
-                data: data.into_owned(),
-            });
-        }
-        Record::Metadata(m) => out.metadata.push((m.name, m.metadata)),
-        Record::Attachment { header, data, .. } => out.attachments.push(mcap::Attachment {
-            log_time: header.log_time,
-            create_time: header.create_time,
-            name: header.name,
-            media_type: header.media_type,
-            data: std::borrow::Cow::Owned(data.into_owned()),
-        }),
         _ => {}
     }
 }
 
-/// Recover everything complete from the bytes of a (possibly cut) MCAP file.
+/// Whether the file says it was written by this crate's [`crate::DemoWriter`]: its Header's
+/// library, a metadata record with `format = mimicrete.demo`, or messages of an unknown channel 1
+/// that are demo steps (JSON objects with `step`, `obs` and `action`).
+fn written_by_demo_log(m: &FileMap) -> Option<BTreeMap<String, String>> {
+    written_by_demo_log_records(m).or_else(|| {
+        #[derive(serde::Deserialize)]
+        #[allow(dead_code)]
+        struct StepShape {
+            step: u64,
+            obs: Vec<f64>,
+            action: Vec<f64>,
+        }
+        let mut ch1 = m.chunks.iter().flat_map(|c| c.content.iter().flatten()).filter_map(|r| match r {
+            Record::Message { header, data } if header.channel_id == 1 => Some(data),
+            _ => None,
+        });
+        let first = ch1.next()?;
+        let is_step = |d: &[u8]| serde_json::from_slice::<StepShape>(d).is_ok();
+        (is_step(first) && ch1.all(|d| is_step(d))).then(BTreeMap::new)
+    })
+}
+
+fn written_by_demo_log_records(m: &FileMap) -> Option<BTreeMap<String, String>> {
+    let mut by_header = false;
+    let mut meta = None;
+    for (_, r) in &m.records {
+        match r {
+            Record::Header(h) => by_header |= h.library.starts_with("mimicrete-demo-log/"),
+            Record::Metadata(md) if md.metadata.get("format").map(String::as_str) == Some(DEMO_FORMAT) => {
+                meta.get_or_insert_with(|| md.metadata.clone());
+            }
+            _ => {}
+        }
+    }
+    if meta.is_some() { meta } else { by_header.then(BTreeMap::new) }
+}
+
+/// The schemas and channels [`crate::DemoWriter`] writes, with their ids (schemas and channels
+/// 1..=5: step, hand, tf, scene, events). The hand channel's metadata comes from the episode
+/// metadata. A test checks this against a written file.
+fn demo_log_layout(meta: &BTreeMap<String, String>) -> Vec<(u16, SchemaInfo, ChannelInfo)> {
+    let js = |name: &str, text: String| SchemaInfo {
+        name: name.into(),
+        encoding: "jsonschema".into(),
+        data: text.into_bytes(),
+    };
+    let mut hand_md = BTreeMap::new();
+    if let (Some(l), Some(s), Some(h)) =
+        (meta.get("hand_layout"), meta.get("hand_space"), meta.get("handedness"))
+    {
+        if let Ok(layout) = ur3_kin::HandLayout::from_name(l) {
+            hand_md.insert("layout".to_string(), l.clone());
+            hand_md.insert("space".to_string(), s.clone());
+            hand_md.insert("handedness".to_string(), h.clone());
+            hand_md.insert("joint_count".to_string(), layout.joint_count().to_string());
+            hand_md.insert("units".to_string(), "m".to_string());
+        }
+    }
+    let rows = [
+        (TOPIC_STEP, js(schemas::STEP_SCHEMA_NAME, schemas::step_schema()), BTreeMap::new()),
+        (TOPIC_HAND, js(schemas::HAND_SCHEMA_NAME, schemas::hand_schema()), hand_md),
+        (TOPIC_TF, js(schemas::TF_SCHEMA_NAME, schemas::tf_schema()), BTreeMap::new()),
+        (TOPIC_SCENE, js(schemas::SCENE_SCHEMA_NAME, schemas::scene_schema()), BTreeMap::new()),
+        (TOPIC_EVENTS, js(schemas::EVENT_SCHEMA_NAME, schemas::event_schema()), BTreeMap::new()),
+    ];
+    rows.into_iter()
+        .enumerate()
+        .map(|(i, (topic, schema, md))| {
+            let id = i as u16 + 1;
+            (
+                id,
+                schema,
+                ChannelInfo {
+                    topic: topic.into(),
+                    schema_id: id,
+                    message_encoding: "json".into(),
+                    metadata: md,
+                },
+            )
+        })
+        .collect()
+}
+
+/// Step number of a `/demo/step` message.
+fn step_number(data: &[u8]) -> Option<u64> {
+    #[derive(serde::Deserialize)]
+    struct S {
+        step: u64,
+    }
+    serde_json::from_slice::<S>(data).ok().map(|s| s.step)
+}
+
+/// Missing step ranges given the recovered step numbers (increasing) and the recorded length.
+fn gaps_of(steps: &[u64], length: Option<u64>) -> Vec<(u64, u64)> {
+    let mut gaps = Vec::new();
+    let mut next = 0u64;
+    for &s in steps {
+        if s > next {
+            gaps.push((next, s));
+        }
+        next = next.max(s.saturating_add(1));
+    }
+    if let Some(l) = length.filter(|&l| l > next) {
+        gaps.push((next, l));
+    }
+    gaps
+}
+
+/// `a..b,c..d` (empty for none).
+pub(crate) fn format_gaps(g: &[(u64, u64)]) -> String {
+    g.iter().map(|(a, b)| format!("{a}..{b}")).collect::<Vec<_>>().join(",")
+}
+
+/// Parse [`format_gaps`] output.
+pub(crate) fn parse_gaps(s: &str) -> Option<Vec<(u64, u64)>> {
+    if s.is_empty() {
+        return Some(Vec::new());
+    }
+    s.split(',')
+        .map(|r| {
+            let (a, b) = r.split_once("..")?;
+            let (a, b) = (a.trim().parse().ok()?, b.trim().parse().ok()?);
+            (a < b).then_some((a, b))
+        })
+        .collect()
+}
+
+/// Recover everything intact from the bytes of a (possibly cut or damaged) MCAP file.
 ///
 /// # Errors
 /// [`DemoError::Format`] when the bytes do not start with the MCAP magic.
@@ -151,102 +313,114 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
             reason: "not an MCAP file (bad magic)".into(),
         });
     }
+    let m = crate::scan::map_file(buf);
+    let mut schemas = BTreeMap::new();
+    let mut channels = BTreeMap::new();
+    let mut order = Vec::new();
+    for c in &m.chunks {
+        for r in c.content.iter().flatten() {
+            add_schema_or_channel(r, &mut schemas, &mut channels, &mut order);
+        }
+    }
+    for (_, r) in &m.records {
+        add_schema_or_channel(r, &mut schemas, &mut channels, &mut order);
+    }
+    if let Some(s) = &m.summary {
+        for r in &s.records {
+            add_schema_or_channel(r, &mut schemas, &mut channels, &mut order);
+        }
+    }
+    let mut report = SalvageReport { bytes_total: buf.len() as u64, ..Default::default() };
+    // A demo whose chunk 0 (schemas, channels) is lost and that has no intact summary: its
+    // channels are the writer's fixed layout.
+    let needs_layout = !channels.values().any(|c: &ChannelInfo| c.topic == TOPIC_STEP)
+        || m.chunks.iter().any(|c| {
+            c.content.iter().flatten().any(
+                |r| matches!(r, Record::Message { header, .. } if !channels.contains_key(&header.channel_id)),
+            )
+        });
+    if needs_layout {
+        if let Some(meta) = written_by_demo_log(&m) {
+            for (id, sc, ch) in demo_log_layout(&meta) {
+                if !schemas.contains_key(&id) && !channels.contains_key(&id) {
+                    schemas.insert(id, sc);
+                    order.push(id);
+                    channels.insert(id, ch);
+                    report.layout_assumed = true;
+                }
+            }
+            order.sort_unstable();
+        }
+    }
     let mut out = Salvaged {
         messages: Vec::new(),
         metadata: Vec::new(),
         attachments: Vec::new(),
-        report: SalvageReport { bytes_total: buf.len() as u64, ..Default::default() },
+        report,
         schemas: BTreeMap::new(),
         channels: BTreeMap::new(),
         channel_order: Vec::new(),
     };
-    let mut schemas = BTreeMap::new();
-    let mut channels = BTreeMap::new();
-    let mut order = Vec::new();
-    // Walk the top-level records by their length prefixes ourselves so that a damaged chunk can be
-    // skipped and the exact end of the last whole record is known.
-    let mut pos = MAGIC.len();
-    let mut in_summary = false;
-    loop {
-        if pos == buf.len() {
-            out.report.stopped_because = Some("end of data before the footer".into());
-            break;
-        }
-        if buf.len() - pos < 9 {
-            // Either the end magic (complete file) or a cut record header.
-            if &buf[pos..] == MAGIC && in_summary {
-                out.report.complete = true;
-                out.report.bytes_used = buf.len() as u64;
-            } else {
-                out.report.stopped_because = Some(format!("cut inside a record header at byte {pos}"));
-            }
-            break;
-        }
-        let op = buf[pos];
-        let len = u64::from_le_bytes(buf[pos + 1..pos + 9].try_into().expect("8 bytes"));
-        let body_start = pos + 9;
-        let Some(body_end) = (body_start as u64).checked_add(len).filter(|&e| e <= buf.len() as u64) else {
-            if op == mcap::records::op::CHUNK {
-                out.report.chunks_lost += 1;
-            }
-            out.report.stopped_because = Some(format!(
-                "record (opcode 0x{op:02x}) at byte {pos} is cut: {len} bytes announced, {} left",
-                buf.len() - body_start
-            ));
-            break;
+    let push = |header: &mcap::records::MessageHeader, data: &[u8], out: &mut Salvaged| {
+        let Some(c) = channels.get(&header.channel_id) else {
+            out.report.messages_unattributed += 1;
+            return;
         };
-        let body_end = body_end as usize;
-        let body = &buf[body_start..body_end];
-        if !crate::scan::is_parsed_kind(op) {
-            pos = body_end;
-            out.report.bytes_used = pos as u64;
-            continue;
+        out.messages.push(RecoveredMessage {
+            topic: c.topic.clone(),
+            schema_name: schemas.get(&c.schema_id).map(|s: &SchemaInfo| s.name.clone()).unwrap_or_default(),
+            message_encoding: c.message_encoding.clone(),
+            log_time: header.log_time,
+            publish_time: header.publish_time,
+            sequence: header.sequence,
+            data: data.to_vec(),
+        });
+    };
+    for c in &m.chunks {
+        if let Ok(recs) = &c.content {
+            out.report.chunks_ok += 1;
+            for r in recs {
+                if let Record::Message { header, data } = r {
+                    push(header, data, &mut out);
+                }
+            }
+        } else {
+            out.report.chunks_lost += 1;
         }
-        let parsed = crate::scan::parse_checked(op, body);
-        match parsed {
-            Ok(Record::Chunk { header, data }) => {
-                let decoded = crate::scan::decode_chunk(&header, &data);
-                match decoded.as_deref().map_err(|e| e.clone()).and_then(|d| crate::scan::chunk_records(d)) {
-                    Ok(inner) => {
-                        out.report.chunks_ok += 1;
-                        for r in inner {
-                            handle_inner(r, &mut out, &mut schemas, &mut channels, &mut order);
-                        }
-                    }
-                    Err(e) => {
-                        out.report.chunks_lost += 1;
-                        if out.report.stopped_because.is_none() {
-                            out.report.stopped_because = Some(format!("damaged chunk at byte {pos}: {e}"));
-                        }
-                    }
-                }
-            }
-            Ok(Record::DataEnd(_)) => in_summary = true,
-            Ok(Record::Footer(_)) => {
-                in_summary = true;
-            }
-            Ok(r @ (Record::Schema { .. } | Record::Channel(_))) => {
-                if !in_summary {
-                    handle_inner(r, &mut out, &mut schemas, &mut channels, &mut order);
-                }
-            }
-            Ok(r @ (Record::Metadata(_) | Record::Attachment { .. } | Record::Message { .. })) => {
-                handle_inner(r, &mut out, &mut schemas, &mut channels, &mut order);
-            }
-            Ok(_) => {}
-            Err(e) => {
-                // A whole record that does not parse: skip it by its length.
-                if op == mcap::records::op::CHUNK {
-                    out.report.chunks_lost += 1;
-                }
-                if out.report.stopped_because.is_none() {
-                    out.report.stopped_because = Some(format!("damaged record at byte {pos}: {e}"));
-                }
-            }
-        }
-        pos = body_end;
-        out.report.bytes_used = pos as u64;
     }
+    // Messages outside chunks count only in a file without chunks (in a chunked file such a
+    // record can only be a damaged chunk whose opcode changed).
+    let chunked = !m.chunks.is_empty() || m.summary.as_ref().is_some_and(|s| !s.chunk_indexes.is_empty());
+    for (_, r) in &m.records {
+        match r {
+            Record::Message { header, data } if !chunked => push(header, data, &mut out),
+            Record::Metadata(md) => out.metadata.push((md.name.clone(), md.metadata.clone())),
+            Record::Attachment { header, data, .. } => out.attachments.push(mcap::Attachment {
+                log_time: header.log_time,
+                create_time: header.create_time,
+                name: header.name.clone(),
+                media_type: header.media_type.clone(),
+                data: std::borrow::Cow::Owned(data.to_vec()),
+            }),
+            _ => {}
+        }
+    }
+    out.report.lost_chunks = chunk_checks(&m).into_iter().filter(|c| !c.recoverable).collect();
+    let mut steps: Vec<u64> =
+        out.messages.iter().filter(|x| x.topic == TOPIC_STEP).filter_map(|x| step_number(&x.data)).collect();
+    steps.sort_unstable();
+    steps.dedup();
+    let length = out
+        .metadata
+        .iter()
+        .rev()
+        .find(|(n, _)| n == "episode")
+        .and_then(|(_, md)| md.get("length")?.parse::<u64>().ok());
+    let has_steps = channels.values().any(|c| c.topic == TOPIC_STEP);
+    out.report.step_gaps = if has_steps { gaps_of(&steps, length) } else { Vec::new() };
+    out.report.bytes_used = m.bytes_used as u64;
+    out.report.complete = m.complete && m.summary.is_some() && m.data_end.is_some();
+    out.report.stopped_because = m.stopped_because.clone();
     out.report.messages = out.messages.len() as u64;
     out.report.metadata = out.metadata.len() as u64;
     out.report.attachments = out.attachments.len() as u64;
@@ -254,6 +428,127 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
     out.channels = channels;
     out.channel_order = order;
     Ok(out)
+}
+
+/// The integrity of an MCAP file, from [`verify`].
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct VerifyReport {
+    /// File size, bytes.
+    pub bytes: u64,
+    /// Footer, intact summary and Data End record present.
+    pub complete: bool,
+    /// Every chunk found (intact and damaged), in file order.
+    pub chunks: Vec<ChunkCheck>,
+    /// Unreadable byte ranges outside any known chunk: `(start, end, reason)`.
+    pub skipped: Vec<(u64, u64, String)>,
+    /// The data-section CRC of the Data End record matched (`None`: no Data End record, or CRC 0).
+    pub data_crc_ok: Option<bool>,
+    /// Why the summary could not be used (`None` when it is intact, or the file has no footer).
+    pub summary_problem: Option<String>,
+    /// Messages in intact chunks.
+    pub messages_ok: u64,
+    /// Messages in damaged chunks, when every damaged chunk's count is known.
+    pub messages_lost: Option<u64>,
+    /// Every problem, one line each (empty: the file is healthy).
+    pub problems: Vec<String>,
+}
+
+impl VerifyReport {
+    /// No problem found.
+    pub fn is_ok(&self) -> bool {
+        self.problems.is_empty()
+    }
+
+    /// The chunks that are not intact.
+    pub fn damaged_chunks(&self) -> impl Iterator<Item = &ChunkCheck> {
+        self.chunks.iter().filter(|c| c.error.is_some())
+    }
+}
+
+/// Check a demo's bytes: every chunk's CRC, the data-section and summary CRCs, and that the file
+/// is complete.
+///
+/// # Errors
+/// [`DemoError::Format`] when the bytes do not start with the MCAP magic.
+pub fn verify_bytes(buf: &[u8], name: &Path) -> Result<VerifyReport, DemoError> {
+    if buf.len() < MAGIC.len() || &buf[..MAGIC.len()] != MAGIC {
+        return Err(DemoError::Format {
+            path: name.to_path_buf(),
+            reason: "not an MCAP file (bad magic)".into(),
+        });
+    }
+    let m = crate::scan::map_file(buf);
+    let chunks = chunk_checks(&m);
+    let mut problems = Vec::new();
+    let secs = |t: u64| t as f64 / 1e9;
+    let mut lost = Some(0u64);
+    let mut ok = 0u64;
+    for c in &chunks {
+        if c.recoverable {
+            ok += c.messages.unwrap_or(0);
+        } else {
+            lost = lost.zip(c.messages).map(|(a, b)| a + b);
+        }
+        if let Some(e) = &c.error {
+            let n = match (c.recoverable, c.messages) {
+                (true, Some(n)) => format!("{n} messages, recoverable"),
+                (false, Some(n)) => format!("{n} messages lost"),
+                (_, None) => "message count unknown".into(),
+            };
+            let t = c
+                .log_times
+                .map(|(a, b)| format!(", log time {:.3}–{:.3} s", secs(a), secs(b)))
+                .unwrap_or_default();
+            problems.push(format!("chunk {} at byte {}: {e} ({n}{t})", c.index, c.offset));
+        }
+    }
+    let skipped: Vec<(u64, u64, String)> =
+        m.skipped.iter().map(|s| (s.start as u64, s.end as u64, s.reason.clone())).collect();
+    for (a, b, why) in &skipped {
+        problems.push(format!("bytes {a}..{b} unreadable: {why}"));
+    }
+    let complete = m.complete && m.summary.is_some() && m.data_end.is_some();
+    if !m.complete {
+        problems.push("no footer: the file is cut or was never finished".into());
+    } else if let Some(p) = &m.summary_problem {
+        problems.push(format!("summary not usable: {p}"));
+    }
+    if m.complete && m.data_end.is_none() {
+        problems.push("no Data End record before the summary".into());
+    }
+    if m.data_crc_ok == Some(false) && chunks.iter().all(|c| c.error.is_none()) && skipped.is_empty() {
+        problems.push(
+            "data section CRC mismatch: bytes outside the chunks' own CRCs (metadata, message indexes, \
+             chunk headers) are damaged"
+                .into(),
+        );
+    }
+    if let Some(st) = m.summary.as_ref().and_then(|s| s.statistics.as_ref()) {
+        if lost == Some(0) && st.message_count != ok {
+            problems.push(format!("summary counts {} messages, the chunks hold {ok}", st.message_count));
+        }
+    }
+    Ok(VerifyReport {
+        bytes: buf.len() as u64,
+        complete,
+        chunks,
+        skipped,
+        data_crc_ok: m.data_crc_ok,
+        summary_problem: m.summary_problem,
+        messages_ok: ok,
+        messages_lost: lost,
+        problems,
+    })
+}
+
+/// [`verify_bytes`] of a file.
+///
+/// # Errors
+/// [`DemoError::Io`] if it cannot be read; [`DemoError::Format`] if it is not MCAP at all.
+pub fn verify(path: impl AsRef<Path>) -> Result<VerifyReport, DemoError> {
+    let path = path.as_ref();
+    let buf = std::fs::read(path).map_err(|e| DemoError::Io { path: path.to_path_buf(), source: e })?;
+    verify_bytes(&buf, path)
 }
 
 /// Recover every complete message of a (possibly cut) demo file.
@@ -267,16 +562,31 @@ pub fn salvage(path: impl AsRef<Path>) -> Result<(Vec<RecoveredMessage>, Salvage
     Ok((s.messages, s.report))
 }
 
-/// Recover a (possibly cut) demo and write what was recovered as a valid, complete MCAP file
-/// (same schemas, channels, messages, metadata records and attachments; zstd chunks). Adds a
-/// `salvage` metadata record saying how much was recovered. `path_out` may not equal `path_in`.
+/// Recover a (possibly cut or damaged) demo and write what was recovered as a valid, complete
+/// MCAP file (same schema and channel ids, messages, metadata records and attachments; zstd
+/// chunks). Adds a `salvage` metadata record saying how much was recovered, with `step_gaps`
+/// (the missing step ranges `a..b,c..d`, half-open) and `lost_chunks` (`index@offset:t0..t1ns`),
+/// so that [`crate::read_demo`] loads the result. `path_out` may not equal `path_in`.
 ///
 /// # Errors
-/// As [`salvage`], plus [`DemoError::Mcap`]/[`DemoError::Io`] when writing fails.
+/// As [`salvage`]; [`DemoError::Format`] when nothing recognisable as a demo survives (no
+/// `/demo/step` channel and no sign that demo-log wrote the file), instead of writing a file the
+/// reader would refuse; [`DemoError::Mcap`]/[`DemoError::Io`] when writing fails.
 pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Result<SalvageReport, DemoError> {
     let (path_in, path_out) = (path_in.as_ref(), path_out.as_ref());
     let buf = std::fs::read(path_in).map_err(|e| DemoError::Io { path: path_in.to_path_buf(), source: e })?;
     let s = salvage_bytes(&buf, path_in)?;
+    if !s.channels.values().any(|c| c.topic == TOPIC_STEP) {
+        return Err(DemoError::Format {
+            path: path_in.to_path_buf(),
+            reason: format!(
+                "nothing recognisable as a demo survives (no {TOPIC_STEP} channel, and neither the MCAP header, \
+                 the episode metadata nor any intact step message says it was written by demo-log); \
+                 {} messages recovered",
+                s.report.messages
+            ),
+        });
+    }
     let tmp: PathBuf = crate::partial_path(path_out);
     let file = std::fs::File::create(&tmp).map_err(|e| DemoError::Io { path: tmp.clone(), source: e })?;
     let me = |e| DemoError::Mcap { path: path_out.to_path_buf(), source: e };
@@ -287,9 +597,10 @@ pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Resu
         .library(format!("mimicrete-demo-log/{} (salvage)", env!("CARGO_PKG_VERSION")))
         .create(std::io::BufWriter::new(file))
         .map_err(me)?;
+    // The original ids are kept, so that a salvaged demo has the writer's layout again.
     let mut schema_map = BTreeMap::new();
     for (&id, sc) in &s.schemas {
-        schema_map.insert(id, w.add_schema(&sc.name, &sc.encoding, &sc.data).map_err(me)?);
+        schema_map.insert(id, w.add_schema_with_id(id, &sc.name, &sc.encoding, &sc.data).map_err(me)?);
     }
     let mut chan_map = BTreeMap::new();
     for id in &s.channel_order {
@@ -297,13 +608,36 @@ pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Resu
         let sid = if c.schema_id == 0 { 0 } else { schema_map.get(&c.schema_id).copied().unwrap_or(0) };
         chan_map.insert(
             c.topic.clone(),
-            w.add_channel(sid, &c.topic, &c.message_encoding, &c.metadata).map_err(me)?,
+            w.add_channel_with_id(*id, sid, &c.topic, &c.message_encoding, &c.metadata).map_err(me)?,
         );
     }
     for (name, md) in &s.metadata {
         w.write_metadata(&mcap::records::Metadata { name: name.clone(), metadata: md.clone() })
             .map_err(me)?;
     }
+    // The `salvage` record comes last among the metadata (a file salvaged twice keeps both; the
+    // last one counts) and before the messages.
+    let r = &s.report;
+    let mut md = BTreeMap::new();
+    md.insert("source".to_string(), path_in.display().to_string());
+    md.insert("bytes_total".to_string(), r.bytes_total.to_string());
+    md.insert("bytes_used".to_string(), r.bytes_used.to_string());
+    md.insert("chunks_ok".to_string(), r.chunks_ok.to_string());
+    md.insert("chunks_lost".to_string(), r.chunks_lost.to_string());
+    md.insert("messages".to_string(), r.messages.to_string());
+    md.insert("complete".to_string(), r.complete.to_string());
+    md.insert("step_gaps".to_string(), format_gaps(&r.step_gaps));
+    md.insert("layout_assumed".to_string(), r.layout_assumed.to_string());
+    let lost: Vec<String> = r
+        .lost_chunks
+        .iter()
+        .map(|c| match c.log_times {
+            Some((a, b)) => format!("{}@{}:{a}..{b}ns", c.index, c.offset),
+            None => format!("{}@{}", c.index, c.offset),
+        })
+        .collect();
+    md.insert("lost_chunks".to_string(), lost.join(","));
+    w.write_metadata(&mcap::records::Metadata { name: "salvage".into(), metadata: md }).map_err(me)?;
     for a in &s.attachments {
         w.attach(a).map_err(me)?;
     }
@@ -320,16 +654,6 @@ pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Resu
         )
         .map_err(me)?;
     }
-    let r = &s.report;
-    let mut md = BTreeMap::new();
-    md.insert("source".to_string(), path_in.display().to_string());
-    md.insert("bytes_total".to_string(), r.bytes_total.to_string());
-    md.insert("bytes_used".to_string(), r.bytes_used.to_string());
-    md.insert("chunks_ok".to_string(), r.chunks_ok.to_string());
-    md.insert("chunks_lost".to_string(), r.chunks_lost.to_string());
-    md.insert("messages".to_string(), r.messages.to_string());
-    md.insert("complete".to_string(), r.complete.to_string());
-    w.write_metadata(&mcap::records::Metadata { name: "salvage".into(), metadata: md }).map_err(me)?;
     w.finish().map_err(me)?;
     let f = w
         .into_inner()

@@ -341,7 +341,64 @@ fn demo_load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>
     Ok(d)
 }
 
-/// Every complete message of a (possibly cut) demo → (messages as dicts, report dict).
+fn salvage_report<'py>(py: Python<'py>, r: &demo_log::SalvageReport) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("bytes_total", r.bytes_total)?;
+    d.set_item("bytes_used", r.bytes_used)?;
+    d.set_item("chunks_ok", r.chunks_ok)?;
+    d.set_item("chunks_lost", r.chunks_lost)?;
+    d.set_item("messages", r.messages)?;
+    d.set_item("metadata", r.metadata)?;
+    d.set_item("attachments", r.attachments)?;
+    d.set_item("complete", r.complete)?;
+    d.set_item("stopped_because", r.stopped_because.clone())?;
+    d.set_item("lost_chunks", chunk_list(py, &r.lost_chunks)?)?;
+    d.set_item("step_gaps", r.step_gaps.clone())?;
+    d.set_item("messages_unattributed", r.messages_unattributed)?;
+    d.set_item("layout_assumed", r.layout_assumed)?;
+    Ok(d)
+}
+
+fn chunk_list<'py>(py: Python<'py>, chunks: &[demo_log::ChunkCheck]) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for c in chunks {
+        let d = PyDict::new(py);
+        d.set_item("index", c.index)?;
+        d.set_item("offset", c.offset)?;
+        d.set_item("length", c.length)?;
+        d.set_item("messages", c.messages)?;
+        d.set_item("log_time_start", c.log_times.map(|t| t.0))?;
+        d.set_item("log_time_end", c.log_times.map(|t| t.1))?;
+        d.set_item("error", c.error.clone())?;
+        d.set_item("recoverable", c.recoverable)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// Check a demo's integrity (every chunk's CRC, the data-section and summary CRCs, completeness):
+/// dict ok, bytes, complete, chunks (list of dicts index, offset, length, messages,
+/// log_time_start, log_time_end, error, recoverable), skipped (list of (start, end, reason)),
+/// data_crc_ok, summary_problem, messages_ok, messages_lost, problems (list of str).
+#[pyfunction]
+fn demo_verify<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let r = py.detach(|| demo_log::verify(&path)).map_err(demo_err)?;
+    let d = PyDict::new(py);
+    d.set_item("ok", r.is_ok())?;
+    d.set_item("bytes", r.bytes)?;
+    d.set_item("complete", r.complete)?;
+    d.set_item("chunks", chunk_list(py, &r.chunks)?)?;
+    d.set_item("skipped", r.skipped.clone())?;
+    d.set_item("data_crc_ok", r.data_crc_ok)?;
+    d.set_item("summary_problem", r.summary_problem.clone())?;
+    d.set_item("messages_ok", r.messages_ok)?;
+    d.set_item("messages_lost", r.messages_lost)?;
+    d.set_item("problems", r.problems.clone())?;
+    Ok(d)
+}
+
+/// Every complete message of a (possibly cut) demo: (list of dicts topic, schema_name,
+/// log_time ns, sequence, data bytes; report dict).
 #[pyfunction]
 fn demo_salvage<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyDict>)> {
     let (msgs, rep) = py.detach(|| demo_log::salvage(&path)).map_err(demo_err)?;
@@ -355,7 +412,7 @@ fn demo_salvage<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyL
         d.set_item("data", PyBytes::new(py, &m.data))?;
         out.append(d)?;
     }
-    Ok((out, to_py(py, &rep)?.cast_into()?))
+    Ok((out, salvage_report(py, &rep)?))
 }
 
 /// Rewrite what can be recovered from `path_in` as a valid MCAP file `path_out` → report dict.
@@ -366,7 +423,7 @@ fn demo_salvage_to<'py>(
     path_out: PathBuf,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rep = py.detach(|| demo_log::salvage_to(&path_in, &path_out)).map_err(demo_err)?;
-    Ok(to_py(py, &rep)?.cast_into()?)
+    salvage_report(py, &rep)
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -378,6 +435,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(demo_load, m)?)?;
     m.add_function(wrap_pyfunction!(demo_salvage, m)?)?;
     m.add_function(wrap_pyfunction!(demo_salvage_to, m)?)?;
+    m.add_function(wrap_pyfunction!(demo_verify, m)?)?;
     m.add("DEMO_FORMAT_VERSION", demo_log::DEMO_FORMAT_VERSION)?;
     m.add("HANDLOG_VERSION", demo_log::HANDLOG_VERSION)?;
     Ok(())
