@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -32,6 +33,7 @@ from mimicrete.teleop.live import Live
 from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
 
 POSES = {"closing": "pinch", "opening": "default", "fixed": "point"}
+SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "figures" / "teleop_gestures.png"
 PER_CLASS = 100
 THUMB_TIP, INDEX_TIP = 4, 9  # WebXR joints
 
@@ -164,6 +166,11 @@ def taught(tmp_path_factory) -> Iterator[dict[str, Any]]:
                 ".filter((r) => r.length)"
             )
             seen["hud"] = page.inner_text("#hud")
+            seen["headset"] = {
+                label: value
+                for label, value, _ in page.evaluate("window.__mimicrete.headsetLines()")
+            }
+            page.screenshot(path=str(out / "gesture_mode.png"))
             seen["frames_while_training"] = run.call(lambda: live.gestures.frames_while_training)
             seen["server_model"] = run.call(live.model_status)
             # leave the gesture mode; the user model reads the live hand
@@ -228,6 +235,11 @@ def test_page_records_iwer_poses_trains_and_shows_held_out_accuracy(taught):
     assert taught["confusion_cells"] == r["confusion"]
     assert np.sum(r["confusion"]) == r["n_test"] == 60
     assert "held-out" in taught["hud"] and "yours" in taught["hud"]
+    # in the headset (no DOM panel there) the HUD says it too
+    head = taught["headset"]
+    assert head["samples"] == " · ".join(f"{c} {PER_CLASS}/{PER_CLASS}" for c in POSES)
+    assert head["trained"].startswith(f"held-out accuracy {shown:.1f} %")
+    assert head["model"] == f"yours · {shown:.1f} % held-out"
     # the order of events the page received; training ran beside the frame loop
     ev = taught["events"]
     assert ev[-2:] == ["training", "trained"], ev
@@ -241,6 +253,8 @@ def test_page_records_iwer_poses_trains_and_shows_held_out_accuracy(taught):
     assert taught["server_model"]["file"] == str(model)
     side = json.loads(Path(str(model) + ".json").read_text())
     assert side["info"]["data"] == str(csv) and side["classes"] == list(POSES)
+    if SCREENSHOT.parent.exists():  # the README's picture of the panel after training
+        shutil.copy(out / "gesture_mode.png", SCREENSHOT)
 
 
 def test_redo_dropped_the_wrong_samples(taught):

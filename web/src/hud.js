@@ -5,6 +5,9 @@ import { gesturePrompt, gestureResult } from './gestures.js';
 
 const fmt = (x, digits = 1) => (Number.isFinite(x) ? x.toFixed(digits) : '–');
 
+/** The HUD lines of the gesture mode (the desktop page shows its panel instead). */
+export const GESTURE_LINES = new Set(['teach', 'samples', 'trained']);
+
 /** The HUD's lines, as [label, value, css class] from the page's view of the session. */
 export function hudLines(v) {
   const s = v.state ?? {};

@@ -7,7 +7,7 @@ import {
 } from './protocol.js';
 import { RobotScene } from './scene.js';
 import { HandReader, HandSpheres } from './hands.js';
-import { DomHud, HeadsetHud, hudLines } from './hud.js';
+import { DomHud, GESTURE_LINES, HeadsetHud, hudLines } from './hud.js';
 import { Spectator, frameWorkspace } from './spectator.js';
 import { GesturePanel } from './gestures.js';
 
@@ -34,6 +34,7 @@ const hook = {
   gestures: null, // the last gestures message (the gesture mode's state)
   gestureMessages: 0,
   sendGestures: (action, opts) => sendGestures(action, opts),
+  headsetLines: () => hudLines(view), // what the headset's HUD panel shows
   inSession: false,
   ready: false,
   enterVR: () => enterVR(),
@@ -324,7 +325,8 @@ renderer.setAnimationLoop((time, frame) => {
     hudSince = now;
     view.rttP50 = median(recentRtt);
     const lines = hudLines(view);
-    domHud.update(lines);
+    // on the desktop the gesture panel shows the gesture mode; the headset has only the HUD
+    domHud.update(view.gestures?.active ? lines.filter(([l]) => !GESTURE_LINES.has(l)) : lines);
     headsetHud.update(lines);
   }
   renderer.render(scene, camera);
