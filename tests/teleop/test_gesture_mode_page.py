@@ -315,42 +315,37 @@ def test_csv_round_trips_through_the_cli(taught, tmp_path, capsys):
         assert f"on {3 * PER_CLASS} samples" in text
 
 
-def test_next_run_picks_up_the_user_model(taught, tmp_path):
-    """``mimicrete teleop --out DIR`` says on start that it uses the model in DIR."""
+def _start_lines(args: list[str]) -> str:
+    """What ``mimicrete teleop ARGS`` prints on start (the process is ended after it)."""
     import socket
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "mimicrete",
-            "teleop",
-            "--task",
-            "suction",
-            "--out",
-            str(taught["out"]),
-            "--port",
-            str(port),
-        ],
+        [sys.executable, "-m", "mimicrete", "teleop", *args, "--port", str(port)],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
     )
+    lines: list[str] = []
     try:
-        lines = []
         assert proc.stdout is not None
         for line in proc.stdout:
             lines.append(line)
-            if line.startswith("gesture model:") or len(lines) > 50:
+            if line.startswith("open the page") or len(lines) > 50:
                 break
     finally:
         proc.terminate()
         proc.wait(30)
-    text = "".join(lines)
+    return "".join(lines)
+
+
+def test_next_run_picks_up_the_user_model(taught, tmp_path, capsys):
+    """``mimicrete teleop --out DIR`` says on start that it uses the model in DIR; a folder
+    without one uses the shipped model and says how to teach it."""
     model = user_model_path(taught["out"], "suction")
+    text = _start_lines(["--task", "suction", "--out", str(taught["out"])])
     assert f"gesture model: yours, {model}" in text, text
     acc = taught["gestures"]["report"]["test_accuracy"]
     assert f"{100 * acc:.2f} % held-out" in text
@@ -358,3 +353,12 @@ def test_next_run_picks_up_the_user_model(taught, tmp_path):
     live = Live("suction", taught["out"])
     assert live.model_status()["source"] == "user" and live.model.info["path"] == str(model)
     assert taught["shipped_file"] != str(model)
+    fresh = _start_lines(["--task", "grip", "--out", str(tmp_path), "--gestures"])
+    assert "gesture model: the shipped one (synthetic hands, 98.80 % held-out)" in fresh, fresh
+    assert (
+        "gesture mode: record closing / opening / fixed (150 samples each) in the page; the "
+        f"model is saved as {user_model_path(tmp_path, 'grip')}" in fresh
+    ), fresh
+    bad = ["teleop", "--task", "grip", "--out", str(tmp_path), "--gesture-samples", "5"]
+    assert cli_main(bad) == 2
+    assert "--gesture-samples must be in 10..5000" in capsys.readouterr().err
