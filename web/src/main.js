@@ -2,12 +2,14 @@
 // mimicrete server over one WebSocket; the server's states pose the robot and fill the HUD.
 import * as THREE from 'three';
 import {
-  HandFramePacker, controlMessage, helloMessage, parseServerMessage, socketUrl, unpackHandFrame,
+  HandFramePacker, controlMessage, gesturesMessage, helloMessage, parseServerMessage, socketUrl,
+  unpackHandFrame,
 } from './protocol.js';
 import { RobotScene } from './scene.js';
 import { HandReader, HandSpheres } from './hands.js';
-import { DomHud, HeadsetHud, hudLines } from './hud.js';
+import { DomHud, GESTURE_LINES, HeadsetHud, hudLines } from './hud.js';
 import { Spectator, frameWorkspace } from './spectator.js';
+import { GesturePanel } from './gestures.js';
 
 const params = new URLSearchParams(location.search);
 const emulateKind = ['quest3', 'quest2'].includes(params.get('emulate')) ? params.get('emulate') : null;
@@ -28,7 +30,11 @@ const hook = {
   counts: { framesSent: 0, statesReceived: 0, skipped: 0, messages: 0, untracked: 0 },
   rtt: [], // round-trip samples, ms (state received − echoed sent_ms)
   replaySamples: [], // [seq, playback ms, record index | null] per frame sent during a replay
-  events: [], // episode / calibration / error messages
+  events: [], // episode / calibration / error messages, gestures messages but progress
+  gestures: null, // the last gestures message (the gesture mode's state)
+  gestureMessages: 0,
+  sendGestures: (action, opts) => sendGestures(action, opts),
+  headsetLines: () => hudLines(view), // what the headset's HUD panel shows
   inSession: false,
   ready: false,
   enterVR: () => enterVR(),
@@ -106,6 +112,7 @@ addEventListener('resize', () => {
 const view = {
   connection: 'connecting', role: null, task: null, state: null, lastEvent: null, error: null,
   handFps: NaN, rttP50: NaN, rttLast: NaN, skipped: 0, tracked: 'no hands',
+  gestures: null, gestureModel: null,
 };
 let socket = null;
 let retryMs = 500;
@@ -140,9 +147,22 @@ function onMessage(msg) {
       hook.hello = msg;
       view.role = msg.role;
       view.task = msg.task;
+      view.gestureModel = msg.gesture_model ?? null;
       robot.build(msg.scene, msg.view_from_base);
       if (msg.frames) robot.update({ frames: msg.frames });
       reframe();
+      if (msg.gestures) onMessage(msg.gestures); // the gesture mode's state (a gestures message)
+      break;
+    case 'gestures':
+      hook.gestures = msg;
+      hook.gestureMessages++;
+      if (msg.event !== 'progress') hook.events.push(msg);
+      view.gestures = msg;
+      view.gestureModel = msg.model ?? view.gestureModel;
+      gesturePanel.update(msg);
+      gesturesButton.textContent = msg.active ? 'Leave gestures' : 'Gestures';
+      gesturesButton.classList.toggle('active', msg.active);
+      if (msg.event === 'trained') view.lastEvent = 'gesture model trained';
       break;
     case 'state': {
       hook.state = msg;
@@ -189,6 +209,14 @@ function control(action) {
 for (const action of ['start', 'stop', 'discard', 'recentre']) {
   document.getElementById(`btn-${action}`).addEventListener('click', () => control(action));
 }
+
+// The gesture mode: teach the SVM your own gestures (the server records, trains and reports).
+function sendGestures(action, opts) {
+  if (socket?.readyState === WebSocket.OPEN) socket.send(gesturesMessage(action, opts));
+}
+const gesturePanel = new GesturePanel(document.getElementById('gestures'), sendGestures);
+const gesturesButton = document.getElementById('btn-gestures');
+gesturesButton.addEventListener('click', () => sendGestures(view.gestures?.active ? 'exit' : 'enter'));
 
 // ---------------------------------------------------------------- XR session ----
 let session = null;
@@ -297,7 +325,8 @@ renderer.setAnimationLoop((time, frame) => {
     hudSince = now;
     view.rttP50 = median(recentRtt);
     const lines = hudLines(view);
-    domHud.update(lines);
+    // on the desktop the gesture panel shows the gesture mode; the headset has only the HUD
+    domHud.update(view.gestures?.active ? lines.filter(([l]) => !GESTURE_LINES.has(l)) : lines);
     headsetHud.update(lines);
   }
   renderer.render(scene, camera);

@@ -85,7 +85,21 @@ export function controlMessage(action) {
   return JSON.stringify({ type: 'control', action });
 }
 
-const KNOWN_TYPES = new Set(['hello', 'state', 'calibration', 'episode', 'error']);
+export const GESTURE_ACTIONS = ['enter', 'exit', 'record', 'pause', 'train', 'status'];
+
+/**
+ * A gesture-mode request: enter (optionally with perClass samples per class), exit, record (a
+ * class, default the next one that is not full; recording a class again redoes it), pause, train.
+ */
+export function gesturesMessage(action, { cls = null, perClass = null } = {}) {
+  if (!GESTURE_ACTIONS.includes(action)) throw new Error(`unknown gestures action ${action}`);
+  const msg = { type: 'gestures', action };
+  if (cls !== null) msg.class = cls;
+  if (perClass !== null) msg.per_class = perClass;
+  return JSON.stringify(msg);
+}
+
+const KNOWN_TYPES = new Set(['hello', 'state', 'calibration', 'episode', 'error', 'gestures']);
 
 /**
  * Parse one text message from the server. Returns the object, or null (with a console warning)

@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from mimicrete.cli import UsageError
+from mimicrete.teleop.gesturemode import DEFAULT_PER_CLASS, MIN_PER_CLASS
+
+if TYPE_CHECKING:
+    from mimicrete.teleop.live import Live
 
 HELP_OPEN = """\
 open the page:
@@ -16,6 +21,9 @@ open the page:
   desktop, no headset: add ?emulate=quest3 to the URL (or pass --emulate): Meta's IWER emulates a
                     Quest with hand tracking, driven with mouse and keyboard
   left-hand pinch held 1 s starts / stops an episode; the page has Start/Stop/Discard/Recentre
+  Gestures (or --gestures): teach the gesture SVM your own hand, class by class; the model is
+                    saved as DIR/gesture_<task>_user.joblib and drives from then on (also in the
+                    next runs with the same --out)
 """
 
 
@@ -40,7 +48,23 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "saved one, else the built-in default)",
     )
     parser.add_argument(
-        "--gesture-model", metavar="PATH", help="gesture model (default: the shipped one)"
+        "--gesture-model",
+        metavar="PATH",
+        help="gesture model (default: DIR/gesture_<task>_user.joblib if the gesture mode saved "
+        "one, else the shipped one)",
+    )
+    parser.add_argument(
+        "--gestures",
+        action="store_true",
+        help="start in the gesture mode: record samples of each gesture class with your own "
+        "hand, train (5-fold CV) and use the model",
+    )
+    parser.add_argument(
+        "--gesture-samples",
+        type=int,
+        default=DEFAULT_PER_CLASS,
+        metavar="N",
+        help=f"samples per class in the gesture mode ({DEFAULT_PER_CLASS})",
     )
     parser.add_argument(
         "--emulate", action="store_true", help="print the URL of the desktop emulation (IWER)"
@@ -60,6 +84,7 @@ def main(args: argparse.Namespace) -> int:
     from mimicrete.gestures import load_model
     from mimicrete.teleop import server as srv
     from mimicrete.teleop.convert import parse_calibration
+    from mimicrete.teleop.gesturemode import user_model_path
     from mimicrete.teleop.live import Live
 
     if not 0 < args.port < 65536:
@@ -84,7 +109,18 @@ def main(args: argparse.Namespace) -> int:
             model = load_model(args.gesture_model)
         except (OSError, ValueError, KeyError, EOFError) as e:
             raise UsageError(f"--gesture-model {args.gesture_model}: {e}") from None
-    live = Live(args.task, out, calibration=calib, seed=args.seed, model=model)
+        model.info["path"] = str(Path(args.gesture_model).resolve())
+    if not MIN_PER_CLASS <= args.gesture_samples <= 5000:
+        raise UsageError(f"--gesture-samples must be in {MIN_PER_CLASS}..5000")
+    live = Live(
+        args.task,
+        out,
+        calibration=calib,
+        seed=args.seed,
+        model=model,
+        gestures=args.gestures,
+        gesture_samples=args.gesture_samples,
+    )
     loopback = srv.is_loopback(args.host)
     token = None if loopback else srv.new_token()
     ssl_ctx = None
@@ -106,6 +142,13 @@ def main(args: argparse.Namespace) -> int:
     url = f"{scheme}://{shown}:{args.port}/" + ("?" + "&".join(query) if query else "")
     print(f"mimicrete teleop: {args.task}, saving to {out}/ (episode {live.next_index} next)")
     print(f"  {url}")
+    print(model_line(live))
+    if args.gestures:
+        gm = live.gesture_status()
+        print(
+            f"gesture mode: record {' / '.join(gm['classes'])} ({gm['target']} samples each) in "
+            f"the page; the model is saved as {user_model_path(out, args.task)}"
+        )
     print(HELP_OPEN.format(port=args.port))
     sys.stdout.flush()
     try:
@@ -116,6 +159,25 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
     if live.recording:
         live.stop("interrupted")
+    live.close()
     if live.last_saved:
         print(f"last episode: {live.last_saved}")
     return 0
+
+
+def model_line(live: Live) -> str:
+    """Which gesture model drives, for the start-up message."""
+    st = live.model_status()
+    acc = st["test_accuracy"]
+    held = f", {100 * acc:.2f} % held-out" if acc is not None else ""
+    if st["source"] == "user":
+        return (
+            f"gesture model: yours, {st['file']} (trained in the page's gesture mode{held}); "
+            "--gestures to teach it again"
+        )
+    if st["source"] == "given":
+        return f"gesture model: {st['file']} (--gesture-model{held})"
+    return (
+        f"gesture model: the shipped one (synthetic hands{held}); --gestures teaches it your "
+        "own hand"
+    )

@@ -10,6 +10,11 @@ counted, never fatal. One driver at a time: a second client watches read-only. A
 Ctrl-C mid-episode closes the demo cleanly as an unfinished ``.partial`` file and writes the hand
 log; nothing recorded is lost.
 
+The gesture mode (``{"type":"gestures",...}`` messages, :mod:`.gesturemode`): the driver's
+right-hand frames become labelled samples of the task's gesture classes; the training runs in a
+worker thread and wakes the event loop when it ends, so hand frames keep being answered while it
+runs, and the trained model drives from then on.
+
 Security: loopback by default. Any other bind address needs TLS (a self-signed certificate made
 on first run) and a per-run token in the page's URL and on the WebSocket (compared in constant
 time). Cross-origin WebSocket upgrades are refused.
@@ -35,6 +40,7 @@ from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
 
+from .gesturemode import GestureModeError
 from .live import Live, view_from_base
 from .protocol import VERSION, FrameError, parse_frame
 from .view import scene_entities
@@ -89,8 +95,19 @@ class TeleopServer:
         app.router.add_get("/ws", self.websocket)
         if self.static.is_dir():
             app.router.add_static("/static/", self.static)
+        app.on_startup.append(self._startup)
         app.on_shutdown.append(self._shutdown)
         return app
+
+    async def _startup(self, app: web.Application) -> None:
+        loop = asyncio.get_running_loop()
+        # a training that ends in its worker thread wakes this loop, which applies it and tells
+        # the clients even when no hand frame comes
+        self.live.notify = lambda: loop.call_soon_threadsafe(self._wake)
+
+    def _wake(self) -> None:
+        self.live.poll()
+        asyncio.ensure_future(self._flush_events())
 
     # ------------------------------------------------------------------ http
 
@@ -160,6 +177,14 @@ class TeleopServer:
                         {"type": "error", "message": "another client drives; you watch"}
                     )
             await ws.send_json(self._hello(role))
+        elif kind == "gestures" and ws is self.driver:
+            try:
+                self._gestures(msg)
+            except GestureModeError as e:
+                await ws.send_json({"type": "error", "message": f"gestures: {e}"})
+            await self._flush_events()
+        elif kind == "gestures":
+            self.stats.dropped["not_driver"] += 1
         elif kind == "control" and ws is self.driver:
             try:
                 await self._control(str(msg.get("action")))
@@ -183,8 +208,32 @@ class TeleopServer:
             "control_dt": 0.04,
             "scene": scene_entities(live.session.env.scene()),
             "view_from_base": view_from_base(live.calibration),
+            "mode": "gestures" if live.gesture_mode else "teleop",
+            "gesture_model": live.model_status(),
+            "gestures": live.gesture_status("hello"),
             **{k: v for k, v in live.state().items() if k == "frames"},
         }
+
+    def _gestures(self, msg: dict[str, Any]) -> None:
+        """A gesture-mode request of the driver (docs/formats.md §3)."""
+        live, action = self.live, msg.get("action")
+        if action == "enter":
+            live.enter_gestures(msg.get("per_class"))
+        elif action == "exit":
+            live.exit_gestures()
+        elif action == "record":
+            label = msg.get("class")
+            if label is not None and not isinstance(label, str):
+                raise GestureModeError(f"class must be a string, got {label!r}")
+            live.record_gesture(label)
+        elif action == "pause":
+            live.pause_gesture()
+        elif action == "train":
+            live.train_gestures()
+        elif action == "status":
+            live.events.append(live.gesture_status())
+        else:
+            self.stats.dropped["unknown"] += 1
 
     async def _control(self, action: str) -> None:
         live = self.live
@@ -236,7 +285,11 @@ class TeleopServer:
     async def _flush_events(self) -> None:
         while self.live.events:
             ev = self.live.events.pop(0)
-            self.log(json.dumps(ev))
+            if ev["type"] == "gestures":
+                if ev["event"] != "progress":  # not each sample
+                    self.log(_gesture_line(ev))
+            else:
+                self.log(json.dumps(ev))
             await self._broadcast(ev)
 
     async def _broadcast(self, msg: dict[str, Any], viewers_only: bool = False) -> None:
@@ -252,12 +305,28 @@ class TeleopServer:
     async def _shutdown(self, app: web.Application) -> None:
         if self.live.recording:
             self.live.stop("interrupted")
-        self.live.flush()  # every stopped episode on disk before the process ends
+        self.live.notify = None
+        self.live.close()  # every stopped episode and a training in progress on disk
         if self.live.last_saved and self.live.last_saved["result"] == "interrupted":
             self.log(f"stopped mid-episode; kept {self.live.last_saved}")
         for ws in [self.driver, *self.viewers]:
             if ws is not None:
                 await ws.close()
+
+
+def _gesture_line(ev: dict[str, Any]) -> str:
+    """One log line for a gesture-mode event."""
+    counts = ", ".join(f"{c} {n}/{ev['target']}" for c, n in ev["counts"].items())
+    line = f"gestures {ev['event']}: {counts}"
+    r = ev.get("report")
+    if ev["event"] == "trained" and r:
+        line += (
+            f"; held-out accuracy {100 * r['test_accuracy']:.2f} % on {r['n_test']} samples, "
+            f"5-fold CV {100 * r['cv_accuracy']:.2f} %; saved {r['model']} (from {r['csv']})"
+        )
+    if ev.get("error"):
+        line += f"; {ev['error']}"
+    return line
 
 
 # ----------------------------------------------------------------------------------------------
