@@ -100,7 +100,7 @@ def test_expert_episode_gif_follows_the_state(tmp_path):
     durations, frames = _read_gif(tmp_path / "e.gif")
     assert len(frames) == rec.frames == rec.length + 1
     assert frames[0].shape == (H, W, 3) and (rec.width, rec.height) == (W, H)
-    assert set(durations) == {40}  # 25 fps, the control rate
+    assert durations == [40] * rec.length + [1000]  # 25 fps, the control rate; the end held 1 s
     # picked_at[t] is the state before action t, i.e. the state of frame t
     first_picked = picked_at.index(True)
     green = [_is_green(_badge(f, video.PICKED_BOX)) for f in frames]

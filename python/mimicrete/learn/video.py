@@ -8,7 +8,7 @@ env's own render (top and side views) with a status band under it: episode, seed
 step's reward, the return so far, and a *picked* and an *installed* badge that turn green when
 the tile is picked / installed (grey before, red *fell* when it falls). One frame per state: the
 reset state, then one after every step, so an episode of ``T`` steps has ``T + 1`` frames, played
-at the control rate (25 fps).
+at the control rate (25 fps); a GIF holds its last frame for a second before it loops.
 
 Written into ``RUN_DIR/videos/``: ``episode_<k>.mp4`` (H.264 by the ffmpeg binary of the
 ``imageio-ffmpeg`` wheel) or, where that is not installed or ``fmt="gif"``, ``episode_<k>.gif``
@@ -171,8 +171,11 @@ class _Writer:
             self._gen.close()
 
 
-def write_gif(path: Path, frames: list[np.ndarray], fps: int, colors: int = 64) -> None:
-    """Frames as a looping GIF (Pillow), each frame with its own adaptive palette."""
+def write_gif(
+    path: Path, frames: list[np.ndarray], fps: int, colors: int = 64, hold_last: float = 1.0
+) -> None:
+    """Frames as a looping GIF (Pillow), each frame with its own adaptive palette, shown for
+    ``1 / fps`` s; the last frame (the episode's end) for ``hold_last`` s before the loop."""
     from PIL import Image
 
     if not frames:
@@ -187,7 +190,7 @@ def write_gif(path: Path, frames: list[np.ndarray], fps: int, colors: int = 64) 
         path,
         save_all=True,
         append_images=images[1:],
-        duration=round(1000 / fps),
+        duration=[round(1000 / fps)] * (len(images) - 1) + [round(1000 * max(hold_last, 1 / fps))],
         loop=0,
         optimize=True,
     )
@@ -281,6 +284,8 @@ def record_run_videos(
     s = cfg.env_settings.seed + 10_000 if seed is None else seed
     out = run_dir / VIDEO_DIR
     out.mkdir(exist_ok=True)
+    for old in [*out.glob("episode_*.mp4"), *out.glob("episode_*.gif")]:
+        old.unlink()  # videos/ holds the last call's videos only
 
     @torch.no_grad()
     def policy(obs: np.ndarray) -> np.ndarray:
