@@ -33,11 +33,12 @@ def main() -> None:
     installed = 0
     for k in range(args.episodes):
         obs, _ = env.reset(options={"episode_seed": args.seed + k})
-        ret, steps, info, done = 0.0, 0, {}, False
+        ret, steps, done = 0.0, 0, False
+        info: dict = {}
         while not done:
             (action,) = sess.run(["actions"], {"obs": obs[None].astype(np.float32)})
             obs, reward, terminated, truncated, info = env.step(action[0])
-            ret += reward
+            ret += float(reward)
             steps += 1
             done = terminated or truncated
         installed += bool(info.get("installed"))

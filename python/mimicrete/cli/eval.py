@@ -62,9 +62,9 @@ def main(args: argparse.Namespace) -> int:
             episodes = video.record_run_videos(run_dir, args.video, args.seed, fmt)
         except video.VideoError as e:
             raise UsageError(str(e)) from None
-        for e in episodes:
+        for ep in episodes:
             print(
-                f"wrote {run_dir / video.VIDEO_DIR / e.file}: seed {e.episode_seed}, "
-                f"{e.length} steps, {e.outcome}, {e.frames} frames {e.width}x{e.height}"
+                f"wrote {run_dir / video.VIDEO_DIR / ep.file}: seed {ep.episode_seed}, "
+                f"{ep.length} steps, {ep.outcome}, {ep.frames} frames {ep.width}x{ep.height}"
             )
     return 0

@@ -289,6 +289,19 @@ def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
 ONNX_OPSET = 18
 
 
+def require_onnx_exporter() -> None:
+    """``ModuleNotFoundError`` naming the package if the ONNX exporter's onnxscript is missing
+    (checked before training, so a run does not fail at its first checkpoint)."""
+    import importlib.util
+
+    if importlib.util.find_spec("onnxscript") is None:
+        raise ModuleNotFoundError(
+            "policy.onnx is written by torch's dynamo-based ONNX exporter, which needs onnxscript: "
+            "pip install onnxscript==0.7.2 (requirements/base.txt)",
+            name="onnxscript",
+        )
+
+
 def export_onnx(actor: Actor, obs_dim: int, path: Path) -> None:
     """The deterministic policy as ONNX: input ``obs`` (B, obs_dim) float32 -> ``actions``
     (B, 7) float32 (6 joint motions in [-1, 1], EE command in {-1, 0, 1}), any batch size B.
@@ -303,6 +316,7 @@ def export_onnx(actor: Actor, obs_dim: int, path: Path) -> None:
 
     from .networks import DeterministicPolicy
 
+    require_onnx_exporter()
     model = DeterministicPolicy(copy.deepcopy(actor)).eval()
     # a batch of 2: torch.export specialises a dimension traced at size 1 to the constant 1
     example = torch.zeros(2, obs_dim)
