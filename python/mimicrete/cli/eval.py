@@ -1,5 +1,7 @@
-"""`mimicrete eval RUN_DIR --episodes 100`: the paper's Table 5 row for a trained run, written to
-``RUN_DIR/eval.json``. Parses the flags and calls ``mimicrete.learn.evaluate_run``."""
+"""`mimicrete eval RUN_DIR --episodes 100 [--video N]`: the paper's Table 5 row for a trained run,
+written to ``RUN_DIR/eval.json``, and videos of the first N evaluation episodes in
+``RUN_DIR/videos/``. Parses the flags and calls ``mimicrete.learn.evaluate_run`` and
+``mimicrete.learn.video.record_run_videos``."""
 
 from __future__ import annotations
 
@@ -13,6 +15,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", help="a run directory written by `mimicrete train`")
     parser.add_argument("--episodes", type=int, default=100, help="episodes to run (100)")
     parser.add_argument("--seed", type=int, help="eval env seed (default: run seed + 10000)")
+    parser.add_argument(
+        "--video",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also write videos of the first N evaluation episodes to RUN_DIR/videos/ (0)",
+    )
+    parser.add_argument(
+        "--video-format",
+        choices=["auto", "mp4", "gif"],
+        default="auto",
+        help="auto: mp4 where imageio-ffmpeg is installed, else an animated GIF",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
@@ -21,18 +36,35 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(f"--episodes: at least 1, got {args.episodes}")
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed: 0 or more, got {args.seed}")
+    if args.video < 0:
+        raise UsageError(f"--video: 0 or more, got {args.video}")
     if not run_dir.is_dir():
         raise UsageError(f"{run_dir}: no such run directory")
     import torch
 
     from mimicrete import learn
-    from mimicrete.learn.run_files import PolicyFileError
+    from mimicrete.learn import video
+    from mimicrete.learn.run_files import PolicyFileError, load_policy
 
     torch.set_num_threads(1)
     try:
+        fmt = None
+        if args.video:  # what would stop the videos, before the evaluation runs
+            fmt = video.resolve_format(args.video_format)
+            video.check_renderable(load_policy(run_dir)[1].env_settings.env_id)
         res = learn.evaluate_run(run_dir, args.episodes, args.seed)
-    except PolicyFileError as e:
+    except (PolicyFileError, video.VideoError) as e:
         raise UsageError(str(e)) from None
     print(learn.format_row(run_dir.name, res))
     print(f"wrote {run_dir / 'eval.json'}")
+    if fmt is not None:
+        try:
+            episodes = video.record_run_videos(run_dir, args.video, args.seed, fmt)
+        except video.VideoError as e:
+            raise UsageError(str(e)) from None
+        for ep in episodes:
+            print(
+                f"wrote {run_dir / video.VIDEO_DIR / ep.file}: seed {ep.episode_seed}, "
+                f"{ep.length} steps, {ep.outcome}, {ep.frames} frames {ep.width}x{ep.height}"
+            )
     return 0

@@ -9,8 +9,8 @@ Modules, by what they own: ``config`` (the YAML schema), ``env`` (which env an i
 ``demo_data`` (demos as the trainer reads them), ``episodes`` (episode statistics), ``networks``,
 ``normalizer``, ``buffer`` (rollout, GAE), ``ppo``, ``gail``, ``bc``, ``trainer`` (one update),
 ``loop`` (a run: resume, summaries, checkpoints), ``run_files`` (what a run dir holds),
-``evaluate``, ``plots``, ``toyenv``. The names below are imported on first use, so importing the
-package does not import torch.
+``evaluate``, ``video`` (rollout videos), ``plots``, ``toyenv``. The names below are imported on
+first use, so importing the package does not import torch.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ _EXPORTS = {
 _SUBMODULES = {
     "bc", "buffer", "config", "demo_data", "env", "episodes", "evaluate", "gail", "loop",
     "networks", "normalizer", "plots", "ppo", "run_files", "scripted_demos", "survivor_demo",
-    "toyenv", "trainer",
+    "toyenv", "trainer", "video",
 }  # fmt: skip
 
 __all__ = sorted(_EXPORTS)

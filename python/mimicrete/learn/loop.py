@@ -35,6 +35,7 @@ def train(
     run is refused unless ``resume`` or ``force`` (which deletes that run's files first).
     ``stop_after_updates`` ends early without changing the schedules (for tests of resume)."""
     run_dir = Path(run_dir)
+    run_files.require_onnx_exporter()
     run_files.prepare_run_dir(run_dir, resume=resume, force=force)
     total = int(max_steps if max_steps is not None else cfg.behavior.max_steps)
     # the trainer loads the demos first: a bad demo path leaves the run dir as it was

@@ -8,6 +8,7 @@
       checkpoints/           step_<step>.pt (full trainer state, exact resume) + .onnx, last K kept
       policy.pt, policy.onnx the final policy (``mimicrete eval`` reads policy.pt)
       eval.json, plots/      written by the evaluation and the plots
+      videos/                ``mimicrete eval --video N``: episode_<k>.mp4 / .gif, episodes.json
 
 torch is imported inside the functions that need it, so reading scalars (the report) does not.
 """
@@ -19,7 +20,6 @@ import json
 import math
 import os
 import shutil
-import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -75,6 +75,7 @@ RUN_ENTRIES = (
     "policy.onnx",
     "eval.json",
     "plots",
+    "videos",
 )
 
 
@@ -284,31 +285,63 @@ def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
     return actor, cfg
 
 
+#: ONNX opset of the exported policies (onnxruntime >= 1.14 runs it)
+ONNX_OPSET = 18
+
+
+def require_onnx_exporter() -> None:
+    """``ModuleNotFoundError`` naming the package if the ONNX exporter's onnxscript is missing
+    (checked before training, so a run does not fail at its first checkpoint)."""
+    import importlib.util
+
+    if importlib.util.find_spec("onnxscript") is None:
+        raise ModuleNotFoundError(
+            "policy.onnx is written by torch's dynamo-based ONNX exporter, which needs onnxscript: "
+            "pip install onnxscript==0.7.2 (requirements/base.txt)",
+            name="onnxscript",
+        )
+
+
 def export_onnx(actor: Actor, obs_dim: int, path: Path) -> None:
     """The deterministic policy as ONNX: input ``obs`` (B, obs_dim) float32 -> ``actions``
-    (B, 7) float32 (6 joint motions in [-1, 1], EE command in {-1, 0, 1})."""
+    (B, 7) float32 (6 joint motions in [-1, 1], EE command in {-1, 0, 1}), any batch size B.
+
+    Exported by torch's current exporter (``torch.onnx.export(..., dynamo=True)``: torch.export
+    then onnxscript), opset :data:`ONNX_OPSET`; the observation normaliser's statistics are folded
+    into constants. Written atomically."""
     import copy
-    import io
+    import logging
 
     import torch
 
     from .networks import DeterministicPolicy
 
+    require_onnx_exporter()
     model = DeterministicPolicy(copy.deepcopy(actor)).eval()
-    dummy = torch.zeros(1, obs_dim)
-    buf = io.BytesIO()
-    with warnings.catch_warnings():  # the TorchScript exporter warns it is deprecated
-        warnings.simplefilter("ignore")
-        torch.onnx.export(
+    # a batch of 2: torch.export specialises a dimension traced at size 1 to the constant 1
+    example = torch.zeros(2, obs_dim)
+    # the exporter logs a warning per torchvision operator it cannot register (torchvision is
+    # not installed, and not needed)
+    registration = logging.getLogger("torch.onnx._internal.exporter._registration")
+    level = registration.level
+    registration.setLevel(logging.ERROR)
+    try:
+        program = torch.onnx.export(
             model,
-            (dummy,),
-            buf,
+            (example,),
             input_names=["obs"],
             output_names=["actions"],
-            dynamic_axes={"obs": {0: "batch"}, "actions": {0: "batch"}},
-            opset_version=17,
-            dynamo=False,
+            dynamic_shapes=({0: torch.export.Dim("batch")},),
+            opset_version=ONNX_OPSET,
+            dynamo=True,
+            optimize=True,
+            verbose=False,
         )
+    finally:
+        registration.setLevel(level)
+    if program is None or program.model_proto is None:
+        raise RuntimeError("torch.onnx.export returned no model")
+    data = program.model_proto.SerializeToString()
     tmp = path.with_suffix(".onnx.tmp")
-    tmp.write_bytes(buf.getvalue())
+    tmp.write_bytes(data)
     os.replace(tmp, path)
