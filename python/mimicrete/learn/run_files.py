@@ -5,7 +5,7 @@
       run.json               budget, demo path, demo steps loaded / idle-dropped / files skipped
       scalars.csv            one row per summary: ``step`` then :data:`TAGS` (ML-Agents' names)
       tensorboard/           the same scalars as TensorBoard events
-      checkpoints/           step_<step>.pt (full trainer state, exact resume) + .onnx, last K kept
+      checkpoints/           step_<step>.pt (full trainer state, exact resume), last K kept
       policy.pt, policy.onnx the final policy (``mimicrete eval`` reads policy.pt)
       eval.json, plots/      written by the evaluation and the plots
       videos/                ``mimicrete eval --video N``: episode_<k>.mp4 / .gif, episodes.json
@@ -213,11 +213,10 @@ def latest_checkpoint(run_dir: Path) -> Path | None:
     return ckpts[-1] if ckpts else None
 
 
-def save_checkpoint(
-    run_dir: Path, step: int, state: dict[str, Any], actor: Actor, obs_dim: int, keep: int
-) -> Path:
-    """``checkpoints/step_<step>.pt`` (+ ``.onnx``), written atomically; all but the last
-    ``keep`` checkpoints are deleted."""
+def save_checkpoint(run_dir: Path, step: int, state: dict[str, Any], keep: int) -> Path:
+    """``checkpoints/step_<step>.pt``, written atomically; all but the last ``keep`` checkpoints
+    are deleted. (No ONNX per checkpoint: torch's dynamo exporter takes seconds, and only the
+    final ``policy.onnx`` is read; export any checkpoint with :func:`export_onnx` if needed.)"""
     import torch
 
     ck_dir = run_dir / CHECKPOINTS
@@ -226,13 +225,10 @@ def save_checkpoint(
     tmp = path.with_suffix(".tmp")
     torch.save(state, tmp)
     os.replace(tmp, path)
-    export_onnx(actor, obs_dim, ck_dir / f"step_{step:09d}.onnx")
     ckpts = sorted(ck_dir.glob("step_*.pt"))
     for old in ckpts[: max(0, len(ckpts) - max(1, keep))]:
         old.unlink()
-        onnx_old = old.with_suffix(".onnx")
-        if onnx_old.exists():
-            onnx_old.unlink()
+        old.with_suffix(".onnx").unlink(missing_ok=True)  # left by runs of older versions
     return path
 
 

@@ -505,8 +505,7 @@ class Trainer:
                         self._nonfinite_message(f"weight {name} is not finite")
                     )
         path = run_files.save_checkpoint(
-            self.run_dir, self.step, self.state_dict(), self.actor, self.obs_dim,
-            self.b.keep_checkpoints,
-        )  # fmt: skip
+            self.run_dir, self.step, self.state_dict(), self.b.keep_checkpoints
+        )
         self.obs = None  # checkpoint boundary: envs are reset (see module docstring)
         return path
