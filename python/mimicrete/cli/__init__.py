@@ -57,6 +57,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def gesture_model_arg(path: str | None):  # -> GestureModel | None (no import of it here)
+    """The gesture model a ``--gesture-model PATH`` flag names, loaded (None: no flag, the shipped
+    one is used); a file that is missing or not a model is a :class:`UsageError` naming the flag."""
+    if not path:
+        return None
+    from mimicrete.gestures import load_model
+
+    try:
+        return load_model(path)
+    except (OSError, ValueError, KeyError, EOFError) as e:
+        raise UsageError(f"--gesture-model {path}: {e}") from None
+
+
 def user_errors() -> tuple[type[BaseException], ...]:
     """Exceptions that mean "bad input": the CLI prints them as one line and exits 2."""
     from mimicrete import LogFormatError

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from mimicrete.cli import UsageError
+from mimicrete.cli import UsageError, gesture_model_arg
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -44,7 +44,6 @@ def main(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from mimicrete import LogFormatError
-    from mimicrete.gestures import load_model
     from mimicrete.teleop import convert as cv
 
     logs = cv.find_logs(args.source)
@@ -53,12 +52,7 @@ def main(args: argparse.Namespace) -> int:
         plan = cv.plan_outputs(logs, out, args.overwrite)
     except cv.ConvertError as e:
         raise UsageError(str(e)) from None
-    model = None
-    if args.gesture_model:
-        try:
-            model = load_model(args.gesture_model)
-        except (OSError, ValueError, KeyError, EOFError) as e:
-            raise UsageError(f"--gesture-model {args.gesture_model}: {e}") from None
+    model = gesture_model_arg(args.gesture_model)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:

@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
-from mimicrete.cli import UsageError
+from mimicrete.cli import UsageError, gesture_model_arg
 from mimicrete.teleop.gesturemode import DEFAULT_PER_CLASS, MIN_PER_CLASS
 
 if TYPE_CHECKING:
@@ -81,7 +81,6 @@ def main(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from mimicrete.gestures import load_model
     from mimicrete.teleop import server as srv
     from mimicrete.teleop.convert import parse_calibration
     from mimicrete.teleop.gesturemode import user_model_path
@@ -103,13 +102,7 @@ def main(args: argparse.Namespace) -> int:
             )
         except (OSError, ValueError) as e:
             raise UsageError(f"--calibration {args.calibration}: {e}") from None
-    model = None
-    if args.gesture_model:
-        try:
-            model = load_model(args.gesture_model)
-        except (OSError, ValueError, KeyError, EOFError) as e:
-            raise UsageError(f"--gesture-model {args.gesture_model}: {e}") from None
-        model.info["path"] = str(Path(args.gesture_model).resolve())
+    model = gesture_model_arg(args.gesture_model)
     if not MIN_PER_CLASS <= args.gesture_samples <= 5000:
         raise UsageError(f"--gesture-samples must be in {MIN_PER_CLASS}..5000")
     live = Live(

@@ -301,6 +301,7 @@ def load_model(path: str | Path) -> GestureModel:
         )
     for note in notes:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
+    info = {**info, "path": str(path.resolve())}  # demos recorded with it name the file
     args = (d["pipeline"], tuple(d["classes"]), d["layout"], d["dims"], d["task"], info)
     kind = d.get("kind", "per-frame")
     if kind == "temporal":
