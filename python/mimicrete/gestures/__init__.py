@@ -52,16 +52,8 @@ from .data import (
     write_gesture_csv,
 )
 from .features import features_2d, features_3d, featurize
-from .model import (
-    FastRbfSvc,
-    GestureModel,
-    confusion,
-    default_model_path,
-    fit,
-    load_default,
-    load_model,
-    train_builtin,
-)
+from .files import default_model_path, load_default, load_model
+from .model import FastRbfSvc, GestureModel, confusion, fit, train_builtin
 from .sequences import GestureSequence, demo_sequences, drill_sequence, sequence_dataset
 from .smoother import GestureSmoother
 from .temporal import TemporalGestureModel, fit_temporal, train_temporal_builtin
