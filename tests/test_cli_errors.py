@@ -205,3 +205,30 @@ def test_inspect_into_a_closed_pipe_is_quiet(tmp_path, hands):
     )
     assert "Traceback" not in p.stderr and "BrokenPipe" not in p.stderr
     assert demo.name in p.stdout
+
+
+def test_ctrl_c_in_convert_exits_130_and_leaves_no_broken_file(tmp_path):
+    """SIGINT mid-run: exit 130 with one line, the demos already written intact, the one being
+    written removed with its lock (no .partial, no .lock)."""
+    import signal
+    import time
+
+    hands = tmp_path / "hands"
+    sy.synth_hands("suction", 6, 2, hands)
+    out = tmp_path / "o"
+    p = subprocess.Popen(
+        [sys.executable, "-m", "mimicrete", "convert", str(hands), "--task", "suction",
+         "--out", str(out), "--no-progress"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and not list(out.glob("*.mcap")):
+        time.sleep(0.05)  # the first demo is done: interrupt during a later one
+    p.send_signal(signal.SIGINT)
+    rc = p.wait(120)
+    err = p.stderr.read()
+    no_traceback(subprocess.CompletedProcess([], rc, "", err))
+    assert rc == 130 and "mimicrete convert: interrupted" in err, (rc, err)
+    assert not list(out.glob("*.partial")) and not list(out.glob("*.lock"))
+    done = sorted(out.glob("*.mcap"))
+    assert 1 <= len(done) < 6 and demos.load(out).num_episodes == len(done)

@@ -219,3 +219,91 @@ def test_disconnect_mid_episode_keeps_what_was_recorded(tmp_path):
     assert len(hand.t) > 40 * 2  # ~90 Hz frames for >= 40 steps at 25 Hz
     meta = json.dumps(saved)
     assert "disconnected" in meta
+
+
+def _left(shape: str) -> np.ndarray:
+    """A left hand (WebXR joints) making a shape of the hand model, somewhere to the left."""
+    from mimicrete.hands import model as hm
+    from mimicrete.hands.layouts import to_layout
+
+    if shape == "pinch":  # thumb tip on the index tip: move the thumb there
+        j = to_layout(
+            hm.hand_joints(hm.GESTURE_SHAPES["opening"], np.eye(3), np.zeros(3), handedness="left"),
+            "webxr",
+        )  # noqa: E501
+        j[4] = j[9] + 0.005
+    else:
+        j = to_layout(
+            hm.hand_joints(hm.GESTURE_SHAPES[shape], np.eye(3), np.zeros(3), handedness="left"),
+            "webxr",
+        )  # noqa: E501
+    return j + np.array([-0.3, -0.3, -0.4])
+
+
+def test_left_hand_starts_stops_and_discards_without_controllers(tmp_path):
+    """A left pinch held 1 s starts an episode, another stops (and saves) it; a left fist held
+    1.5 s discards the one running. The right hand keeps driving meanwhile."""
+    from mimicrete.teleop.protocol import parse_frame
+
+    log = _log(tmp_path)
+    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+    t = [float(log.t[0])]
+
+    def hold(left: np.ndarray | None, seconds: float, k0: int) -> int:
+        k = k0
+        end = t[0] + seconds
+        while t[0] < end and k < len(log.t) - 1:
+            frame = pack_frame(k, t[0], 0.0, log.joints[k], left)
+            live.push(parse_frame(frame))
+            k += 1
+            t[0] = float(log.t[k])
+        return k
+
+    k = hold(_left("opening"), 0.5, 0)
+    assert not live.recording
+    k = hold(_left("pinch"), 1.2, k)
+    assert live.recording  # pinch held 1 s: started
+    k = hold(_left("opening"), 0.3, k)
+    k = hold(_left("pinch"), 1.2, k)
+    assert not live.recording and live.last_saved["result"] == "stopped"
+    k = hold(None, 0.3, k)
+    k = hold(_left("pinch"), 1.2, k)
+    assert live.recording
+    k = hold(_left("closing"), 1.0, k)
+    assert live.recording  # a fist must be held 1.5 s
+    k = hold(_left("closing"), 0.7, k)
+    assert not live.recording and live.last_result == "discarded"
+    assert len(list((tmp_path / "out").glob("*.mcap*"))) == 1  # the stopped one only
+
+
+def test_tls_and_token_over_https(tmp_path):
+    """Off loopback the server serves HTTPS with a self-signed certificate and wants the token;
+    exercised here on 127.0.0.1 (nothing may leave this machine)."""
+    import ssl
+
+    from mimicrete.teleop.server import ServerThread, self_signed, ssl_context
+
+    cert, key = self_signed(tmp_path / "tls", "127.0.0.1")
+    assert self_signed(tmp_path / "tls", "127.0.0.1") == (cert, key)  # made once, reused
+    live = Live("suction", tmp_path / "out")
+
+    async def go(port: int):
+        import aiohttp
+
+        trust = ssl.create_default_context(cafile=str(cert))
+        base = f"https://127.0.0.1:{port}"
+        async with aiohttp.ClientSession() as http:
+            r = await http.get(f"{base}/ws", ssl=trust)
+            ws = await http.ws_connect(f"{base}/ws?token=tok", ssl=trust)
+            hello = await _hello(ws)
+            await ws.close()
+            try:  # an unknown self-signed certificate is not trusted by default
+                await http.get(f"{base}/ws?token=tok", ssl=ssl.create_default_context())
+                verified_without_cert = True
+            except aiohttp.ClientConnectorCertificateError:
+                verified_without_cert = False
+            return r.status, hello["role"], verified_without_cert
+
+    with ServerThread(TeleopServer(live, token="tok"), ssl_ctx=ssl_context(cert, key)) as run:
+        result = _run(go(run.port))
+    assert result == (403, "driver", False)

@@ -7,7 +7,8 @@ recording starts a fresh session on the next episode's seed (a new tile position
 itself on install, fall or the step limit, or when the user stops or discards it.
 
 Episode control without controllers: a left-hand pinch (thumb tip to index tip under 2 cm) held
-for :data:`PINCH_HOLD_S` starts a recording, or stops the one running.
+for :data:`PINCH_HOLD_S` starts a recording, or stops the one running; a left fist held for
+:data:`FIST_HOLD_S` discards the one running.
 
 The gesture mode (:mod:`.gesturemode`, no recording meanwhile) turns the right hand's frames into
 labelled samples of the task's gesture classes and trains the user's own SVM on them; the left
@@ -52,6 +53,11 @@ from .view import effector_state, frame_poses, standing_calibration
 PINCH_M = 0.02  # thumb tip to index tip, left hand
 PINCH_HOLD_S = 1.0
 THUMB_TIP, INDEX_TIP = 4, 9  # WebXR joint indices
+FINGERTIPS, WRIST, MIDDLE_PROXIMAL = (9, 14, 19, 24), 0, 11
+#: a left fist: the four fingertips' mean distance to the wrist under this share of the
+#: wrist → middle-knuckle length (an open hand is about 1.9, a fist about 0.7)
+FIST_RATIO = 0.85
+FIST_HOLD_S = 1.5
 LAYOUT = "webxr"
 
 
@@ -148,6 +154,7 @@ class Live:
         self._pending: list[Future[None]] = []
         self.preview = self._session(self.seed + self.next_index, None)
         self.pinch_since: float | None = None
+        self.fist_since: float | None = None
         self.pinch_fired = False
         self.last_right: np.ndarray | None = None
         self.events: list[dict[str, Any]] = []  # episode messages for the clients
@@ -207,6 +214,14 @@ class Live:
         return steps
 
     def _left_hand_control(self, f: HandFrame) -> None:
+        if self._left_fist(f):
+            if self.fist_since is None:
+                self.fist_since = f.t
+            if self.recording and f.t - self.fist_since >= FIST_HOLD_S:
+                self.discard()
+            self.pinch_since, self.pinch_fired = None, False
+            return
+        self.fist_since = None
         pinched = f.left_tracked and (
             np.linalg.norm(f.left[THUMB_TIP] - f.left[INDEX_TIP]) < PINCH_M
         )
@@ -223,6 +238,15 @@ class Live:
                 self.stop()
             else:
                 self.start()
+
+    @staticmethod
+    def _left_fist(f: HandFrame) -> bool:
+        if not f.left_tracked:
+            return False
+        j = f.left
+        size = float(np.linalg.norm(j[MIDDLE_PROXIMAL] - j[WRIST]))
+        reach = float(np.mean(np.linalg.norm(j[list(FINGERTIPS)] - j[WRIST], axis=1)))
+        return size > 1e-3 and reach < FIST_RATIO * size
 
     # ------------------------------------------------------------------ episodes
 

@@ -416,8 +416,10 @@ class ServerThread:
             url = f"http://127.0.0.1:{run.port}/"
     """
 
-    def __init__(self, server: TeleopServer, host: str = "127.0.0.1") -> None:
-        self.server, self.host = server, host
+    def __init__(
+        self, server: TeleopServer, host: str = "127.0.0.1", ssl_ctx: ssl.SSLContext | None = None
+    ) -> None:
+        self.server, self.host, self.ssl_ctx = server, host, ssl_ctx
         with socket.socket() as s:
             s.bind((host, 0))
             self.port = int(s.getsockname()[1])
@@ -430,7 +432,9 @@ class ServerThread:
         ready = asyncio.Event()
 
         async def main() -> None:
-            task = asyncio.ensure_future(serve(self.server, self.host, self.port, None, ready))
+            task = asyncio.ensure_future(
+                serve(self.server, self.host, self.port, self.ssl_ctx, ready)
+            )
             await ready.wait()
             self.ready.set()
             await task
