@@ -273,7 +273,8 @@ class SimVecEnv:
     @property
     def act_dim(self) -> int: ...
     def reset(self, seed: int | None = None) -> _F32:
-        """Reset all envs with base seed ``seed`` (episode counts restart) → obs (num_envs, obs_dim)."""
+        """Reset all envs with base seed ``seed`` (episode counts restart) → obs (num_envs,
+        obs_dim)."""
     def reset_mask(self, mask: ArrayLike) -> _F32:
         """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
     def state(self) -> dict[str, Any]:
