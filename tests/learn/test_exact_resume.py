@@ -134,3 +134,20 @@ def test_a_checkpoint_that_does_not_replay_is_refused(tmp_path: Path) -> None:
     torch.save(s, ck)
     with pytest.raises(ResumeError, match="env 2's observation: the simulator is not the one"):
         learn.train(cfg, run, progress=False, resume=True)
+
+
+def test_a_checkpoint_of_an_older_version_resumes_with_a_warning(tmp_path: Path) -> None:
+    """Checkpoints written before the env state was stored still resume (the envs restart from
+    a derived seed, as that version did), and say the resume is not exact."""
+    cfg = _config(tmp_path, "toy", 1)
+    run = tmp_path / "run"
+    learn.train(cfg, run, progress=False, stop_after_updates=2)
+    ck = run_files.latest_checkpoint(run)
+    assert ck is not None
+    s = run_files.load_checkpoint(ck)
+    del s["envs"]
+    torch.save(s, ck)
+    with pytest.warns(UserWarning, match="older version .* not exact"):
+        tr = learn.train(cfg, run, progress=False, resume=True)
+    assert tr.update_idx == UPDATES
+    assert learn.ResumeError is ResumeError
