@@ -243,3 +243,87 @@ def test_short_sb3_ppo_run() -> None:
     action, _ = model.predict(obs, deterministic=True)
     assert action.shape == (7,)
     env.step(action)
+
+
+def _vec_log(venv: E.MimicreteVecEnv, steps: int, act_seed: int) -> tuple[bytes, int]:
+    """Obs, rewards, flags and terminal rows of `steps` random steps, as bytes; episode ends."""
+    rng = np.random.default_rng(act_seed)
+    n = venv.num_envs
+    out, ends = [], 0
+    for _ in range(steps):
+        obs, r, term, trunc, infos = venv.step(rng.uniform(-1, 1, (n, 7)).astype(np.float32))
+        out += [obs.tobytes(), r.tobytes(), term.tobytes(), trunc.tobytes()]
+        if "final_obs" in infos:
+            for i in np.flatnonzero(infos["_final_obs"]):
+                ends += 1
+                out.append(np.asarray(infos["final_obs"][i]).tobytes())
+    return b"".join(out), ends
+
+
+def test_vector_reset_seed_fixes_auto_reset_episodes() -> None:
+    """gymnasium's contract across auto-resets: two fresh vector envs reset with the same seed
+    give identical trajectories through their auto-resets, and a used env reset with seed s
+    equals a fresh one reset with s."""
+    steps = 1600  # two truncations per env
+    fresh1 = E.make_vec("TileSuction-v0", 2, seed=3)
+    fresh2 = E.make_vec("TileSuction-v0", 2, seed=99)
+    o1, _ = fresh1.reset(seed=42)
+    o2, _ = fresh2.reset(seed=42)
+    np.testing.assert_array_equal(o1, o2)
+    log1, ends = _vec_log(fresh1, steps, 0)
+    log2, _ = _vec_log(fresh2, steps, 0)
+    assert ends >= 4 and log1 == log2
+    # fresh1 is now used (several auto-resets, a masked reset): reset with 42 starts over.
+    fresh1.reset(options={"reset_mask": np.array([True, False])})
+    o3, _ = fresh1.reset(seed=42)
+    np.testing.assert_array_equal(o3, o1)
+    log3, _ = _vec_log(fresh1, steps, 0)
+    assert log3 == log1
+    # and the auto-reset episodes do depend on the seed
+    fresh2.reset(seed=43)
+    assert _vec_log(fresh2, steps, 0)[0] != log1
+
+
+def test_vector_state_restore_is_exact() -> None:
+    venv = E.make_vec("TileSuction-v0", 3, seed=5)
+    venv.reset(seed=5)
+    _vec_log(venv, 900, 1)  # one auto-reset per env, then 150 steps into the next episode
+    st = venv.state()
+    assert [len(a) for a in st["actions"]] == [150, 150, 150]
+    assert list(st["episodes"]) == [1, 1, 1] and st["base_seed"] == 5
+    other = E.make_vec("TileSuction-v0", 3, seed=77)
+    obs = other.restore(st)
+    assert obs.shape == (3, 80)
+    a, _ = _vec_log(venv, 800, 2)
+    b, _ = _vec_log(other, 800, 2)
+    assert a == b
+    bad = dict(st, episodes=[1, 1])
+    with pytest.raises(ValueError, match="episodes buffer has length 2, expected 3"):
+        other.restore(bad)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"seed": -1}, r"seed must be an integer in \[0, 2\*\*64-1\], got -1"),
+        ({"seed": 2**64}, r"seed must be an integer in \[0, 2\*\*64-1\], got 18446744073709551616"),
+        ({"seed": 1.5}, r"seed must be an integer in \[0, 2\*\*64-1\], got 1.5 \(float\)"),
+        ({"num_envs": 2.7}, r"num_envs must be a positive integer, got 2.7 \(float\)"),
+        ({"num_envs": 0}, r"num_envs must be at least 1, got 0"),
+        ({"num_envs": True}, r"num_envs must be a positive integer, got True"),
+        ({"num_threads": 0}, r"num_threads must be at least 1, got 0"),
+    ],
+)
+def test_make_vec_refuses_bad_numbers(kwargs: dict, message: str) -> None:
+    args = {"num_envs": 2, "seed": 0} | kwargs
+    with pytest.raises(ValueError, match=message):
+        E.make_vec("TileSuction-v0", **args)
+
+
+def test_make_vec_accepts_the_whole_seed_range() -> None:
+    for s in (0, np.uint64(2**64 - 1), np.int64(7), 2**64 - 1):
+        venv = E.make_vec("TileSuction-v0", 2, seed=s)
+        obs, _ = venv.reset(seed=s)
+        assert obs.shape == (2, 80)
+    with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2\*\*64-1\], got -3"):
+        venv.reset(seed=-3)

@@ -296,6 +296,28 @@ def test_urdf_loads_in_ikpy(tmp_path):
     np.testing.assert_allclose(chain.forward_kinematics(full), kin.fk(q), atol=1e-9)
 
 
+@pytest.mark.parametrize("k", [0, 1, 2])
+def test_hand_to_target_overflow_names_the_joint(k):
+    """Finite joints near 1e308 that overflow once scaled and moved into Base: a ValueError
+    naming the joint (it used to be a target holding inf)."""
+    pts = [[0.0, 0.0, 0.0], [0.02, 0.08, 0.0], [0.0, 0.09, 0.01]]
+    pts[k] = [1e308, 1e308, 1e308]
+    name = ("wrist", "index_proximal", "middle_proximal")[k]
+    for cal in ({"scale": 10.0}, {"translation": [1.7e308, 1.7e308, 1.7e308]}):
+        with pytest.raises(ValueError, match=rf"^overflow: {name} is too large"):
+            kin.hand_to_target(*pts, calibration=cal)
+        t, ok = kin.hand_to_target_batch(*[np.array([p]) for p in pts], calibration=cal)
+        assert not ok[0] and np.all(np.isfinite(t))
+    # the same joints with the default calibration stay finite: a finite target
+    with np.errstate(all="ignore"):
+        try:
+            t = kin.hand_to_target(*pts)
+        except ValueError as e:  # collinear once huge: a degenerate hand, also a clear error
+            assert "degenerate hand" in str(e)
+        else:
+            assert np.all(np.isfinite(t))
+
+
 @settings(max_examples=300, deadline=None)
 @given(
     arrays(np.float64, (3, 3), elements=st.floats(allow_nan=False, allow_infinity=False)),

@@ -257,7 +257,8 @@ class SimEnv:
 @final
 class SimVecEnv:
     """N environments stepped in one call with the interpreter lock released, same-step
-    auto-reset: ``SimVecEnv(task, num_envs, seed=0, num_threads=2)``; env i gets seed + i."""
+    auto-reset: ``SimVecEnv(task, num_envs, seed=0, num_threads=2)``; env i starts episode
+    seed + i, its later episodes tile-sim's ``episode_seed(seed, i, episode)``."""
 
     def __new__(
         cls, task: str, num_envs: int, seed: int = 0, num_threads: int = 2
@@ -273,9 +274,15 @@ class SimVecEnv:
     @property
     def act_dim(self) -> int: ...
     def reset(self, seed: int | None = None) -> _F32:
-        """Reset all envs → obs (num_envs, obs_dim)."""
+        """Reset all envs with base seed ``seed`` (episode counts restart) → obs (num_envs,
+        obs_dim)."""
     def reset_mask(self, mask: ArrayLike) -> _F32:
         """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
+    def state(self) -> dict[str, Any]:
+        """``{"base_seed": int, "episodes": uint64 (num_envs,), "actions": [float32 (k_i,
+        act_dim)]}``: the running episodes' seeds and actions, what ``restore`` replays."""
+    def restore(self, base_seed: int, episodes: list[int], actions: list[ArrayLike]) -> _F32:
+        """Rebuild every env from ``state()``'s parts → obs (num_envs, obs_dim) as when taken."""
     def step(
         self, actions: ArrayLike
     ) -> tuple[_F32, _F32, _Bool, _Bool, _F32, _Bool, _Bool, _Bool, _Bool]:

@@ -22,10 +22,20 @@ Rust ``VecEnv`` (all worlds stepped in one call across threads, interpreter lock
 call, its row of ``obs`` is the new episode's first observation and ``infos["final_obs"]`` (object
 array, masked by ``infos["_final_obs"]``) holds the terminal one, ``infos["final_info"]`` its info.
 ``reset(options={"reset_mask": mask})`` resets only the masked envs.
+
+Seeds: every episode's seed is a pure function of the base seed, the env index and the env's
+episode count, tile-sim's ``episode_seed(base, i, k)``: ``base + i`` for the first episode,
+SplitMix64 of (base, i, k) for the ``k``-th auto-reset (or masked reset). ``make_vec(seed=s)`` and
+``reset(seed=s)`` set the base to ``s`` and the counts to 0, so a used vector env reset with ``s``
+follows the same trajectories, auto-resets included, as a fresh one (gymnasium's contract).
+``reset()`` without a seed draws the next base from the env's RNG (itself seeded by the last seed).
+``state()`` / ``restore(state)`` save and rebuild the envs mid-episode exactly (the running
+episodes' actions are replayed; the simulator is deterministic): what a trainer checkpoints.
 """
 
 from __future__ import annotations
 
+import operator
 from typing import Any
 
 import gymnasium as gym
@@ -55,6 +65,39 @@ def task_of(env_id: str) -> str:
         raise ValueError(
             f"unknown env id {env_id!r}: expected one of {', '.join(ENV_IDS)}"
         ) from None
+
+
+SEED_MAX = 2**64 - 1
+
+
+def _seed(seed: Any, what: str = "seed") -> int:
+    """``seed`` as a u64, or a ValueError naming it and the range [0, 2**64-1]."""
+    try:
+        if isinstance(seed, bool):
+            raise TypeError
+        s = operator.index(seed)
+    except TypeError:
+        raise ValueError(
+            f"{what} must be an integer in [0, 2**64-1], got {seed!r} ({type(seed).__name__})"
+        ) from None
+    if not 0 <= s <= SEED_MAX:
+        raise ValueError(f"{what} must be an integer in [0, 2**64-1], got {s}")
+    return s
+
+
+def _count(value: Any, what: str) -> int:
+    """A positive integer (bools and non-integral numbers refused), or a ValueError naming it."""
+    try:
+        if isinstance(value, bool):
+            raise TypeError
+        n = operator.index(value)
+    except TypeError:
+        raise ValueError(
+            f"{what} must be a positive integer, got {value!r} ({type(value).__name__})"
+        ) from None
+    if n < 1:
+        raise ValueError(f"{what} must be at least 1, got {n}")
+    return n
 
 
 def _spaces(task: str) -> tuple[spaces.Box, spaces.Box]:
@@ -140,11 +183,9 @@ class MimicreteVecEnv(VectorEnv):
         self, task: str, num_envs: int, seed: int | None = None, num_threads: int | None = None
     ) -> None:
         self.task = task_of(task)
-        if int(num_envs) < 1:
-            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
-        self.num_envs = int(num_envs)
-        threads = int(num_threads) if num_threads is not None else 2
-        base = 0 if seed is None else int(seed)
+        self.num_envs = _count(num_envs, "num_envs")
+        threads = _count(num_threads, "num_threads") if num_threads is not None else 2
+        base = 0 if seed is None else _seed(seed)
         self._sim = _native.SimVecEnv(self.task, self.num_envs, base, threads)
         self.single_observation_space, self.single_action_space = _spaces(self.task)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -165,23 +206,44 @@ class MimicreteVecEnv(VectorEnv):
         if mask is not None:
             if seed is not None:
                 raise ValueError(
-                    "reset with a reset_mask takes no seed (masked envs draw from their own RNG)"
+                    "reset with a reset_mask takes no seed (masked envs start their next "
+                    "episode of the current base seed)"
                 )
             m = np.asarray(mask, dtype=bool)
             if m.shape != (self.num_envs,):
                 raise ValueError(f"reset_mask must have shape ({self.num_envs},), got {m.shape}")
             return self._sim.reset_mask(m), {}
         if isinstance(seed, (list, tuple, np.ndarray)):
-            seeds = [int(s) for s in seed]
+            seeds = [_seed(s, "seed list entry") for s in seed]
             if len(seeds) != self.num_envs or any(s != seeds[0] + i for i, s in enumerate(seeds)):
                 raise ValueError("a seed list must hold num_envs consecutive seeds [s, s+1, ...]")
             seed = seeds[0]
         if seed is not None:
-            self._rng = np.random.default_rng(seed)
-            base = int(seed)
+            base = _seed(seed)
+            self._rng = np.random.default_rng(base)
         else:
             base = int(self._rng.integers(0, 2**62))
         return self._sim.reset(base), {}
+
+    def state(self) -> dict[str, Any]:
+        """Plain data (ints, numpy arrays) that :meth:`restore` rebuilds this env from exactly:
+        base seed, each env's episode count and the actions of its running episode, and the
+        RNG that seedless ``reset()`` draws from. Teleports through ``sim`` are not included."""
+        st = self._sim.state()
+        st["rng"] = self._rng.bit_generator.state
+        return st
+
+    def restore(self, state: dict[str, Any]) -> np.ndarray:
+        """Rebuild every env from :meth:`state` (the running episodes are replayed) → the
+        observations ``(num_envs, obs_dim)``, equal to those when the state was taken."""
+        obs = self._sim.restore(
+            _seed(state["base_seed"], "base_seed"),
+            [int(e) for e in state["episodes"]],
+            [np.asarray(a, np.float32) for a in state["actions"]],
+        )
+        self._rng = np.random.default_rng()
+        self._rng.bit_generator.state = state["rng"]
+        return obs
 
     def step(
         self, actions: Any
@@ -220,7 +282,9 @@ class MimicreteVecEnv(VectorEnv):
 def make_vec(
     env_id: str, num_envs: int, seed: int | None = None, num_threads: int | None = None
 ) -> MimicreteVecEnv:
-    """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` worlds (env i seeded ``seed + i``)."""
+    """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` worlds (env i starts episode ``seed + i``;
+    later episodes: see the module docstring). ``num_envs`` and ``num_threads``: positive
+    integers; ``seed``: None or an integer in [0, 2**64-1]; anything else is a ValueError."""
     return MimicreteVecEnv(task_of(env_id), num_envs, seed, num_threads)
 
 

@@ -195,3 +195,29 @@ def test_python_json_written_logs_parse_exactly(tmp_path_factory, dts, vals, tra
     if frames:
         np.testing.assert_array_equal(log.t, t)
         np.testing.assert_array_equal(log.joints, np.broadcast_to(joints, (len(frames), 21, 3)))
+
+
+def test_byte_order_marks(tmp_path: Path):
+    """A UTF-8 BOM at the start (Windows editors, Python's utf-8-sig) is accepted; a BOM at the
+    start of a later line (two files concatenated) and a UTF-16 file are named."""
+    frames = [_frame(0.0), _frame(0.01)]
+    text = "\n".join([json.dumps(HEADER)] + [json.dumps(f) for f in frames]) + "\n"
+    plain = tmp_path / "plain.jsonl"
+    plain.write_text(text, encoding="utf-8")
+    bom = tmp_path / "bom.jsonl"
+    bom.write_text(text, encoding="utf-8-sig")
+    assert bom.read_bytes()[:3] == b"\xef\xbb\xbf"
+    a, b = mc.hands.parse(plain), mc.hands.parse(bom)
+    np.testing.assert_array_equal(a.joints, b.joints)
+    assert a.header == b.header and len(b) == 2
+    assert len(mc.hands.parse_text("\ufeff" + text)) == 2
+    cat = tmp_path / "cat.jsonl"
+    cat.write_bytes(text.encode() + b"\xef\xbb\xbf" + json.dumps(_frame(0.02)).encode() + b"\n")
+    with pytest.raises(
+        mc.LogFormatError, match=r"cat.jsonl:4: line starts with a UTF-8 byte-order"
+    ):
+        mc.hands.parse(cat)
+    u16 = tmp_path / "u16.jsonl"
+    u16.write_text(text, encoding="utf-16")
+    with pytest.raises(mc.LogFormatError, match=r"u16.jsonl:1: .*UTF-16 byte-order mark"):
+        mc.hands.parse(u16)

@@ -425,7 +425,10 @@ fn parse_frame(line: &str, layout: HandLayout, prev_t: Option<f64>) -> Result<Ha
 }
 
 impl HandLog {
-    /// Parse hand-log text. `source_name` is the file name used in errors.
+    /// Parse hand-log text. `source_name` is the file name used in errors. A UTF-8 byte-order
+    /// mark (BOM, U+FEFF) at the very start is accepted and skipped (Windows editors write one;
+    /// RFC 8259 lets JSON readers ignore it); one at the start of a later line (files
+    /// concatenated) is a bad line that says so.
     ///
     /// # Errors
     /// [`HandLogError`] (`file:line: reason`) for a bad header (both modes) or, in strict mode,
@@ -435,6 +438,7 @@ impl HandLog {
         source_name: &str,
         mode: ParseMode,
     ) -> Result<(HandLog, ParseReport), HandLogError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let ends_with_newline = text.ends_with('\n');
         let mut lines = text.lines().enumerate().peekable();
         // The header is the first non-blank line; it must be line 1.
@@ -457,7 +461,14 @@ impl HandLog {
             }
             report.frame_lines += 1;
             let is_last = lines.peek().is_none();
-            match parse_frame(line, layout, prev_t) {
+            let parsed = if line.starts_with('\u{feff}') {
+                Err("line starts with a UTF-8 byte-order mark (BOM), as where two files were \
+                     concatenated; remove it"
+                    .to_string())
+            } else {
+                parse_frame(line, layout, prev_t)
+            };
+            match parsed {
                 Ok(f) => {
                     if !f.tracked && mode == ParseMode::Lenient {
                         report.untracked_skipped += 1;
@@ -503,6 +514,13 @@ impl HandLog {
             Ok(t) => t,
             Err(u) => {
                 let line = 1 + bytes[..u.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+                if bytes.starts_with(&[0xff, 0xfe]) || bytes.starts_with(&[0xfe, 0xff]) {
+                    return Err(err(
+                        &name,
+                        1,
+                        "not UTF-8 text: the file starts with a UTF-16 byte-order mark (BOM); save it as UTF-8",
+                    ));
+                }
                 return Err(err(&name, line, "not UTF-8 text"));
             }
         };

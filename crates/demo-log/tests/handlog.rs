@@ -229,6 +229,38 @@ fn lenient_mode_counts_and_locates_skipped_lines() {
     assert_eq!(strict_err(&s), "hand.jsonl:4: wrong joint count: 20 joints, layout mediapipe has 21");
 }
 
+/// A UTF-8 BOM at the start of the file (Windows editors) is accepted; one at the start of a
+/// later line (concatenated files) is named; a UTF-16 file is named as such.
+#[test]
+fn byte_order_marks() {
+    let plain = HandLog::parse_str(&good_text(3), "hand.jsonl", ParseMode::Strict).unwrap();
+    let bom =
+        HandLog::parse_str(&format!("\u{feff}{}", good_text(3)), "hand.jsonl", ParseMode::Strict).unwrap();
+    assert_eq!(plain, bom);
+    let concatenated = format!("{}\u{feff}{}\n", good_text(2), frame_line(0.5, true, 21));
+    assert_eq!(
+        strict_err(&concatenated),
+        "hand.jsonl:4: line starts with a UTF-8 byte-order mark (BOM), as where two files were concatenated; \
+         remove it"
+    );
+    let (_, rep) = HandLog::parse_str(&concatenated, "hand.jsonl", ParseMode::Lenient).unwrap();
+    assert_eq!((rep.kept, rep.invalid_skipped), (2, 1));
+    let d = tmpdir("handlog-bom");
+    let p = d.join("bom.jsonl");
+    std::fs::write(&p, format!("\u{feff}{}", good_text(2))).unwrap();
+    assert_eq!(HandLog::from_path(&p, ParseMode::Strict).unwrap().0.frames.len(), 2);
+    let utf16: Vec<u8> =
+        [0xff, 0xfe].into_iter().chain(good_text(1).encode_utf16().flat_map(|u| u.to_le_bytes())).collect();
+    std::fs::write(&p, utf16).unwrap();
+    assert_eq!(
+        HandLog::from_path(&p, ParseMode::Strict).unwrap_err().to_string(),
+        format!(
+            "{}:1: not UTF-8 text: the file starts with a UTF-16 byte-order mark (BOM); save it as UTF-8",
+            p.display()
+        )
+    );
+}
+
 #[test]
 fn files_report_their_path_and_utf8_errors() {
     let d = tmpdir("handlog-files");

@@ -13,7 +13,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
-use tile_sim::{Env, StepBuffers, Task, VecEnv};
+use tile_sim::{Env, StepBuffers, Task, VecEnv, VecEnvState};
 
 fn parse_task(name: &str) -> PyResult<Task> {
     Task::from_name(name).map_err(sim_err)
@@ -176,7 +176,8 @@ impl SimEnv {
     }
 }
 
-/// N envs stepped across threads, GIL released, same-step auto-reset; env i gets seed `seed + i`.
+/// N envs stepped across threads, GIL released, same-step auto-reset; episode seeds from
+/// `tile_sim::episode_seed(seed, i, episode)` (env i starts with `seed + i`).
 #[pyclass(module = "mimicrete._native")]
 pub struct SimVecEnv {
     venv: VecEnv,
@@ -224,7 +225,8 @@ impl SimVecEnv {
         })
     }
 
-    /// Reset all envs (env i gets `seed + i`; None: each env's own RNG) → obs (num_envs, obs_dim).
+    /// Reset all envs with base seed `seed` (env i gets `seed + i`, episode counts restart; None:
+    /// a base drawn from the VecEnv's RNG) → obs (num_envs, obs_dim).
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
@@ -272,6 +274,49 @@ impl SimVecEnv {
             v(&b.installed),
             v(&b.fell),
         ))
+    }
+
+    /// `{"base_seed": int, "episodes": uint64 (num_envs,), "actions": [float32 (k_i, act_dim)]}`:
+    /// what `restore` needs to rebuild every env mid-episode (tile-sim's `VecEnvState`).
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let st = self.venv.state();
+        let ad = self.act_dim;
+        let d = PyDict::new(py);
+        d.set_item("base_seed", st.base_seed)?;
+        d.set_item("episodes", Array1::from(st.episodes).into_pyarray(py))?;
+        let acts = st
+            .actions
+            .into_iter()
+            .map(|a| to2(py, a.clone(), a.len() / ad, ad))
+            .collect::<PyResult<Vec<_>>>()?;
+        d.set_item("actions", PyList::new(py, acts)?)?;
+        Ok(d)
+    }
+
+    /// Rebuild the envs from a `state()` dict (replaying each running episode) → obs (num_envs,
+    /// obs_dim), equal to the observations when the state was taken.
+    fn restore<'py>(
+        &mut self,
+        py: Python<'py>,
+        base_seed: u64,
+        episodes: Vec<u64>,
+        actions: Vec<PyArrayLikeDyn<'py, f32, AllowTypeChange>>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let (n, od, ad) = (self.venv.num_envs(), self.obs_dim, self.act_dim);
+        let actions = actions
+            .iter()
+            .enumerate()
+            .map(|(i, a)| {
+                let v = a.as_array();
+                let rows = if v.ndim() == 2 { v.shape()[0] } else { 0 };
+                flat(a, &[rows, ad], &format!("actions[{i}]"))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let st = VecEnvState { base_seed, episodes, actions };
+        let mut obs = vec![0.0; n * od];
+        let venv = &mut self.venv;
+        py.detach(|| venv.restore(&st, &mut obs)).map_err(sim_err)?;
+        to2(py, obs, n, od)
     }
 
     /// Snapshot of env `i` (see `SimEnv.snapshot`).

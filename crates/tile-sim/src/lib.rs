@@ -71,7 +71,7 @@ pub use env::{
     Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
     episode_scene, object_start,
 };
-pub use vecenv::{StepBuffers, StepOut, VecEnv};
+pub use vecenv::{StepBuffers, StepOut, VecEnv, VecEnvState, episode_seed};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
 
 /// Frames stacked into one observation (paper §5.1: five, zero-padded at episode start).

@@ -1,9 +1,21 @@
 //! N environments stepped in one call across `std::thread::scope` threads, with same-step
 //! auto-reset (the terminal observation is kept in `final_obs`).
+//!
+//! **Seeds.** Every episode's seed is a pure function of the VecEnv's base seed, the env index
+//! and how many episodes that env has started since the base was set ([`episode_seed`]): the
+//! base is set by [`VecEnv::new`] and [`VecEnv::reset`], which also zero the episode counts;
+//! auto-resets and [`VecEnv::reset_mask`] start episode `count + 1` of their env. So a VecEnv
+//! reset with seed `s` follows the same trajectories, auto-resets included, as a fresh one reset
+//! with `s`, whatever it did before (gymnasium's reproducibility contract).
+//!
+//! **State.** The VecEnv also records the actions of each env's running episode, so
+//! [`VecEnv::state`] (base seed, episode counts, those actions: plain numbers) rebuilds it
+//! exactly with [`VecEnv::restore`], which replays them (the simulator is deterministic). A
+//! trainer checkpoints this and resumes bit for bit without cutting episodes.
 
 use crate::env::{Env, StepOutcome, check_action};
 use crate::pool::Pool;
-use crate::{SimError, Task};
+use crate::{MAX_EPISODE_STEPS, SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Mutex;
@@ -79,6 +91,43 @@ impl StepBuffers {
     }
 }
 
+/// SplitMix64's output function of `x + γ` (a bijection of u64, good avalanche).
+fn mix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The seed of episode `episode` (0 = the one started by `new`/`reset`) of env `env` of a
+/// VecEnv whose base seed is `base`:
+///
+/// * `episode == 0`: `base + env` (wrapping), as [`VecEnv::reset`] has always documented;
+/// * `episode >= 1`: `mix(mix(mix(base) + env) + episode)` (wrapping adds), with `mix` the
+///   SplitMix64 output function of `x + 0x9E3779B97F4A7C15`.
+///
+/// A pure function: no hidden RNG is involved in any episode a VecEnv starts.
+pub fn episode_seed(base: u64, env: u64, episode: u64) -> u64 {
+    if episode == 0 {
+        base.wrapping_add(env)
+    } else {
+        mix(mix(mix(base).wrapping_add(env)).wrapping_add(episode))
+    }
+}
+
+/// Everything that determines a [`VecEnv`]'s future given its actions: plain numbers that a
+/// checkpoint can store ([`VecEnv::state`], [`VecEnv::restore`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VecEnvState {
+    /// The base seed of [`episode_seed`].
+    pub base_seed: u64,
+    /// Per env: the index of its running episode (episodes started since the base was set − 1).
+    pub episodes: Vec<u64>,
+    /// Per env: the actions (`act_dim` each, row-major, as passed to `step`) of its running
+    /// episode, fewer than `MAX_EPISODE_STEPS` rows.
+    pub actions: Vec<Vec<f32>>,
+}
+
 /// A batch of envs of one task.
 pub struct VecEnv {
     task: Task,
@@ -86,24 +135,36 @@ pub struct VecEnv {
     num_threads: usize,
     pool: Pool,
     rng: ChaCha8Rng,
+    base_seed: u64,
+    episodes: Vec<u64>,
+    logs: Vec<Vec<f32>>,
 }
 
 impl VecEnv {
-    /// `num_envs` envs (≥ 1) of `task`; env `i` is created with seed `seed + i`; steps use
-    /// `num_threads` threads (clamped to 1..=num_envs): the caller plus `num_threads − 1`
-    /// persistent worker threads owned by the VecEnv (1 = no extra threads).
+    /// `num_envs` envs (≥ 1) of `task` with base seed `seed`: the state `reset(Some(seed))`
+    /// gives (env `i` in episode `seed + i`). Steps use `num_threads` threads (clamped to
+    /// 1..=num_envs): the caller plus `num_threads − 1` persistent worker threads owned by the
+    /// VecEnv (1 = no extra threads).
     pub fn new(task: Task, num_envs: usize, seed: u64, num_threads: usize) -> Result<VecEnv, SimError> {
         if num_envs == 0 {
             return Err(SimError::InvalidArgument("num_envs must be at least 1".into()));
         }
-        let envs = (0..num_envs).map(|i| Env::new(task, seed.wrapping_add(i as u64))).collect();
+        let mut envs: Vec<Env> = (0..num_envs).map(|i| Env::new(task, seed.wrapping_add(i as u64))).collect();
+        let mut o = vec![0.0; task.obs_dim()];
+        for (i, env) in envs.iter_mut().enumerate() {
+            env.reset(Some(episode_seed(seed, i as u64, 0)), &mut o)?;
+        }
         let num_threads = num_threads.clamp(1, num_envs);
+        let log_cap = MAX_EPISODE_STEPS as usize * task.act_dim();
         Ok(VecEnv {
             task,
             envs,
             num_threads,
             pool: Pool::new(num_threads - 1),
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0F5E_ED00),
+            base_seed: seed,
+            episodes: vec![0; num_envs],
+            logs: (0..num_envs).map(|_| Vec::with_capacity(log_cap)).collect(),
         })
     }
 
@@ -137,26 +198,35 @@ impl VecEnv {
         self.envs.get_mut(i)
     }
 
-    /// Reset every env. `Some(s)`: env `i` gets episode seed `s + i`. `None`: each env draws its
-    /// next seed from its own RNG. Writes `num_envs × obs_dim` floats.
+    /// Reset every env and set the base seed: `Some(s)` or, with `None`, the next draw of the
+    /// VecEnv's own RNG ([`VecEnv::next_seed`]). Episode counts restart at 0, so env `i` starts
+    /// episode `s + i` and its later episodes follow [`episode_seed`]. Writes
+    /// `num_envs × obs_dim` floats.
     pub fn reset(&mut self, seed: Option<u64>, obs_out: &mut [f32]) -> Result<(), SimError> {
         let od = self.task.obs_dim();
         check("obs", self.envs.len() * od, obs_out.len())?;
+        let base = seed.unwrap_or_else(|| self.rng.next_u64());
+        self.base_seed = base;
         for (i, (env, o)) in self.envs.iter_mut().zip(obs_out.chunks_mut(od)).enumerate() {
-            env.reset(seed.map(|s| s.wrapping_add(i as u64)), o)?;
+            env.reset(Some(episode_seed(base, i as u64, 0)), o)?;
+            self.episodes[i] = 0;
+            self.logs[i].clear();
         }
         Ok(())
     }
 
-    /// Reset the envs whose mask entry is true (seeds from their own RNGs); the rows of the
-    /// others in `obs_out` are filled with their current observation.
+    /// Reset the envs whose mask entry is true (each starts its next episode, seeded by
+    /// [`episode_seed`]); the rows of the others in `obs_out` are filled with their current
+    /// observation.
     pub fn reset_mask(&mut self, mask: &[bool], obs_out: &mut [f32]) -> Result<(), SimError> {
         let od = self.task.obs_dim();
         check("mask", self.envs.len(), mask.len())?;
         check("obs", self.envs.len() * od, obs_out.len())?;
-        for ((env, o), &m) in self.envs.iter_mut().zip(obs_out.chunks_mut(od)).zip(mask) {
+        for (i, ((env, o), &m)) in self.envs.iter_mut().zip(obs_out.chunks_mut(od)).zip(mask).enumerate() {
             if m {
-                env.reset(None, o)?;
+                self.episodes[i] += 1;
+                self.logs[i].clear();
+                env.reset(Some(episode_seed(self.base_seed, i as u64, self.episodes[i])), o)?;
             } else {
                 o.copy_from_slice(env.observation());
             }
@@ -164,10 +234,63 @@ impl VecEnv {
         Ok(())
     }
 
-    /// Draw a fresh base seed from the VecEnv's own RNG (for callers that want `reset(Some(..))`
-    /// without choosing a seed).
+    /// Draw a fresh base seed from the VecEnv's own RNG (what `reset(None)` uses).
     pub fn next_seed(&mut self) -> u64 {
         self.rng.next_u64()
+    }
+
+    /// The base seed, episode counts and running episodes' actions (see [`VecEnvState`]).
+    /// Teleports through [`VecEnv::env_mut`] are not part of it.
+    pub fn state(&self) -> VecEnvState {
+        VecEnvState { base_seed: self.base_seed, episodes: self.episodes.clone(), actions: self.logs.clone() }
+    }
+
+    /// Rebuild the envs from `state`: each env restarts its running episode and replays its
+    /// actions. Writes the observations (`num_envs × obs_dim`), which equal those the VecEnv
+    /// had when `state` was taken. Errors (nothing changed): sizes that do not fit this VecEnv,
+    /// invalid actions, or actions that end the episode (a state from another simulator).
+    pub fn restore(&mut self, state: &VecEnvState, obs_out: &mut [f32]) -> Result<(), SimError> {
+        let (n, ad, od) = (self.envs.len(), self.task.act_dim(), self.task.obs_dim());
+        check("obs", n * od, obs_out.len())?;
+        check("episodes", n, state.episodes.len())?;
+        check("actions", n, state.actions.len())?;
+        for (i, a) in state.actions.iter().enumerate() {
+            if a.len() % ad != 0 || a.len() / ad >= MAX_EPISODE_STEPS as usize {
+                return Err(SimError::InvalidArgument(format!(
+                    "env {i}: {} action numbers, expected a multiple of {ad} below {}",
+                    a.len(),
+                    MAX_EPISODE_STEPS as usize * ad
+                )));
+            }
+            for row in a.chunks(ad) {
+                check_action(self.task, row)?;
+            }
+        }
+        // Replay into fresh envs first, so a state that does not replay leaves `self` unchanged.
+        let mut envs = Vec::with_capacity(n);
+        for (i, (a, o)) in state.actions.iter().zip(obs_out.chunks_mut(od)).enumerate() {
+            let mut env = Env::new(self.task, 0);
+            env.reset(Some(episode_seed(state.base_seed, i as u64, state.episodes[i])), o)?;
+            for (k, row) in a.chunks(ad).enumerate() {
+                let r = env.step(row, o)?;
+                if r.terminated || r.truncated {
+                    return Err(SimError::InvalidArgument(format!(
+                        "env {i}: the recorded episode ends at action {k} of {}; the state was \
+                         not taken from this simulator",
+                        a.len() / ad
+                    )));
+                }
+            }
+            envs.push(env);
+        }
+        for (i, (slot, env)) in self.envs.iter_mut().zip(envs).enumerate() {
+            *slot = env;
+            self.logs[i].clear();
+            self.logs[i].extend_from_slice(&state.actions[i]);
+        }
+        self.base_seed = state.base_seed;
+        self.episodes.copy_from_slice(&state.episodes);
+        Ok(())
     }
 
     /// Step every env with its row of `actions` (`num_envs × act_dim`, row-major). Envs that end
@@ -200,9 +323,13 @@ impl VecEnv {
         let chunk = if self.num_threads == 1 { n } else { BLOCK.min(n.div_ceil(self.num_threads)) };
         let StepOut { obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell } =
             out;
+        let base = self.base_seed;
         let parts = self
             .envs
             .chunks_mut(chunk)
+            .zip(self.episodes.chunks_mut(chunk))
+            .zip(self.logs.chunks_mut(chunk))
+            .enumerate()
             .zip(actions.chunks(chunk * ad))
             .zip(obs.chunks_mut(chunk * od))
             .zip(final_obs.chunks_mut(chunk * od))
@@ -213,8 +340,12 @@ impl VecEnv {
             .zip(picked.chunks_mut(chunk))
             .zip(installed.chunks_mut(chunk))
             .zip(fell.chunks_mut(chunk))
-            .map(|((((((((((e, a), o), fo), r), te), tr), hf), pk), ins), fl)| Part {
+            .map(|(((((((((((b, ((e, ep), lg)), a), o), fo), r), te), tr), hf), pk), ins), fl)| Part {
+                first: b * chunk,
+                base,
                 envs: e,
+                episodes: ep,
+                logs: lg,
                 actions: a,
                 obs: o,
                 final_obs: fo,
@@ -254,7 +385,12 @@ impl VecEnv {
 }
 
 struct Part<'a> {
+    /// Index of `envs[0]` in the VecEnv.
+    first: usize,
+    base: u64,
     envs: &'a mut [Env],
+    episodes: &'a mut [u64],
+    logs: &'a mut [Vec<f32>],
     actions: &'a [f32],
     obs: &'a mut [f32],
     final_obs: &'a mut [f32],
@@ -271,6 +407,8 @@ impl Part<'_> {
     fn run(self, ad: usize, od: usize) {
         for (i, env) in self.envs.iter_mut().enumerate() {
             let a = &self.actions[i * ad..(i + 1) * ad];
+            // Capacity MAX_EPISODE_STEPS rows: an episode never holds more, so no allocation.
+            self.logs[i].extend_from_slice(a);
             let o: StepOutcome = env.step_unchecked(a);
             self.reward[i] = o.reward;
             self.terminated[i] = o.terminated;
@@ -282,8 +420,11 @@ impl Part<'_> {
             if o.terminated || o.truncated {
                 self.has_final[i] = true;
                 self.final_obs[i * od..(i + 1) * od].copy_from_slice(env.observation());
+                self.episodes[i] += 1;
+                self.logs[i].clear();
+                let seed = episode_seed(self.base, (self.first + i) as u64, self.episodes[i]);
                 // Infallible: the row has the right length.
-                let _ = env.reset(None, row);
+                let _ = env.reset(Some(seed), row);
             } else {
                 self.has_final[i] = false;
                 // The final-observation rule: rows of envs that did not end are zeros, never a

@@ -2,7 +2,7 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use tile_sim::{Env, SimError, StepBuffers, Task, VecEnv};
+use tile_sim::{Env, SimError, StepBuffers, Task, VecEnv, VecEnvState, episode_seed};
 
 fn random_actions(task: Task, n: usize, seed: u64) -> Vec<f32> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -336,4 +336,155 @@ mod props {
             }
         }
     }
+}
+
+/// Step `v` with `steps` rounds of `acts` (cycled), logging obs, rewards, flags and terminal rows.
+fn run_log(v: &mut VecEnv, acts: &[f32], steps: usize) -> (Vec<u32>, usize) {
+    let (task, n) = (v.task(), v.num_envs());
+    let (ad, od) = (task.act_dim(), task.obs_dim());
+    let rounds = acts.len() / (n * ad);
+    let mut buf = StepBuffers::new(task, n);
+    let mut bits = Vec::new();
+    let mut ends = 0;
+    for k in 0..steps {
+        let b = k % rounds;
+        v.step_buffers(&acts[b * n * ad..(b + 1) * n * ad], &mut buf).unwrap();
+        bits.extend(buf.obs.iter().chain(&buf.reward).map(|x| x.to_bits()));
+        for i in 0..n {
+            bits.push(
+                buf.terminated[i] as u32 | (buf.truncated[i] as u32) << 1 | (buf.has_final[i] as u32) << 2,
+            );
+            if buf.has_final[i] {
+                ends += 1;
+                bits.extend(buf.final_obs[i * od..(i + 1) * od].iter().map(|x| x.to_bits()));
+            }
+        }
+    }
+    (bits, ends)
+}
+
+/// gymnasium's contract across auto-resets: a used VecEnv reset with seed `s` follows the same
+/// trajectories (auto-reset episodes included) as a fresh one reset with `s`, and `new(s)` is
+/// `reset(Some(s))`.
+#[test]
+fn reset_with_seed_fixes_autoreset_episodes_too() {
+    let task = Task::TileSuction;
+    let n = 3;
+    let acts = random_actions(task, n * 400, 21);
+    let steps = 1600; // two truncations per env
+    let mut used = VecEnv::new(task, n, 9, 2).unwrap();
+    let mut o = vec![0.0; n * task.obs_dim()];
+    run_log(&mut used, &random_actions(task, n * 50, 5), 900);
+    used.reset_mask(&[true, false, true], &mut o).unwrap();
+    used.reset(Some(77), &mut o).unwrap();
+    let mut fresh = VecEnv::new(task, n, 1234, 1).unwrap();
+    let mut o2 = vec![0.0; n * task.obs_dim()];
+    fresh.reset(Some(77), &mut o2).unwrap();
+    assert_eq!(o, o2);
+    let (a, ends) = run_log(&mut used, &acts, steps);
+    let (b, _) = run_log(&mut fresh, &acts, steps);
+    assert!(ends >= 2 * n, "auto-resets happened ({ends})");
+    assert_eq!(a, b);
+    // new(s) == reset(Some(s))
+    let mut born = VecEnv::new(task, n, 77, 2).unwrap();
+    let (c, _) = run_log(&mut born, &acts, steps);
+    assert_eq!(a, c);
+    // and the episode seeds are the documented function of (base, env, episode)
+    for i in 0..n {
+        let e = fresh.env(i).unwrap().snapshot().episode_seed;
+        assert_eq!(e, episode_seed(77, i as u64, 2), "env {i} in its third episode");
+    }
+    // a different seed gives different auto-reset episodes
+    fresh.reset(Some(78), &mut o2).unwrap();
+    let (d, _) = run_log(&mut fresh, &acts, steps);
+    assert_ne!(a, d);
+}
+
+#[test]
+fn episode_seeds_are_distinct_and_keep_the_documented_first_episode() {
+    let mut seen = std::collections::HashSet::new();
+    for base in [0u64, 1, u64::MAX] {
+        assert_eq!(episode_seed(base, 5, 0), base.wrapping_add(5));
+        for env in 0..64u64 {
+            for ep in 1..200u64 {
+                assert!(seen.insert((base, episode_seed(base, env, ep))), "{base} {env} {ep}");
+            }
+        }
+    }
+}
+
+/// `state` + `restore` rebuild a VecEnv mid-episode exactly: the restored one continues bit for
+/// bit like the original, through auto-resets.
+#[test]
+fn state_restore_continues_bit_for_bit() {
+    for task in Task::ALL {
+        let n = 3;
+        let ad = task.act_dim();
+        let acts = random_actions(task, n * 300, 40);
+        for cut in [1usize, 333, 749, 1100] {
+            let mut a = VecEnv::new(task, n, 3, 2).unwrap();
+            let mut o = vec![0.0; n * task.obs_dim()];
+            a.reset(Some(11), &mut o).unwrap();
+            run_log(&mut a, &acts, cut);
+            let st = a.state();
+            assert!(st.actions.iter().all(|r| r.len() % ad == 0 && r.len() < 750 * ad));
+            let obs_then: Vec<f32> = (0..n).flat_map(|i| a.env(i).unwrap().observation().to_vec()).collect();
+            let mut b = VecEnv::new(task, n, 999, 1).unwrap();
+            let mut ob = vec![0.0; n * task.obs_dim()];
+            b.restore(&st, &mut ob).unwrap();
+            assert_eq!(ob, obs_then, "{task:?} cut {cut}: restored observations");
+            assert_eq!(b.state(), st);
+            let later = random_actions(task, n * 200, 41);
+            let (la, _) = run_log(&mut a, &later, 900);
+            let (lb, _) = run_log(&mut b, &later, 900);
+            assert_eq!(la, lb, "{task:?} cut {cut}");
+        }
+    }
+}
+
+#[test]
+fn restore_refuses_states_that_do_not_fit() {
+    let task = Task::TileSuction;
+    let mut v = VecEnv::new(task, 2, 0, 1).unwrap();
+    let mut o = vec![0.0; 2 * 80];
+    run_log(&mut v, &random_actions(task, 2 * 10, 1), 10);
+    let before = v.state();
+    let good = VecEnvState { base_seed: 4, episodes: vec![0, 3], actions: vec![vec![0.1; 7], vec![]] };
+    let bad = [
+        VecEnvState { episodes: vec![0], ..good.clone() },
+        VecEnvState { actions: vec![vec![0.0; 6], vec![]], ..good.clone() },
+        VecEnvState { actions: vec![vec![0.0; 750 * 7], vec![]], ..good.clone() },
+        VecEnvState { actions: vec![vec![f32::NAN; 7], vec![]], ..good.clone() },
+    ];
+    for st in &bad {
+        assert!(v.restore(st, &mut o).is_err(), "{st:?}");
+        assert_eq!(v.state(), before, "a refused state changes nothing");
+    }
+    // Recorded actions that end the episode: the scripted expert's installing episode.
+    let mut e = Env::new(task, 0);
+    let mut eo = vec![0.0; 80];
+    e.reset(Some(episode_seed(4, 0, 0)), &mut eo).unwrap();
+    let mut ex = tile_sim::expert::Expert::new(task);
+    let mut rows = Vec::new();
+    let mut a = [0.0f32; 7];
+    loop {
+        ex.act(&e.snapshot(), &mut a);
+        rows.extend_from_slice(&a);
+        let r = e.step(&a, &mut eo).unwrap();
+        if r.terminated || r.truncated {
+            assert!(r.installed, "the expert installs");
+            break;
+        }
+    }
+    let ends = VecEnvState { base_seed: 4, episodes: vec![0, 0], actions: vec![rows.clone(), vec![]] };
+    let err = v.restore(&ends, &mut o).unwrap_err().to_string();
+    assert!(err.contains("env 0: the recorded episode ends at action"), "{err}");
+    assert_eq!(v.state(), before);
+    rows.truncate(rows.len() - 7); // one step before the install: a running episode
+    let running = VecEnvState { base_seed: 4, episodes: vec![0, 0], actions: vec![rows, vec![]] };
+    v.restore(&running, &mut o).unwrap();
+    assert!(v.env(0).unwrap().snapshot().held);
+    v.restore(&good, &mut o).unwrap();
+    assert_eq!(v.state(), good);
+    assert_eq!(v.env(1).unwrap().snapshot().episode_seed, episode_seed(4, 1, 3));
 }

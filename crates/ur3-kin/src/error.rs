@@ -24,6 +24,9 @@ pub enum KinError {
     /// An input held a NaN or an infinity.
     #[error("non-finite input: {0}")]
     NonFinite(&'static str),
+    /// Finite inputs whose result does not fit an f64 (coordinates near 1e308); names the input.
+    #[error("overflow: {0}")]
+    Overflow(&'static str),
     /// A pose input is not a rigid transform (rotation not orthonormal / det ≠ +1, bad last row,
     /// zero quaternion).
     #[error("invalid pose: {0}")]

@@ -228,7 +228,9 @@ impl Calibration {
 /// The hand frame of §3.2 in Base (see the module docs): columns x, y, z, origin at the wrist.
 ///
 /// # Errors
-/// [`KinError::NonFinite`] for NaN/∞ input or calibration; [`KinError::DegenerateHand`] when the
+/// [`KinError::NonFinite`] for NaN/∞ input or calibration; [`KinError::Overflow`] (naming the
+/// joint) for finite input that overflows in Base or in the joint differences;
+/// [`KinError::DegenerateHand`] when the
 /// wrist and middle knuckle coincide, the knuckles coincide, or the three joints are collinear
 /// (angle between `x'` and `y'` within 1e-3 rad of 0 or π).
 pub fn hand_frame(
@@ -253,6 +255,15 @@ pub fn hand_frame(
     let w = calib.point_to_base(wrist);
     let ip = calib.point_to_base(index_proximal);
     let mp = calib.point_to_base(middle_proximal);
+    for (p, what) in [
+        (&w, "wrist is too large: converted into the Base frame it is not finite"),
+        (&ip, "index_proximal is too large: converted into the Base frame it is not finite"),
+        (&mp, "middle_proximal is too large: converted into the Base frame it is not finite"),
+    ] {
+        if !finite(p) {
+            return Err(KinError::Overflow(what));
+        }
+    }
     let yp = mp - w;
     let mut xp = mp - ip;
     if handedness == Handedness::Left {
@@ -260,8 +271,11 @@ pub fn hand_frame(
     }
     // Lengths and directions computed on max-scaled copies, so huge (finite) coordinates neither
     // overflow nor lose the frame.
-    let (Some((y, ny)), Some((xu, nx))) = (scaled_unit(&yp), scaled_unit(&xp)) else {
-        return Err(KinError::NonFinite("hand joint positions (overflow)"));
+    let Some((y, ny)) = scaled_unit(&yp) else {
+        return Err(KinError::Overflow("middle_proximal − wrist is too large (not finite)"));
+    };
+    let Some((xu, nx)) = scaled_unit(&xp) else {
+        return Err(KinError::Overflow("middle_proximal − index_proximal is too large (not finite)"));
     };
     if ny < 1e-6 {
         return Err(KinError::DegenerateHand("wrist and middle proximal joint coincide"));

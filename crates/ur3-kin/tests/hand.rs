@@ -203,5 +203,23 @@ fn huge_coordinates_keep_an_orthonormal_frame() {
     let far = Vector3::new(f64::MAX, 0.0, 0.0);
     let m_far = Vector3::new(-f64::MAX, 0.5, 0.0);
     let r = hand_to_target(&far, &Vector3::new(0.0, 0.3, 0.0), &m_far, Handedness::Right, &base_calib());
-    assert!(matches!(r, Err(KinError::NonFinite(_))), "{r:?}");
+    assert!(matches!(r, Err(KinError::Overflow(m)) if m.starts_with("middle_proximal − wrist")), "{r:?}");
+    // Finite coordinates that overflow once scaled and moved into Base name the joint; they
+    // used to give a target holding an infinity.
+    for cal in [Calibration { scale: 10.0, ..Calibration::default() }, {
+        let mut c = base_calib();
+        c.base_from_space.translation.vector = Vector3::new(1.7e308, 1.7e308, 1.7e308);
+        c
+    }] {
+        for (k, name) in [(0, "wrist"), (1, "index_proximal"), (2, "middle_proximal")] {
+            let mut j =
+                [Vector3::new(0.0, 0.0, 0.0), Vector3::new(0.1, 0.2, 0.0), Vector3::new(0.0, 0.3, 0.01)];
+            j[k] = Vector3::new(1e308, 1e308, 1e308);
+            let r = hand_to_target(&j[0], &j[1], &j[2], Handedness::Right, &cal);
+            match r {
+                Err(KinError::Overflow(m)) => assert!(m.starts_with(name), "{m}"),
+                other => panic!("{name}: {other:?}"),
+            }
+        }
+    }
 }

@@ -22,6 +22,7 @@ _EXPORTS = {
     "train": ("loop", "train"),
     "Trainer": ("trainer", "Trainer"),
     "NonFiniteLossError": ("trainer", "NonFiniteLossError"),
+    "ResumeError": ("trainer", "ResumeError"),
     "evaluate_run": ("evaluate", "evaluate_run"),
     "format_row": ("evaluate", "format_row"),
     "learning_curves": ("plots", "learning_curves"),

@@ -78,6 +78,22 @@ class ToyTileVecEnv(VectorEnv):
         self._reset_idx(np.arange(self.num_envs))
         return self._obs(), {}
 
+    _STATE = ("ee", "tile", "holding", "picked", "t", "frames")
+
+    def state(self) -> dict:
+        """Every array of the envs and the RNG's state (plain data; see :meth:`restore`)."""
+        st: dict = {k: getattr(self, k).copy() for k in self._STATE}
+        st["rng"] = self._rng.bit_generator.state
+        return st
+
+    def restore(self, state: dict) -> np.ndarray:
+        """Back to a :meth:`state` → the observations at that point."""
+        for k in self._STATE:
+            getattr(self, k)[...] = state[k]
+        self._rng = np.random.default_rng()
+        self._rng.bit_generator.state = state["rng"]
+        return self._obs()
+
     def step(self, actions):
         a = np.clip(np.asarray(actions, np.float64), -1.0, 1.0)
         self.t += 1

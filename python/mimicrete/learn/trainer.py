@@ -21,9 +21,14 @@ Departures from ML-Agents (and why):
   ``time_horizon`` the same way; only the segment boundaries differ.
 - Values used for GAE are recomputed in batch after the rollout, with the normaliser just updated
   (ML-Agents does the same in ``_process_trajectory``); no per-step critic call during rollout.
-- At every checkpoint the envs are reset with a seed derived from (seed, update index); running
-  episodes are cut there as truncations. This is what makes ``--resume`` exact without
-  serialising simulator state.
+- ``--resume`` is exact (bit for bit: weights, optimisers, scalars) and checkpoints do not change
+  training: the envs are reset once, at the start, with a seed derived from the run's seed, and a
+  checkpoint (always at an update boundary) stores the vector env's ``state()``: its base seed,
+  each env's episode count (the simulator derives every auto-reset's seed from (base, env index,
+  episode count)) and the actions of each running episode. Resuming replays those actions (the
+  simulator is deterministic) and checks that the replay reproduces the stored observations; the
+  per-env running returns and the scalars not yet summarised are stored with it. Episodes run
+  across checkpoints as if there were none.
 - Env action = clip(u, -1, 1) instead of ML-Agents' clamp(u, -3, 3)/3 (see ``networks.py``).
 - GAIL's survivor bias is handled with ``survivor_bias: bootstrap`` (see ``gail.py``).
 
@@ -32,9 +37,11 @@ The run around it (run dir, resume, checkpoints, the scalar log) is ``loop.py``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import random
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -62,6 +69,10 @@ from .ppo import (
 )
 
 SIGNAL_TAG = {"extrinsic": "Extrinsic", "gail": "GAIL"}  # Policy/<tag> Reward, Value Estimate, ...
+
+
+class ResumeError(RuntimeError):
+    """A checkpoint that cannot be resumed exactly (its episodes do not replay)."""
 
 
 class NonFiniteLossError(RuntimeError):
@@ -243,7 +254,8 @@ class Trainer:
         self.step += self.T * self.N
 
     def _reset_envs(self) -> None:
-        """Reset every env with a seed derived from (seed, update index)."""
+        """Reset every env with a seed derived from (seed, update index) (at the run's start;
+        a checkpoint of an older version resumes here too)."""
         s = (self.seed * 1_000_003 + self.update_idx * 7919) % 2**31
         self.obs, _ = self.env.reset(seed=s)
         self.obs = np.asarray(self.obs, np.float32)
@@ -474,7 +486,50 @@ class Trainer:
             "signals": self.signals,
             "obs_dim": self.obs_dim,
             "config": self.cfg.to_dict(),
+            "envs": self._envs_state(),
         }
+
+    def _envs_state(self) -> dict[str, Any] | None:
+        """The vector env and everything per env that outlives a rollout (None before the
+        first reset)."""
+        if self.obs is None:
+            return None
+        ep = self.episodes
+        return {
+            "env": self.env.state(),
+            "obs": self.obs.copy(),
+            "episode_ret": ep.ret.copy(),
+            "episode_length": ep.length.copy(),
+            "episode_picked": ep.picked.copy(),
+            "episode_installed": ep.installed.copy(),
+            "sig_acc": {k: v.copy() for k, v in self._sig_acc.items()},
+            "window": [dataclasses.astuple(e) for e in self._window],
+            "sig_window": {k: list(v) for k, v in self._sig_window.items()},
+            "update_stats": {k: list(v) for k, v in self._update_stats.items()},
+            "recent": (self.recent_picked, self.recent_installed),
+        }
+
+    def _load_envs_state(self, s: dict[str, Any] | None) -> None:
+        if s is None:
+            self.obs = None  # saved before any rollout: reset at the first collect
+            return
+        obs = np.asarray(self.env.restore(s["env"]), np.float32)
+        if not np.array_equal(obs, s["obs"]):
+            bad = int(np.flatnonzero((obs != s["obs"]).any(axis=1))[0])
+            raise ResumeError(
+                f"replaying the checkpoint's running episodes does not reproduce env {bad}'s "
+                "observation: the simulator is not the one that wrote the checkpoint, so the "
+                "run cannot be resumed exactly"
+            )
+        self.obs = obs
+        ep = self.episodes
+        ep.ret[:], ep.length[:] = s["episode_ret"], s["episode_length"]
+        ep.picked[:], ep.installed[:] = s["episode_picked"], s["episode_installed"]
+        self._sig_acc = {k: np.array(v) for k, v in s["sig_acc"].items()}
+        self._window = [Episode(*e) for e in s["window"]]
+        self._sig_window = {k: list(v) for k, v in s["sig_window"].items()}
+        self._update_stats = {k: list(v) for k, v in s["update_stats"].items()}
+        self.recent_picked, self.recent_installed = s["recent"]
 
     def load_state_dict(self, s: dict[str, Any]) -> None:
         self.actor.load_state_dict(s["actor"])
@@ -492,7 +547,15 @@ class Trainer:
         np.random.set_state(s["np_global_rng"])
         random.setstate(s["py_rng"])
         self._steps_at_t = self.step
-        self.obs = None  # envs are reset with the (seed, update index) seed, as after a save
+        if "envs" in s:
+            self._load_envs_state(s["envs"])
+        else:
+            warnings.warn(
+                "checkpoint of an older version (no env state): the envs restart with a seed "
+                "derived from the update index, so the resumed run is not exact",
+                stacklevel=2,
+            )
+            self.obs = None
 
     def save_checkpoint(self) -> Path:
         """``checkpoints/step_<step>.pt``; refuses (:class:`NonFiniteLossError`) when a weight
@@ -507,5 +570,4 @@ class Trainer:
         path = run_files.save_checkpoint(
             self.run_dir, self.step, self.state_dict(), self.b.keep_checkpoints
         )
-        self.obs = None  # checkpoint boundary: envs are reset (see module docstring)
         return path
