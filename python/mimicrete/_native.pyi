@@ -250,6 +250,10 @@ class SimVecEnv:
         """Reset all envs → obs (num_envs, obs_dim)."""
     def reset_mask(self, mask: ArrayLike) -> _F32:
         """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
+    def reset_replay(self, i: int, seed: int, actions: ArrayLike) -> _F32:
+        """Reset env i to episode ``seed`` and replay ``actions`` (k, act_dim) in it (a recorded
+        episode's first k steps); the other envs do not move → env i's observation (obs_dim,).
+        Raises SimError if the replayed episode would end, ValueError for bad shapes."""
     def step(
         self, actions: ArrayLike
     ) -> tuple[_F32, _F32, _Bool, _Bool, _F32, _Bool, _Bool, _Bool, _Bool]:

@@ -183,6 +183,14 @@ class MimicreteVecEnv(VectorEnv):
             base = int(self._rng.integers(0, 2**62))
         return self._sim.reset(base), {}
 
+    def reset_replay(self, i: int, seed: int, actions: Any) -> np.ndarray:
+        """Reset env ``i`` alone to episode ``seed`` and replay ``actions`` (k, act_dim) in it: the
+        state a recorded episode (a demo: its seed and actions) had after k steps. The other envs
+        do not move. Returns env ``i``'s observation (obs_dim,). Raises ``SimError`` when the
+        episode would end inside the replay."""
+        a = np.asarray(actions, dtype=np.float32).reshape(-1, self.single_action_space.shape[0])
+        return self._sim.reset_replay(int(i), int(seed), a)
+
     def step(
         self, actions: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:

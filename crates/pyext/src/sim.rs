@@ -273,6 +273,23 @@ impl SimVecEnv {
         to2(py, obs, n, od)
     }
 
+    /// Reset env `i` to episode `seed` and replay `actions` (k, act_dim) in it (a recorded
+    /// episode's first k steps); the other envs do not move → env `i`'s observation (obs_dim,).
+    fn reset_replay<'py>(
+        &mut self,
+        py: Python<'py>,
+        i: usize,
+        seed: u64,
+        actions: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let (ad, od) = (self.venv.task().act_dim(), self.venv.task().obs_dim());
+        let k = actions.as_array().shape().first().copied().unwrap_or(0);
+        let acts = flat_f32(&actions, &[k, ad], "actions")?;
+        let mut obs = vec![0.0; od];
+        self.venv.reset_replay(i, seed, &acts, &mut obs).map_err(sim_err)?;
+        Ok(Array1::from_vec(obs).into_pyarray(py))
+    }
+
     /// Step all envs with `actions` (num_envs, act_dim) → `(obs, reward, terminated,
     /// truncated, final_obs, has_final, picked, installed, fell)`; envs that ended are reset in
     /// the same call: `obs` holds their new first observation, `final_obs` rows (where

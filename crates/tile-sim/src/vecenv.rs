@@ -164,6 +164,23 @@ impl VecEnv {
         Ok(())
     }
 
+    /// Reset env `i` to episode `seed` and replay `actions` in it ([`Env::reset_replay`]); the
+    /// other envs do not move. Writes env `i`'s observation (`obs_dim` floats) into `obs_out`.
+    pub fn reset_replay(
+        &mut self,
+        i: usize,
+        seed: u64,
+        actions: &[f32],
+        obs_out: &mut [f32],
+    ) -> Result<usize, SimError> {
+        let n = self.envs.len();
+        let env = self
+            .envs
+            .get_mut(i)
+            .ok_or_else(|| SimError::InvalidArgument(format!("env index {i} out of range (num_envs {n})")))?;
+        env.reset_replay(seed, actions, obs_out)
+    }
+
     /// Draw a fresh base seed from the VecEnv's own RNG (for callers that want `reset(Some(..))`
     /// without choosing a seed).
     pub fn next_seed(&mut self) -> u64 {

@@ -301,3 +301,62 @@ mod props {
         }
     }
 }
+
+/// `reset_replay(seed, first k actions)` lands in the state that stepping a fresh episode of the
+/// same seed through those actions reaches: same observation, and the same trajectory after it.
+#[test]
+fn reset_replay_matches_stepping_the_recorded_episode() {
+    for task in [Task::TileSuction, Task::BlockGrip, Task::Screw] {
+        let (ad, od) = (task.act_dim(), task.obs_dim());
+        // small motions so the episode runs past the replayed prefix
+        let acts: Vec<f32> = random_actions(task, 60, 5).iter().map(|a| a * 0.05).collect();
+        for k in [0usize, 1, 17, 40] {
+            let mut a = Env::new(task, 1);
+            let mut oa = vec![0.0; od];
+            a.reset(Some(1234), &mut oa).unwrap();
+            for row in acts[..k * ad].chunks(ad) {
+                a.step(row, &mut oa).unwrap();
+            }
+            let mut v = VecEnv::new(task, 3, 99, 1).unwrap();
+            let mut ob = vec![0.0; od];
+            let mut all = vec![0.0; 3 * od];
+            v.reset(None, &mut all).unwrap();
+            let other_before = all[..od].to_vec();
+            assert_eq!(v.reset_replay(2, 1234, &acts[..k * ad], &mut ob).unwrap(), k);
+            assert_eq!(oa, ob, "{task:?} k={k}: replayed observation differs");
+            assert_eq!(v.env(0).unwrap().observation(), &other_before[..], "env 0 moved");
+            assert_eq!(v.env(2).unwrap().snapshot().step, k as u32);
+            // the continuation is the same too
+            let mut env_b = Env::new(task, 1);
+            env_b.reset_replay(1234, &acts[..k * ad], &mut ob).unwrap();
+            for row in acts[k * ad..].chunks(ad) {
+                let ra = a.step(row, &mut oa).unwrap();
+                let rb = env_b.step(row, &mut ob).unwrap();
+                assert_eq!(oa, ob);
+                assert_eq!(ra.reward.to_bits(), rb.reward.to_bits());
+                if ra.terminated || ra.truncated {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn reset_replay_refuses_bad_input() {
+    let task = Task::TileSuction;
+    let (ad, od) = (task.act_dim(), task.obs_dim());
+    let mut v = VecEnv::new(task, 2, 0, 1).unwrap();
+    let mut o = vec![0.0; od];
+    assert!(matches!(v.reset_replay(2, 1, &[], &mut o), Err(SimError::InvalidArgument(_))));
+    assert!(matches!(v.reset_replay(0, 1, &vec![0.0; ad + 1], &mut o), Err(SimError::InvalidArgument(_))));
+    let mut bad = vec![0.0; ad];
+    bad[3] = f32::NAN;
+    assert!(matches!(v.reset_replay(0, 1, &bad, &mut o), Err(SimError::NonFiniteAction { .. })));
+    // 750 idle steps: the episode is truncated inside the replay, which is refused
+    let idle = vec![0.0; 750 * ad];
+    assert!(matches!(v.reset_replay(1, 1, &idle, &mut o), Err(SimError::InvalidArgument(_))));
+    // and the env is left at the start of that episode, steppable
+    assert_eq!(v.env(1).unwrap().snapshot().step, 0);
+    assert_eq!(v.env(1).unwrap().snapshot().episode_seed, 1);
+}
