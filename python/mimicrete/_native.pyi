@@ -253,7 +253,7 @@ class SimVecEnv:
     def reset_replay(self, i: int, seed: int, actions: ArrayLike) -> _F32:
         """Reset env i to episode ``seed`` and replay ``actions`` (k, act_dim) in it (a recorded
         episode's first k steps); the other envs do not move → env i's observation (obs_dim,).
-        Raises SimError if the replayed episode would end, ValueError for bad shapes."""
+        Raises ValueError if the replayed episode would end, for a bad index or shape."""
     def step(
         self, actions: ArrayLike
     ) -> tuple[_F32, _F32, _Bool, _Bool, _F32, _Bool, _Bool, _Bool, _Bool]:

@@ -103,6 +103,7 @@ class DemoCurriculumSettings:
     threshold: float = 0.67  # installed share of the window that moves the start back
     horizon_ratio: float = 0.75  # a demo-start episode is cut after ratio x remaining demo steps
     min_horizon: int = 30  # ... plus this many steps
+    old_start_prob: float = 0.3  # share of demo starts at a start already passed
 
 
 @dataclass
@@ -221,6 +222,7 @@ RANGES: dict[tuple[type, str], Range] = {
     (DemoCurriculumSettings, "threshold"): UNIT,
     (DemoCurriculumSettings, "horizon_ratio"): NON_NEGATIVE,
     (DemoCurriculumSettings, "min_horizon"): POSITIVE_INT,
+    (DemoCurriculumSettings, "old_start_prob"): UNIT,
     (BehaviorConfig, "max_steps"): POSITIVE_INT,
     (BehaviorConfig, "time_horizon"): POSITIVE_INT,
     (BehaviorConfig, "summary_freq"): POSITIVE_INT,

@@ -12,7 +12,10 @@ tile carried over the pad: the install is a few actions away); when the policy i
 least ``threshold`` of the last ``window`` episodes started at ``s_d``, ``s_d`` moves back one
 reverse step (``step_fraction`` of the demo's length). A demo whose start reached 0 is *solved*
 and its resets go back to the env's own starts. While any demo is unsolved, a reset starts from
-an unsolved demo with probability ``reset_prob`` (uniformly among them); otherwise, and always
+an unsolved demo with probability ``reset_prob`` (uniformly among them), at its current start or,
+with probability ``old_start_prob``, at one of the later starts it already passed (Florensa et
+al.'s replay of old starts: the install reward keeps flowing while the frontier is hard, and what
+was learnt there is not forgotten; only frontier episodes move the start); otherwise, and always
 once all are solved, from the env's own random start: the evaluation's distribution, which is the
 forward half (with one randomised coordinate, the tile's x, uniform starts are what RFCL's
 forward curriculum converges to).
@@ -104,6 +107,7 @@ class ReverseCurriculum:
         self.env_demo = np.full(num_envs, -1, np.int64)  # demo of each running episode, -1: own
         self.env_steps = np.zeros(num_envs, np.int64)
         self.env_horizon = np.zeros(num_envs, np.int64)
+        self.env_frontier = np.zeros(num_envs, bool)  # started at its demo's current start
         self.replayed_steps = 0
         self.episodes_done: list[bool] = []  # curriculum episodes finished since the last summary
 
@@ -130,9 +134,12 @@ class ReverseCurriculum:
             )
         )
 
-    def record(self, d: int, installed: bool) -> None:
-        """An episode started at demo ``d``'s current start ended; move the start back once the
-        window holds enough installs."""
+    def record(self, d: int, installed: bool, frontier: bool = True) -> None:
+        """An episode started in demo ``d`` ended; if it started at the current start
+        (``frontier``), move the start back once the window holds enough installs."""
+        if not frontier:
+            self.episodes_done.append(bool(installed))
+            return
         if self.solved(d):
             return
         res = self.results[d]
@@ -175,6 +182,10 @@ class ReverseCurriculum:
                 own_reset[i] = need_reset[i]
                 continue
             tr, s = self.tracks[d], self.start(d)
+            self.env_frontier[i] = True
+            if self.stage[d] > 0 and self.rng.random() < self.s.old_start_prob:
+                s = self.schedules[d][int(self.rng.integers(self.stage[d]))]  # a passed start
+                self.env_frontier[i] = False
             obs[i] = env.reset_replay(int(i), tr.seed, tr.actions[:s])
             self.replayed_steps += s
             self.env_horizon[i] = int(self.s.horizon_ratio * (tr.length - s)) + self.s.min_horizon

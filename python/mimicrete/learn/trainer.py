@@ -269,7 +269,7 @@ class Trainer:
                     self._window.append(ep)
                 else:
                     assert self.curriculum is not None
-                    self.curriculum.record(d, ep.installed)
+                    self.curriculum.record(d, ep.installed, bool(self.curriculum.env_frontier[i]))
             if self.curriculum is not None and (env_ended | cut).any():
                 self.curriculum.restart(self.env, env_ended | cut, cut, nobs)
             obs = nobs
