@@ -279,10 +279,17 @@ class SimVecEnv:
     def reset_mask(self, mask: ArrayLike) -> _F32:
         """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
     def state(self) -> dict[str, Any]:
-        """``{"base_seed": int, "episodes": uint64 (num_envs,), "actions": [float32 (k_i,
-        act_dim)]}``: the running episodes' seeds and actions, what ``restore`` replays."""
-    def restore(self, base_seed: int, episodes: list[int], actions: list[ArrayLike]) -> _F32:
+        """``{"base_seed": int, "episodes": uint64 (num_envs,), "seeds": uint64 (num_envs,),
+        "actions": [float32 (k_i, act_dim)]}``: the running episodes' seeds and actions, what
+        ``restore`` replays."""
+    def restore(
+        self, base_seed: int, episodes: list[int], seeds: list[int], actions: list[ArrayLike]
+    ) -> _F32:
         """Rebuild every env from ``state()``'s parts → obs (num_envs, obs_dim) as when taken."""
+    def reset_replay(self, i: int, seed: int, actions: ArrayLike) -> _F32:
+        """Reset env i to episode ``seed`` and replay ``actions`` (k, act_dim) in it (a recorded
+        episode's first k steps); the other envs do not move → env i's observation (obs_dim,).
+        Raises ValueError if the replayed episode would end, for a bad index or shape."""
     def step(
         self, actions: ArrayLike
     ) -> tuple[_F32, _F32, _Bool, _Bool, _F32, _Bool, _Bool, _Bool, _Bool]:

@@ -239,11 +239,20 @@ class MimicreteVecEnv(VectorEnv):
         obs = self._sim.restore(
             _seed(state["base_seed"], "base_seed"),
             [int(e) for e in state["episodes"]],
+            [int(x) for x in state["seeds"]],
             [np.asarray(a, np.float32) for a in state["actions"]],
         )
         self._rng = np.random.default_rng()
         self._rng.bit_generator.state = state["rng"]
         return obs
+
+    def reset_replay(self, i: int, seed: int, actions: Any) -> np.ndarray:
+        """Reset env ``i`` alone to episode ``seed`` and replay ``actions`` (k, act_dim) in it: the
+        state a recorded episode (a demo: its seed and actions) had after k steps. The other envs
+        do not move. Returns env ``i``'s observation (obs_dim,). Raises ``ValueError`` when the
+        episode would end inside the replay or ``i`` is out of range."""
+        a = np.asarray(actions, dtype=np.float32).reshape(-1, self.single_action_space.shape[0])
+        return self._sim.reset_replay(int(i), int(seed), a)
 
     def step(
         self, actions: Any

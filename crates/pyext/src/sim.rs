@@ -251,6 +251,23 @@ impl SimVecEnv {
         to2(py, obs, n, od)
     }
 
+    /// Reset env `i` to episode `seed` and replay `actions` (k, act_dim) in it (a recorded
+    /// episode's first k steps); the other envs do not move → env `i`'s observation (obs_dim,).
+    fn reset_replay<'py>(
+        &mut self,
+        py: Python<'py>,
+        i: usize,
+        seed: u64,
+        actions: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let (ad, od) = (self.venv.task().act_dim(), self.venv.task().obs_dim());
+        let k = actions.as_array().shape().first().copied().unwrap_or(0);
+        let acts = flat_f32(&actions, &[k, ad], "actions")?;
+        let mut obs = vec![0.0; od];
+        self.venv.reset_replay(i, seed, &acts, &mut obs).map_err(sim_err)?;
+        Ok(Array1::from_vec(obs).into_pyarray(py))
+    }
+
     /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
     fn step<'py>(
         &mut self,
@@ -276,7 +293,8 @@ impl SimVecEnv {
         ))
     }
 
-    /// `{"base_seed": int, "episodes": uint64 (num_envs,), "actions": [float32 (k_i, act_dim)]}`:
+    /// `{"base_seed": int, "episodes": uint64 (num_envs,), "seeds": uint64 (num_envs,),
+    /// "actions": [float32 (k_i, act_dim)]}`:
     /// what `restore` needs to rebuild every env mid-episode (tile-sim's `VecEnvState`).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let st = self.venv.state();
@@ -284,6 +302,7 @@ impl SimVecEnv {
         let d = PyDict::new(py);
         d.set_item("base_seed", st.base_seed)?;
         d.set_item("episodes", Array1::from(st.episodes).into_pyarray(py))?;
+        d.set_item("seeds", Array1::from(st.seeds).into_pyarray(py))?;
         let acts = st
             .actions
             .into_iter()
@@ -300,6 +319,7 @@ impl SimVecEnv {
         py: Python<'py>,
         base_seed: u64,
         episodes: Vec<u64>,
+        seeds: Vec<u64>,
         actions: Vec<PyArrayLikeDyn<'py, f32, AllowTypeChange>>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let (n, od, ad) = (self.venv.num_envs(), self.obs_dim, self.act_dim);
@@ -312,7 +332,7 @@ impl SimVecEnv {
                 flat(a, &[rows, ad], &format!("actions[{i}]"))
             })
             .collect::<PyResult<Vec<_>>>()?;
-        let st = VecEnvState { base_seed, episodes, actions };
+        let st = VecEnvState { base_seed, episodes, seeds, actions };
         let mut obs = vec![0.0; n * od];
         let venv = &mut self.venv;
         py.detach(|| venv.restore(&st, &mut obs)).map_err(sim_err)?;

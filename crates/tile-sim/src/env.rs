@@ -191,6 +191,50 @@ impl Env {
         Ok(())
     }
 
+    /// The seed of the running episode.
+    pub fn episode_seed(&self) -> u64 {
+        self.episode_seed
+    }
+
+    /// Start episode `seed` and step it through `actions` (`k × act_dim`, row-major): the state a
+    /// recorded episode had after its first `k` steps (same seed + same actions → bit-identical
+    /// trajectory), for training from demonstration states. Every action is validated first, and
+    /// an episode that would end within the replay is refused ([`SimError::InvalidArgument`]);
+    /// on error the env is left reset to `seed`'s start or, for a bad action, unchanged.
+    /// Writes the observation after the last replayed step into `obs_out`; returns `k`.
+    pub fn reset_replay(
+        &mut self,
+        seed: u64,
+        actions: &[f32],
+        obs_out: &mut [f32],
+    ) -> Result<usize, SimError> {
+        check_len("obs", self.task.obs_dim(), obs_out.len())?;
+        let ad = self.task.act_dim();
+        if actions.len() % ad != 0 {
+            return Err(SimError::InvalidArgument(format!(
+                "replay actions have length {}, not a multiple of act_dim {ad}",
+                actions.len()
+            )));
+        }
+        for row in actions.chunks(ad) {
+            check_action(self.task, row)?;
+        }
+        self.reset_with(seed);
+        for (k, row) in actions.chunks(ad).enumerate() {
+            let out = self.step_unchecked(row);
+            if out.terminated || out.truncated {
+                self.reset_with(seed);
+                return Err(SimError::InvalidArgument(format!(
+                    "the replayed episode ends at step {} of {}",
+                    k + 1,
+                    actions.len() / ad
+                )));
+            }
+        }
+        obs_out.copy_from_slice(&self.hist);
+        Ok(actions.len() / ad)
+    }
+
     fn reset_with(&mut self, seed: u64) {
         let start = object_start(self.task, seed);
         let x = start.x;

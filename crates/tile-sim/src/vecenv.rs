@@ -123,6 +123,9 @@ pub struct VecEnvState {
     pub base_seed: u64,
     /// Per env: the index of its running episode (episodes started since the base was set − 1).
     pub episodes: Vec<u64>,
+    /// Per env: the seed of its running episode ([`episode_seed`], or the demo's seed of a
+    /// [`VecEnv::reset_replay`] start).
+    pub seeds: Vec<u64>,
     /// Per env: the actions (`act_dim` each, row-major, as passed to `step`) of its running
     /// episode, fewer than `MAX_EPISODE_STEPS` rows.
     pub actions: Vec<Vec<f32>>,
@@ -234,6 +237,29 @@ impl VecEnv {
         Ok(())
     }
 
+    /// Reset env `i` to episode `seed` and replay `actions` in it ([`Env::reset_replay`]); the
+    /// other envs do not move. Writes env `i`'s observation (`obs_dim` floats) into `obs_out`.
+    pub fn reset_replay(
+        &mut self,
+        i: usize,
+        seed: u64,
+        actions: &[f32],
+        obs_out: &mut [f32],
+    ) -> Result<usize, SimError> {
+        let n = self.envs.len();
+        let env = self
+            .envs
+            .get_mut(i)
+            .ok_or_else(|| SimError::InvalidArgument(format!("env index {i} out of range (num_envs {n})")))?;
+        let steps = env.reset_replay(seed, actions, obs_out)?;
+        // a new episode of env i: counted, and its actions so far are the replayed ones (so
+        // `state`/`restore` rebuild it from its own seed)
+        self.episodes[i] += 1;
+        self.logs[i].clear();
+        self.logs[i].extend_from_slice(actions);
+        Ok(steps)
+    }
+
     /// Draw a fresh base seed from the VecEnv's own RNG (what `reset(None)` uses).
     pub fn next_seed(&mut self) -> u64 {
         self.rng.next_u64()
@@ -242,7 +268,12 @@ impl VecEnv {
     /// The base seed, episode counts and running episodes' actions (see [`VecEnvState`]).
     /// Teleports through [`VecEnv::env_mut`] are not part of it.
     pub fn state(&self) -> VecEnvState {
-        VecEnvState { base_seed: self.base_seed, episodes: self.episodes.clone(), actions: self.logs.clone() }
+        VecEnvState {
+            base_seed: self.base_seed,
+            episodes: self.episodes.clone(),
+            seeds: self.envs.iter().map(Env::episode_seed).collect(),
+            actions: self.logs.clone(),
+        }
     }
 
     /// Rebuild the envs from `state`: each env restarts its running episode and replays its
@@ -253,6 +284,7 @@ impl VecEnv {
         let (n, ad, od) = (self.envs.len(), self.task.act_dim(), self.task.obs_dim());
         check("obs", n * od, obs_out.len())?;
         check("episodes", n, state.episodes.len())?;
+        check("seeds", n, state.seeds.len())?;
         check("actions", n, state.actions.len())?;
         for (i, a) in state.actions.iter().enumerate() {
             if a.len() % ad != 0 || a.len() / ad >= MAX_EPISODE_STEPS as usize {
@@ -270,7 +302,7 @@ impl VecEnv {
         let mut envs = Vec::with_capacity(n);
         for (i, (a, o)) in state.actions.iter().zip(obs_out.chunks_mut(od)).enumerate() {
             let mut env = Env::new(self.task, 0);
-            env.reset(Some(episode_seed(state.base_seed, i as u64, state.episodes[i])), o)?;
+            env.reset(Some(state.seeds[i]), o)?;
             for (k, row) in a.chunks(ad).enumerate() {
                 let r = env.step(row, o)?;
                 if r.terminated || r.truncated {

@@ -449,9 +449,16 @@ fn restore_refuses_states_that_do_not_fit() {
     let mut o = vec![0.0; 2 * 80];
     run_log(&mut v, &random_actions(task, 2 * 10, 1), 10);
     let before = v.state();
-    let good = VecEnvState { base_seed: 4, episodes: vec![0, 3], actions: vec![vec![0.1; 7], vec![]] };
+    let seeds = vec![episode_seed(4, 0, 0), episode_seed(4, 1, 3)];
+    let good = VecEnvState {
+        base_seed: 4,
+        episodes: vec![0, 3],
+        seeds: seeds.clone(),
+        actions: vec![vec![0.1; 7], vec![]],
+    };
     let bad = [
         VecEnvState { episodes: vec![0], ..good.clone() },
+        VecEnvState { seeds: vec![1], ..good.clone() },
         VecEnvState { actions: vec![vec![0.0; 6], vec![]], ..good.clone() },
         VecEnvState { actions: vec![vec![0.0; 750 * 7], vec![]], ..good.clone() },
         VecEnvState { actions: vec![vec![f32::NAN; 7], vec![]], ..good.clone() },
@@ -476,15 +483,100 @@ fn restore_refuses_states_that_do_not_fit() {
             break;
         }
     }
-    let ends = VecEnvState { base_seed: 4, episodes: vec![0, 0], actions: vec![rows.clone(), vec![]] };
+    let first = vec![episode_seed(4, 0, 0), episode_seed(4, 1, 0)];
+    let ends = VecEnvState {
+        base_seed: 4,
+        episodes: vec![0, 0],
+        seeds: first.clone(),
+        actions: vec![rows.clone(), vec![]],
+    };
     let err = v.restore(&ends, &mut o).unwrap_err().to_string();
     assert!(err.contains("env 0: the recorded episode ends at action"), "{err}");
     assert_eq!(v.state(), before);
     rows.truncate(rows.len() - 7); // one step before the install: a running episode
-    let running = VecEnvState { base_seed: 4, episodes: vec![0, 0], actions: vec![rows, vec![]] };
+    let running =
+        VecEnvState { base_seed: 4, episodes: vec![0, 0], seeds: first, actions: vec![rows, vec![]] };
     v.restore(&running, &mut o).unwrap();
     assert!(v.env(0).unwrap().snapshot().held);
     v.restore(&good, &mut o).unwrap();
     assert_eq!(v.state(), good);
     assert_eq!(v.env(1).unwrap().snapshot().episode_seed, episode_seed(4, 1, 3));
+}
+
+/// `reset_replay(seed, first k actions)` lands in the state that stepping a fresh episode of the
+/// same seed through those actions reaches: same observation, and the same trajectory after it.
+#[test]
+fn reset_replay_matches_stepping_the_recorded_episode() {
+    for task in [Task::TileSuction, Task::BlockGrip, Task::Screw] {
+        let (ad, od) = (task.act_dim(), task.obs_dim());
+        // small motions so the episode runs past the replayed prefix
+        let acts: Vec<f32> = random_actions(task, 60, 5).iter().map(|a| a * 0.05).collect();
+        for k in [0usize, 1, 17, 40] {
+            let mut a = Env::new(task, 1);
+            let mut oa = vec![0.0; od];
+            a.reset(Some(1234), &mut oa).unwrap();
+            for row in acts[..k * ad].chunks(ad) {
+                a.step(row, &mut oa).unwrap();
+            }
+            let mut v = VecEnv::new(task, 3, 99, 1).unwrap();
+            let mut ob = vec![0.0; od];
+            let mut all = vec![0.0; 3 * od];
+            v.reset(None, &mut all).unwrap();
+            let other_before = all[..od].to_vec();
+            assert_eq!(v.reset_replay(2, 1234, &acts[..k * ad], &mut ob).unwrap(), k);
+            assert_eq!(oa, ob, "{task:?} k={k}: replayed observation differs");
+            assert_eq!(v.env(0).unwrap().observation(), &other_before[..], "env 0 moved");
+            assert_eq!(v.env(2).unwrap().snapshot().step, k as u32);
+            // the continuation is the same too
+            let mut env_b = Env::new(task, 1);
+            env_b.reset_replay(1234, &acts[..k * ad], &mut ob).unwrap();
+            for row in acts[k * ad..].chunks(ad) {
+                let ra = a.step(row, &mut oa).unwrap();
+                let rb = env_b.step(row, &mut ob).unwrap();
+                assert_eq!(oa, ob);
+                assert_eq!(ra.reward.to_bits(), rb.reward.to_bits());
+                if ra.terminated || ra.truncated {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn reset_replay_refuses_bad_input() {
+    let task = Task::TileSuction;
+    let (ad, od) = (task.act_dim(), task.obs_dim());
+    let mut v = VecEnv::new(task, 2, 0, 1).unwrap();
+    let mut o = vec![0.0; od];
+    assert!(matches!(v.reset_replay(2, 1, &[], &mut o), Err(SimError::InvalidArgument(_))));
+    assert!(matches!(v.reset_replay(0, 1, &vec![0.0; ad + 1], &mut o), Err(SimError::InvalidArgument(_))));
+    let mut bad = vec![0.0; ad];
+    bad[3] = f32::NAN;
+    assert!(matches!(v.reset_replay(0, 1, &bad, &mut o), Err(SimError::NonFiniteAction { .. })));
+    // 750 idle steps: the episode is truncated inside the replay, which is refused
+    let idle = vec![0.0; 750 * ad];
+    assert!(matches!(v.reset_replay(1, 1, &idle, &mut o), Err(SimError::InvalidArgument(_))));
+    // and the env is left at the start of that episode, steppable
+    assert_eq!(v.env(1).unwrap().snapshot().step, 0);
+    assert_eq!(v.env(1).unwrap().snapshot().episode_seed, 1);
+}
+
+/// A demo start (`reset_replay`) is a new episode of its env: `state` records the demo's seed and
+/// the replayed actions, and `restore` rebuilds it exactly (the trainer's checkpoints rely on it).
+#[test]
+fn state_and_restore_keep_a_demo_start() {
+    let task = Task::TileSuction;
+    let (ad, od) = (task.act_dim(), task.obs_dim());
+    let mut v = VecEnv::new(task, 2, 9, 1).unwrap();
+    let acts: Vec<f32> = random_actions(task, 30, 3).iter().map(|a| a * 0.05).collect();
+    let mut o1 = vec![0.0; od];
+    v.reset_replay(1, 12345, &acts[..20 * ad], &mut o1).unwrap();
+    let st = v.state();
+    assert_eq!((st.seeds[1], st.episodes[1], st.actions[1].len()), (12345, 1, 20 * ad));
+    let mut w = VecEnv::new(task, 2, 0, 1).unwrap();
+    let mut o = vec![0.0; 2 * od];
+    w.restore(&st, &mut o).unwrap();
+    assert_eq!(&o[od..], &o1[..]);
+    assert_eq!(w.state(), st);
 }

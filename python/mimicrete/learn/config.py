@@ -90,6 +90,20 @@ class BehavioralCloningSettings:
     num_epoch: int | None = None  # None: the trainer's num_epoch
     samples_per_update: int = 0
     pretrain_steps: int = 0  # extension: offline BC gradient steps before the first rollout
+    ee_class_balance: float = 0.0  # extension: end-effector CE weights (share ** -balance)
+
+
+@dataclass
+class DemoCurriculumSettings:
+    """Extension: per-demo reverse curriculum of episode starts (``curriculum.py``)."""
+
+    reset_prob: float = 0.95  # share of resets started inside a demo while one is unsolved
+    step_fraction: float = 0.1  # reverse step, as a fraction of the demo's length
+    window: int = 3  # episodes judged at a start
+    threshold: float = 0.67  # installed share of the window that moves the start back
+    horizon_ratio: float = 0.75  # a demo-start episode is cut after ratio x remaining demo steps
+    min_horizon: int = 30  # ... plus this many steps
+    old_start_prob: float = 0.3  # share of demo starts at a start already passed
 
 
 @dataclass
@@ -106,6 +120,7 @@ class BehaviorConfig:
     keep_checkpoints: int = 5
     demo_episodes: int | None = None  # extension
     demo_drop_idle: float = 0.0  # extension: no-op filtering of the demos (0 = keep all)
+    demo_curriculum: DemoCurriculumSettings | None = None  # extension: reverse curriculum
 
 
 @dataclass
@@ -200,6 +215,14 @@ RANGES: dict[tuple[type, str], Range] = {
     (BehavioralCloningSettings, "num_epoch"): POSITIVE_INT,
     (BehavioralCloningSettings, "samples_per_update"): NON_NEGATIVE,
     (BehavioralCloningSettings, "pretrain_steps"): NON_NEGATIVE,
+    (BehavioralCloningSettings, "ee_class_balance"): UNIT,
+    (DemoCurriculumSettings, "reset_prob"): UNIT,
+    (DemoCurriculumSettings, "step_fraction"): Range(0, 1, lo_open=True),
+    (DemoCurriculumSettings, "window"): POSITIVE_INT,
+    (DemoCurriculumSettings, "threshold"): UNIT,
+    (DemoCurriculumSettings, "horizon_ratio"): NON_NEGATIVE,
+    (DemoCurriculumSettings, "min_horizon"): POSITIVE_INT,
+    (DemoCurriculumSettings, "old_start_prob"): UNIT,
     (BehaviorConfig, "max_steps"): POSITIVE_INT,
     (BehaviorConfig, "time_horizon"): POSITIVE_INT,
     (BehaviorConfig, "summary_freq"): POSITIVE_INT,
@@ -242,6 +265,7 @@ def _build(cls: type, data: Any, where: str) -> Any:
         "extrinsic": ExtrinsicSettings,
         "gail": GailSettings,
         "behavioral_cloning": BehavioralCloningSettings,
+        "demo_curriculum": DemoCurriculumSettings,
     }
     for key, value in data.items():
         sub = hints.get(key)

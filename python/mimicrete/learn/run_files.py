@@ -59,6 +59,13 @@ TAGS = [
     "Policy/Clip Fraction",  # share of action components whose ratio left [1 - eps, 1 + eps]
     "Policy/Extrinsic Explained Variance",  # 1 - Var(returns - V) / Var(returns), per value head
     "Policy/GAIL Explained Variance",
+    # demo_curriculum (curriculum.py); episodes started inside a demo are counted here only
+    "Curriculum/Progress",  # mean over demos of how far back the start has moved (1 = solved)
+    "Curriculum/Demos Solved",
+    "Curriculum/Installed Rate",
+    "Curriculum/Episodes",
+    "Curriculum/Replayed Steps",  # simulator steps spent replaying demos (not agent steps)
+    "Environment/Elapsed Seconds",  # wall clock since this process started training
 ]
 
 CSV_NAME = "scalars.csv"

@@ -53,6 +53,7 @@ from . import config as config_mod
 from . import run_files
 from .bc import BehavioralCloning
 from .buffer import Rollout, gae, horizon_cuts
+from .curriculum import ReverseCurriculum, demo_tracks
 from .demo_data import drop_idle_steps, read_demos
 from .env import N_CONT, final_obs_of, make_env
 from .episodes import Episode, EpisodeStats, EpisodeTracker
@@ -183,6 +184,23 @@ class Trainer:
                 batch_size=bcs.batch_size or self.h.batch_size,
                 num_epoch=bcs.num_epoch or self.h.num_epoch,
                 samples_per_update=bcs.samples_per_update,
+                ee_class_balance=bcs.ee_class_balance,
+            )
+
+        self.curriculum: ReverseCurriculum | None = None
+        if self.b.demo_curriculum is not None:
+            path = demos_override or cfg.demo_path
+            if not path:
+                raise config_mod.ConfigError("demo_curriculum needs a demo_path or --demos")
+            if not hasattr(self.env, "reset_replay"):
+                raise config_mod.ConfigError(
+                    f"demo_curriculum: {cfg.env_settings.env_id} cannot replay demos"
+                )
+            self.curriculum = ReverseCurriculum(
+                demo_tracks(path, self.b.demo_episodes),
+                self.b.demo_curriculum,
+                self.N,
+                np.random.default_rng(self.seed + 1),
             )
 
         self.step = 0
@@ -198,6 +216,7 @@ class Trainer:
         self.recent_installed = 0.0
         self.recent_picked = 0.0
         self._t_summary = time.perf_counter()
+        self._t_start = self._t_summary  # Environment/Elapsed Seconds counts from here
         self._steps_at_t = 0
 
     def pretrain(self) -> None:
@@ -241,14 +260,30 @@ class Trainer:
             r = np.asarray(r, np.float32)
             term = np.asarray(term, bool)
             trunc = np.asarray(trunc, bool)
+            nobs = np.array(nobs, np.float32)
+            env_ended = term | trunc
+            cut = np.zeros_like(env_ended)
+            if self.curriculum is not None:  # demo-start episodes past their horizon
+                cut = self.curriculum.over_horizon(env_ended)
+                trunc = trunc | cut
             ro.rewards[t] = r
             ro.terminated[t] = term
             ro.truncated[t] = trunc
             finished = self.episodes.step(infos, r, term, trunc)
-            if finished:
-                ro.final_obs[t, term | trunc] = final_obs_of(infos, term | trunc)
-                self._window.extend(ep for _, ep in finished)
-            obs = np.asarray(nobs, np.float32)
+            if env_ended.any():
+                ro.final_obs[t, env_ended] = final_obs_of(infos, env_ended)
+            if cut.any():
+                ro.final_obs[t, cut] = nobs[cut]  # not reset by the env: nobs is its last obs
+            for i, ep in finished:
+                d = -1 if self.curriculum is None else int(self.curriculum.env_demo[i])
+                if d < 0:
+                    self._window.append(ep)
+                else:
+                    assert self.curriculum is not None
+                    self.curriculum.record(d, ep.installed, bool(self.curriculum.env_frontier[i]))
+            if self.curriculum is not None and (env_ended | cut).any():
+                self.curriculum.restart(self.env, env_ended | cut, cut, nobs)
+            obs = nobs
         ro.last_obs[:] = obs
         self.obs = obs
         self.step += self.T * self.N
@@ -261,6 +296,10 @@ class Trainer:
         self.obs = np.asarray(self.obs, np.float32)
         self.episodes.reset()
         self._sig_acc = {k: np.zeros(self.N) for k in self.signals}
+        if self.curriculum is not None:  # some envs start inside a demo right away
+            self.curriculum.forget_envs()
+            every = np.ones(self.N, bool)
+            self.curriculum.restart(self.env, every, ~every, self.obs)
 
     # -- 2. reward signals ------------------------------------------------------------------------
 
@@ -456,10 +495,13 @@ class Trainer:
                 row[f"Policy/{SIGNAL_TAG[name]} Reward"] = float(np.mean(self._sig_window[name]))
         for k, v in self._update_stats.items():
             row[k] = float(np.mean(v))
+        if self.curriculum is not None:
+            row.update(self.curriculum.summary())
         now = time.perf_counter()
         row["Environment/Steps Per Second"] = (self.step - self._steps_at_t) / max(
             now - self._t_summary, 1e-9
         )
+        row["Environment/Elapsed Seconds"] = now - self._t_start
         self._t_summary, self._steps_at_t = now, self.step
         self._window.clear()
         for v in self._sig_window.values():
@@ -483,6 +525,7 @@ class Trainer:
             "torch_rng": torch.get_rng_state(),
             "np_global_rng": np.random.get_state(),
             "py_rng": random.getstate(),
+            "curriculum": self.curriculum.state_dict() if self.curriculum is not None else None,
             "signals": self.signals,
             "obs_dim": self.obs_dim,
             "config": self.cfg.to_dict(),
@@ -539,6 +582,8 @@ class Trainer:
             self.gail.load_state_dict(s["gail"])
         if self.bc is not None:
             self.bc.opt.load_state_dict(s["bc_opt"])
+        if self.curriculum is not None and s.get("curriculum") is not None:
+            self.curriculum.load_state_dict(s["curriculum"])
         self.step = int(s["step"])
         self.update_idx = int(s["update_idx"])
         self.last_summary_step = int(s["last_summary_step"])

@@ -1,0 +1,225 @@
+"""A per-demonstration reverse curriculum (the reverse half of RFCL, Tao et al., ICLR 2024), for
+learning from a handful of demos with the sparse reward (``behaviors.<name>.demo_curriculum``, a
+mimicrete extension; ``configs/fewdemo.yaml``).
+
+With few demos, BC alone does not install (10 demos: 0 % picked deterministically) and PPO from
+the env's start rarely sees the +1 of an install, so it has nothing to climb. Here some episodes
+start *inside* a demo instead: env i is reset to the demo's episode seed and the demo's first
+``s`` recorded actions are replayed in it (``VecEnv.reset_replay``; the simulator is
+deterministic, so this is exactly the state the demonstrator was in after ``s`` steps, frame stack
+included). Each demo ``d`` has its own start ``s_d``, first one reverse step before its end (the
+tile carried over the pad: the install is a few actions away); when the policy installs in at
+least ``threshold`` of the last ``window`` episodes started at ``s_d``, ``s_d`` moves back one
+reverse step (``step_fraction`` of the demo's length). A demo whose start reached 0 is *solved*
+and its resets go back to the env's own starts. While any demo is unsolved, a reset starts from
+an unsolved demo with probability ``reset_prob`` (uniformly among them), at its current start or,
+with probability ``old_start_prob``, at one of the later starts it already passed (Florensa et
+al.'s replay of old starts: the install reward keeps flowing while the frontier is hard, and what
+was learnt there is not forgotten; only frontier episodes move the start); otherwise, and always
+once all are solved, from the env's own random start: the evaluation's distribution, which is the
+forward half (with one randomised coordinate, the tile's x, uniform starts are what RFCL's
+forward curriculum converges to).
+
+An episode started inside a demo is cut (a truncation: bootstrapped, not a failure) after
+``horizon_ratio`` × the demo's remaining steps + ``min_horizon`` steps, as RFCL bounds its demo
+episodes, so a stuck policy does not spend 700 steps there. Those episodes are counted apart
+(``Curriculum/...`` scalars) so that ``Environment/Installed Rate`` stays the rate from the env's
+own starts, the one the evaluation measures. Nothing here is read at test time: evaluation and
+the exported policy see only observations.
+
+Replayed steps are simulator work but not agent steps: they are not in the rollout and do not
+count towards ``max_steps`` (RFCL sets states directly); ``Curriculum/Replayed Steps`` logs them.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .config import DemoCurriculumSettings
+
+
+@dataclass(frozen=True)
+class DemoTrack:
+    """One demo as a sequence of reachable states: its episode seed and every recorded action."""
+
+    seed: int
+    actions: np.ndarray  # (L, act_dim) float32, idle steps included (replay needs them all)
+
+    @property
+    def length(self) -> int:
+        return int(len(self.actions))
+
+
+def demo_tracks(path: str | os.PathLike[str], episodes: int | None) -> list[DemoTrack]:
+    """The first ``episodes`` demos of an MCAP file or directory as :class:`DemoTrack` (seed from
+    each file's ``episode`` metadata), in the same order as the trainer's demo arrays."""
+    from mimicrete import demos
+
+    d = demos.load(os.fspath(path))
+    tracks = []
+    for i, sl in enumerate(d.episode_slices()):
+        if episodes is not None and i >= episodes:
+            break
+        meta = d.metas[i] if i < len(d.metas) else {}
+        if "seed" not in meta:
+            raise ValueError(f"{d.files[i]}: no episode seed in its metadata; cannot replay it")
+        acts = np.asarray(d.actions[sl], np.float32)
+        if len(acts) < 2:
+            continue
+        tracks.append(DemoTrack(int(meta["seed"]), acts))
+    if not tracks:
+        raise ValueError(f"{path}: no demo to start a curriculum from")
+    return tracks
+
+
+def start_schedule(length: int, step_fraction: float) -> list[int]:
+    """The starts a demo of ``length`` steps goes through, latest first: one reverse step before
+    its end, then back one step at a time, ending at 0. The last recorded action (the install)
+    is never replayed, so every start leaves the agent at least one action to do."""
+    step = max(1, round(step_fraction * length))
+    first = max(0, length - step)
+    starts = list(range(first, 0, -step))
+    return [*starts, 0]
+
+
+class ReverseCurriculum:
+    """Per-demo start indices, their success windows, and the per-env bookkeeping of which
+    running episode started where."""
+
+    def __init__(
+        self,
+        tracks: list[DemoTrack],
+        settings: DemoCurriculumSettings,
+        num_envs: int,
+        rng: np.random.Generator,
+    ):
+        self.tracks = tracks
+        self.s = settings
+        self.rng = rng
+        self.schedules = [start_schedule(t.length, settings.step_fraction) for t in tracks]
+        self.stage = [0] * len(tracks)  # index into each schedule
+        self.results: list[deque[bool]] = [deque(maxlen=settings.window) for _ in tracks]
+        self.env_demo = np.full(num_envs, -1, np.int64)  # demo of each running episode, -1: own
+        self.env_steps = np.zeros(num_envs, np.int64)
+        self.env_horizon = np.zeros(num_envs, np.int64)
+        self.env_frontier = np.zeros(num_envs, bool)  # started at its demo's current start
+        self.replayed_steps = 0
+        self.episodes_done: list[bool] = []  # curriculum episodes finished since the last summary
+
+    # -- state of the curriculum -------------------------------------------------------------
+
+    def start(self, d: int) -> int:
+        return self.schedules[d][self.stage[d]]
+
+    def solved(self, d: int) -> bool:
+        return self.stage[d] >= len(self.schedules[d])
+
+    @property
+    def unsolved(self) -> list[int]:
+        return [d for d in range(len(self.tracks)) if not self.solved(d)]
+
+    def progress(self) -> float:
+        """Mean over demos of how far back the start has moved (0 = at the end, 1 = solved)."""
+        return float(
+            np.mean(
+                [
+                    min(st, len(sc)) / len(sc)
+                    for st, sc in zip(self.stage, self.schedules, strict=True)
+                ]
+            )
+        )
+
+    def record(self, d: int, installed: bool, frontier: bool = True) -> None:
+        """An episode started in demo ``d`` ended; if it started at the current start
+        (``frontier``), move the start back once the window holds enough installs."""
+        if not frontier:
+            self.episodes_done.append(bool(installed))
+            return
+        if self.solved(d):
+            return
+        res = self.results[d]
+        res.append(bool(installed))
+        self.episodes_done.append(bool(installed))
+        if len(res) == res.maxlen and np.mean(res) >= self.s.threshold:
+            self.stage[d] += 1
+            res.clear()
+
+    # -- per env ------------------------------------------------------------------------------
+
+    def forget_envs(self) -> None:
+        """Every env was reset to its own start (checkpoint boundary)."""
+        self.env_demo[:] = -1
+        self.env_steps[:] = 0
+
+    def over_horizon(self, ended: np.ndarray) -> np.ndarray:
+        """Count one step of every env; the envs on a demo start that ran past their horizon
+        and did not end by themselves (to be cut as truncations)."""
+        self.env_steps += 1
+        return (self.env_demo >= 0) & (self.env_steps >= self.env_horizon) & ~ended
+
+    def choose(self) -> int:
+        """Demo index to start the next episode from, or -1 for the env's own start."""
+        open_ = self.unsolved
+        if not open_ or self.rng.random() >= self.s.reset_prob:
+            return -1
+        return int(open_[self.rng.integers(len(open_))])
+
+    def restart(self, env: Any, ended: np.ndarray, need_reset: np.ndarray, obs: np.ndarray) -> None:
+        """Start the next episode of every ``ended`` env: from a demo (replayed; ``obs`` row
+        replaced) or from the env's own start (already auto-reset, unless ``need_reset``: then
+        reset through the reset mask). ``obs`` is updated in place."""
+        own_reset = np.zeros(len(ended), bool)
+        for i in np.flatnonzero(ended):
+            d = self.choose()
+            self.env_steps[i] = 0
+            self.env_demo[i] = d
+            if d < 0:
+                own_reset[i] = need_reset[i]
+                continue
+            tr, s = self.tracks[d], self.start(d)
+            self.env_frontier[i] = True
+            if self.stage[d] > 0 and self.rng.random() < self.s.old_start_prob:
+                s = self.schedules[d][int(self.rng.integers(self.stage[d]))]  # a passed start
+                self.env_frontier[i] = False
+            obs[i] = env.reset_replay(int(i), tr.seed, tr.actions[:s])
+            self.replayed_steps += s
+            self.env_horizon[i] = int(self.s.horizon_ratio * (tr.length - s)) + self.s.min_horizon
+        if own_reset.any():
+            fresh, _ = env.reset(options={"reset_mask": own_reset})
+            obs[own_reset] = np.asarray(fresh, np.float32)[own_reset]
+
+    # -- log and resume -----------------------------------------------------------------------
+
+    def summary(self) -> dict[str, float]:
+        row = {
+            "Curriculum/Progress": self.progress(),
+            "Curriculum/Demos Solved": float(len(self.tracks) - len(self.unsolved)),
+            "Curriculum/Replayed Steps": float(self.replayed_steps),
+        }
+        if self.episodes_done:
+            row["Curriculum/Installed Rate"] = float(np.mean(self.episodes_done))
+            row["Curriculum/Episodes"] = float(len(self.episodes_done))
+        self.episodes_done = []
+        return row
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "stage": list(self.stage),
+            "results": [list(r) for r in self.results],
+            "replayed_steps": self.replayed_steps,
+            "rng": self.rng.bit_generator.state,
+        }
+
+    def load_state_dict(self, s: dict[str, Any]) -> None:
+        self.stage = [int(x) for x in s["stage"]]
+        for r, saved in zip(self.results, s["results"], strict=True):
+            r.clear()
+            r.extend(bool(x) for x in saved)
+        self.replayed_steps = int(s["replayed_steps"])
+        self.rng.bit_generator.state = s["rng"]
+        self.forget_envs()
