@@ -262,7 +262,7 @@ impl SimVecEnv {
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
         let (ad, od) = (self.venv.task().act_dim(), self.venv.task().obs_dim());
         let k = actions.as_array().shape().first().copied().unwrap_or(0);
-        let acts = flat_f32(&actions, &[k, ad], "actions")?;
+        let acts = flat(&actions, &[k, ad], "actions")?;
         let mut obs = vec![0.0; od];
         self.venv.reset_replay(i, seed, &acts, &mut obs).map_err(sim_err)?;
         Ok(Array1::from_vec(obs).into_pyarray(py))
