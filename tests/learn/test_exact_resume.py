@@ -18,11 +18,12 @@ import torch
 from mimicrete import learn
 from mimicrete.learn import config as config_mod
 from mimicrete.learn import run_files
+from mimicrete.learn.run_files import WALL_CLOCK_TAGS
 from mimicrete.learn.toyenv import toy_config
 from mimicrete.learn.trainer import ResumeError
 
 UPDATES = 5
-WALL_CLOCK = {"Environment/Steps Per Second"}
+WALL_CLOCK = set(WALL_CLOCK_TAGS)
 ENVS = {
     # toy: 8 envs x 64 steps per update, episodes of up to 100 steps
     "toy": {"buffer": 512, "batch": 128, "num_envs": 8, "env_id": "Toy-v0"},

@@ -90,6 +90,10 @@ class RunDirError(ValueError):
     """A run directory that cannot be used as asked (holds another run, nothing to resume)."""
 
 
+#: Tags measured by the wall clock: they differ between two runs that compute the same things.
+WALL_CLOCK_TAGS: tuple[str, ...] = ("Environment/Steps Per Second", "Environment/Elapsed Seconds")
+
+
 def prepare_run_dir(run_dir: Path, *, resume: bool, force: bool) -> None:
     """Make ``run_dir``. One that already holds a run is refused unless ``resume`` (continue it)
     or ``force`` (its run files are deleted first), so an old run's checkpoints never come back
