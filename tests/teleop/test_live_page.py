@@ -20,11 +20,11 @@ from mimicrete.kin import Calibration
 from mimicrete.teleop import browser as br
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import synth as sy
-from mimicrete.teleop.live import Live, view_from_base
+from mimicrete.teleop.live import Live
 from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
 from mimicrete.teleop.session import Session
 from mimicrete.teleop.synth_scene import scene_from_env
-from mimicrete.teleop.view import standing_calibration
+from mimicrete.teleop.view import standing_calibration, view_from_base
 
 SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "figures" / "teleop_page.png"
 

@@ -252,9 +252,13 @@ def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, m
 
 def _scene_hello(task: str) -> dict[str, Any]:
     """A hello with the real scene of ``task`` (tile-sim's items as the server sends them)."""
-    from mimicrete.teleop.live import view_from_base
     from mimicrete.teleop.session import Session
-    from mimicrete.teleop.view import frame_poses, scene_entities, standing_calibration
+    from mimicrete.teleop.view import (
+        frame_poses,
+        scene_entities,
+        standing_calibration,
+        view_from_base,
+    )
 
     calib = standing_calibration()
     env = Session(task, "webxr", "right", calib, 0).env

@@ -10,9 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mimicrete import kin
-from mimicrete.teleop.live import view_from_base
 from mimicrete.teleop.session import Session
-from mimicrete.teleop.view import effector_state, standing_calibration
+from mimicrete.teleop.view import effector_state, standing_calibration, view_from_base
 
 
 def _local(calib: kin.Calibration, base_points: np.ndarray) -> np.ndarray:
@@ -59,7 +58,7 @@ def test_effector_state_of_each_task():
 def test_closed_form_quaternion_equals_scipy(seed):
     from scipy.spatial.transform import Rotation
 
-    from mimicrete.teleop.live import quat_xyzw
+    from mimicrete.teleop.view import quat_xyzw
 
     r = Rotation.random(random_state=seed)
     q = np.array(quat_xyzw(r.as_matrix()))

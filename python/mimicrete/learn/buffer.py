@@ -16,7 +16,13 @@ V(final_obs), a terminated one does not, and neither leaks advantage across epis
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    import torch
 
 
 def gae(
@@ -81,3 +87,33 @@ class Rollout:
         e = self.ended
         nxt[e] = self.final_obs[e]
         return nxt
+
+
+@dataclass
+class Signal:
+    """One reward signal over the rollout: strength-scaled rewards (T, N), its gamma and the
+    termination mask its GAE uses."""
+
+    name: str
+    rewards: np.ndarray
+    gamma: float
+    terminated: np.ndarray
+
+
+@dataclass
+class UpdateBuffer:
+    """The rollout flattened to T * N rows, with advantages and returns."""
+
+    obs: np.ndarray
+    u: np.ndarray
+    k: np.ndarray
+    logp: np.ndarray
+    env_actions: np.ndarray
+    adv: np.ndarray
+    values: np.ndarray  # (T * N, n_signals), at collection time
+    returns: np.ndarray  # (T * N, n_signals)
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        import torch
+
+        return {k: torch.from_numpy(v) for k, v in self.__dict__.items()}

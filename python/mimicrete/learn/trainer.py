@@ -42,7 +42,6 @@ import math
 import random
 import time
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +51,7 @@ import torch
 from . import config as config_mod
 from . import run_files
 from .bc import BehavioralCloning
-from .buffer import Rollout, gae, horizon_cuts
+from .buffer import Rollout, Signal, UpdateBuffer, gae, horizon_cuts
 from .curriculum import ReverseCurriculum, demo_tracks
 from .demo_data import drop_idle_steps, read_demos
 from .env import N_CONT, final_obs_of, make_env
@@ -78,34 +77,6 @@ class ResumeError(RuntimeError):
 
 class NonFiniteLossError(RuntimeError):
     """A loss or weight became NaN / infinite; the run stops before writing anything from it."""
-
-
-@dataclass
-class Signal:
-    """One reward signal over the rollout: strength-scaled rewards (T, N), its gamma and the
-    termination mask its GAE uses."""
-
-    name: str
-    rewards: np.ndarray
-    gamma: float
-    terminated: np.ndarray
-
-
-@dataclass
-class UpdateBuffer:
-    """The rollout flattened to T * N rows, with advantages and returns."""
-
-    obs: np.ndarray
-    u: np.ndarray
-    k: np.ndarray
-    logp: np.ndarray
-    env_actions: np.ndarray
-    adv: np.ndarray
-    values: np.ndarray  # (T * N, n_signals), at collection time
-    returns: np.ndarray  # (T * N, n_signals)
-
-    def tensors(self) -> dict[str, torch.Tensor]:
-        return {k: torch.from_numpy(v) for k, v in self.__dict__.items()}
 
 
 class Trainer:

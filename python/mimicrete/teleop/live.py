@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from mimicrete import gestures as gest
-from mimicrete import kin, tasks
+from mimicrete import tasks
 from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
@@ -48,7 +48,13 @@ from .gesturemode import (
 from .protocol import HandFrame
 from .record import DemoSink, episode_meta
 from .session import Session, Step
-from .view import effector_state, frame_poses, standing_calibration
+from .view import (
+    effector_state,
+    frame_poses,
+    quat_xyzw,
+    standing_calibration,
+    view_from_base,
+)
 
 PINCH_M = 0.02  # thumb tip to index tip, left hand
 PINCH_HOLD_S = 1.0
@@ -59,34 +65,6 @@ FINGERTIPS, WRIST, MIDDLE_PROXIMAL = (9, 14, 19, 24), 0, 11
 FIST_RATIO = 0.85
 FIST_HOLD_S = 1.5
 LAYOUT = "webxr"
-
-
-def view_from_base(calibration: Calibration) -> list[float]:
-    """The 4×4 (column-major) from Base into the tracking space: the inverse of the calibration's
-    affine map, read off ur3-kin's ``points_to_base`` (so the axis change lives in one place)."""
-    basis = np.vstack([np.zeros(3), np.eye(3)])
-    p = kin.points_to_base(basis, calibration)
-    m = np.eye(4)
-    m[:3, :3] = (p[1:] - p[0]).T  # columns: images of the unit vectors
-    m[:3, 3] = p[0]
-    return np.linalg.inv(m).reshape(-1, order="F").tolist()
-
-
-def quat_xyzw(r: np.ndarray) -> list[float]:
-    """Unit quaternion ``[x, y, z, w]`` of a rotation matrix (Shepperd's method, closed form)."""
-    t = float(r[0, 0] + r[1, 1] + r[2, 2])
-    if t > 0.0:
-        k = 2.0 * np.sqrt(t + 1.0)
-        q = [(r[2, 1] - r[1, 2]) / k, (r[0, 2] - r[2, 0]) / k, (r[1, 0] - r[0, 1]) / k, k / 4.0]
-    else:
-        i = int(np.argmax(np.diag(r)))
-        j, m = (i + 1) % 3, (i + 2) % 3
-        k = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[m, m])
-        q = [0.0, 0.0, 0.0, (r[m, j] - r[j, m]) / k]
-        q[i] = k / 4.0
-        q[j] = (r[j, i] + r[i, j]) / k
-        q[m] = (r[m, i] + r[i, m]) / k
-    return [float(x) for x in q]
 
 
 @dataclass

@@ -41,9 +41,9 @@ from urllib.parse import urlsplit
 from aiohttp import WSMsgType, web
 
 from .gesturemode import GestureModeError
-from .live import Live, view_from_base
+from .live import Live
 from .protocol import VERSION, FrameError, parse_frame
-from .view import scene_entities
+from .view import scene_entities, view_from_base
 
 STATIC = Path(__file__).resolve().parent / "static"
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import kin
 from mimicrete.kin import Calibration
 
 
@@ -148,7 +149,7 @@ def standing_calibration(
     """A calibration for a standing user at the table's +Y edge facing the robot (−Y in Base):
     the ``local`` origin (the head when the session began) is ``below`` m above the table top
     (Base z = 0) and ``ahead`` m behind the workspace's ``centre``, looking at it. The page draws
-    the scene with the inverse of the calibration (``live.view_from_base``), so the robot's tool
+    the scene with the inverse of the calibration (:func:`view_from_base`), so the robot's tool
     is drawn at the hand and the workspace sits in front of the user at a standing table's height.
 
     ur3-kin's default calibration (operator at the robot's base facing +X, head 0.6 m above the
@@ -158,3 +159,31 @@ def standing_calibration(
     rotation = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     translation = np.array([centre[0], centre[1] + ahead, below])
     return Calibration(rotation, translation, 1.0, Calibration().space)
+
+
+def view_from_base(calibration: Calibration) -> list[float]:
+    """The 4×4 (column-major) from Base into the tracking space: the inverse of the calibration's
+    affine map, read off ur3-kin's ``points_to_base`` (so the axis change lives in one place)."""
+    basis = np.vstack([np.zeros(3), np.eye(3)])
+    p = kin.points_to_base(basis, calibration)
+    m = np.eye(4)
+    m[:3, :3] = (p[1:] - p[0]).T  # columns: images of the unit vectors
+    m[:3, 3] = p[0]
+    return np.linalg.inv(m).reshape(-1, order="F").tolist()
+
+
+def quat_xyzw(r: np.ndarray) -> list[float]:
+    """Unit quaternion ``[x, y, z, w]`` of a rotation matrix (Shepperd's method, closed form)."""
+    t = float(r[0, 0] + r[1, 1] + r[2, 2])
+    if t > 0.0:
+        k = 2.0 * np.sqrt(t + 1.0)
+        q = [(r[2, 1] - r[1, 2]) / k, (r[0, 2] - r[2, 0]) / k, (r[1, 0] - r[0, 1]) / k, k / 4.0]
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, m = (i + 1) % 3, (i + 2) % 3
+        k = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[m, m])
+        q = [0.0, 0.0, 0.0, (r[m, j] - r[j, m]) / k]
+        q[i] = k / 4.0
+        q[j] = (r[j, i] + r[i, j]) / k
+        q[m] = (r[m, i] + r[i, m]) / k
+    return [float(x) for x in q]
