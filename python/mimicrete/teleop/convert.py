@@ -184,7 +184,12 @@ class _Lock:
                 f"{self.path}: another process is writing this demo (remove the lock file if "
                 "no other mimicrete convert or teleop is running)"
             ) from None
-        os.write(fd, f"{os.getpid()}\n".encode())
+        try:
+            os.write(fd, f"{os.getpid()}\n".encode())
+        except BaseException:  # interrupted while taking it: leave no lock behind
+            os.close(fd)
+            self.path.unlink(missing_ok=True)
+            raise
         os.close(fd)
         return self
 
@@ -241,31 +246,31 @@ def convert_log(
             out_path = out_path / demo_name(source)
     with _Lock(out_path) if out_path is not None else _nullcontext():
         sink = None
-        if out_path is not None:
-            meta = episode_meta(
-                episode=episode_index,
-                task_sim=spec.sim,
-                seed=seed,
-                source=source,
-                model=model,
-                layout=log.header["layout"],
-                space=log.header["space"],
-                handedness=log.header["handedness"],
-                extra={"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
-            )
-            sink = DemoSink(out_path, meta)
-        session = Session(
-            spec.name,
-            log.header["layout"],
-            log.header["handedness"],
-            calib,
-            seed,
-            model=model,
-            recorder=sink,
-        )
         rewards: list[float] = []
         actions: list[np.ndarray] = []
-        try:
+        try:  # from the first byte of the demo to its rename: an interruption leaves nothing
+            if out_path is not None:
+                meta = episode_meta(
+                    episode=episode_index,
+                    task_sim=spec.sim,
+                    seed=seed,
+                    source=source,
+                    model=model,
+                    layout=log.header["layout"],
+                    space=log.header["space"],
+                    handedness=log.header["handedness"],
+                    extra={"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
+                )
+                sink = DemoSink(out_path, meta)
+            session = Session(
+                spec.name,
+                log.header["layout"],
+                log.header["handedness"],
+                calib,
+                seed,
+                model=model,
+                recorder=sink,
+            )
             for k in range(len(log.t)):
                 for st in session.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k]):
                     rewards.append(st.reward)
@@ -279,13 +284,15 @@ def convert_log(
             never = never_followed(session)
             if never is not None:
                 raise ConvertError(f"{source}: the robot never followed the hand ({never})")
+            counts = session.counts
+            if sink is not None:
+                sink.close(session.installed, counts)
         except BaseException:
             if sink is not None:
-                sink.discard()
+                sink.abandon_quietly()
+            if out_path is not None:  # ours while we hold the lock (even if the writer was
+                Path(str(out_path) + ".partial").unlink(missing_ok=True)  # half made)
             raise
-        counts = session.counts
-        if sink is not None:
-            sink.close(session.installed, counts)
     return EpisodeResult(
         source,
         str(out_path) if out_path else None,

@@ -113,5 +113,12 @@ class DemoSink:
 
     def discard(self) -> None:
         """Close without finishing and delete the partial file."""
-        self.w.abandon()
+        self.abandon_quietly()
         Path(str(self.path) + ".partial").unlink(missing_ok=True)
+
+    def abandon_quietly(self) -> None:
+        """:meth:`abandon`, also when the writer is finished or closed already (on error paths)."""
+        try:
+            self.w.abandon()
+        except Exception:  # already finished (renamed) or closed: nothing left to close
+            pass
