@@ -46,13 +46,35 @@ def test_bc_learning_rate_anneals_to_zero_over_its_steps():
     assert bc_learning_rate(lr0, 0, 10**7) == lr0  # steps 0: constant (ML-Agents)
 
 
+def test_bc_rounds_follow_ml_agents_order_of_the_learning_rate():
+    """A round runs at the rate the previous one set (the first at the initial rate) and then
+    sets the next from the current step: 100k steps at 10,240 per update give 10 rounds."""
+    lr0 = 0.5 * 5e-4
+    _, _, bc = _toy_bc(demos=4, seed=3, hidden=16, steps=100_000, batch_size=64, num_epoch=1)
+    bc.initial_lr = bc.current_lr = lr0
+    rng = np.random.default_rng(0)
+    rates = []
+    for u in range(1, 14):
+        res = bc.update(u * 10_240, rng)
+        if res is None:
+            break
+        rates.append(res[1])
+    assert len(rates) == 10
+    assert rates[0] == pytest.approx(lr0)
+    assert rates[1] == pytest.approx(bc_learning_rate(lr0, 100_000, 10_240))
+    assert rates[-1] == pytest.approx(bc_learning_rate(lr0, 100_000, 92_160))
+    assert bc.current_lr == pytest.approx(MIN_LR)
+
+
 def test_bc_stops_after_its_steps_and_learns_the_expert():
     d, actor, bc = _toy_bc(demos=30, seed=3, hidden=64, steps=1000, batch_size=128, num_epoch=3)
     rng = np.random.default_rng(0)
-    assert bc.update(1000, rng) is None  # annealed out: no update
+    assert bc.update(1000, rng) is not None  # the first round runs at the initial rate
     before = [p.clone() for p in actor.parameters()]
+    assert bc.update(2000, rng) is None  # annealed out: no update
     assert all(torch.equal(a, b) for a, b in zip(before, actor.parameters(), strict=True))
     bc.steps = 0  # constant lr from here on
+    bc.current_lr = bc.initial_lr
     first = bc.update(0, rng)[0]
     for _ in range(30):
         last = bc.update(0, rng)[0]

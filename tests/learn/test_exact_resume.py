@@ -18,9 +18,9 @@ import torch
 from mimicrete import learn
 from mimicrete.learn import config as config_mod
 from mimicrete.learn import run_files
+from mimicrete.learn.checkpoint import ResumeError
 from mimicrete.learn.run_files import WALL_CLOCK_TAGS
 from mimicrete.learn.toyenv import toy_config
-from mimicrete.learn.trainer import ResumeError
 
 UPDATES = 5
 WALL_CLOCK = set(WALL_CLOCK_TAGS)

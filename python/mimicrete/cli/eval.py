@@ -1,7 +1,7 @@
-"""`mimicrete eval RUN_DIR --episodes 100 [--video N]`: the paper's Table 5 row for a trained run,
-written to ``RUN_DIR/eval.json``, and videos of the first N evaluation episodes in
-``RUN_DIR/videos/``. Parses the flags and calls ``mimicrete.learn.evaluate_run`` and
-``mimicrete.learn.video.record_run_videos``."""
+"""`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--video N]`: the paper's Table 5 row for
+a trained run, written to ``RUN_DIR/eval.json`` (``eval_stochastic.json`` for the sampled policy),
+and videos of the first N evaluation episodes in ``RUN_DIR/videos/``. Parses the flags and calls
+``mimicrete.learn.evaluate_run`` and ``mimicrete.learn.video.record_run_videos``."""
 
 from __future__ import annotations
 
@@ -15,6 +15,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", help="a run directory written by `mimicrete train`")
     parser.add_argument("--episodes", type=int, default=100, help="episodes to run (100)")
     parser.add_argument("--seed", type=int, help="eval env seed (default: run seed + 10000)")
+    parser.add_argument(
+        "--stochastic",
+        action="store_true",
+        help="sample the policy (as ML-Agents runs a model without deterministic_inference) "
+        "instead of taking its most likely action; writes RUN_DIR/eval_stochastic.json",
+    )
     parser.add_argument(
         "--video",
         type=int,
@@ -52,11 +58,11 @@ def main(args: argparse.Namespace) -> int:
         if args.video:  # what would stop the videos, before the evaluation runs
             fmt = video.resolve_format(args.video_format)
             video.check_renderable(load_policy(run_dir)[1].env_settings.env_id)
-        res = learn.evaluate_run(run_dir, args.episodes, args.seed)
+        res = learn.evaluate_run(run_dir, args.episodes, args.seed, stochastic=args.stochastic)
     except (PolicyFileError, video.VideoError) as e:
         raise UsageError(str(e)) from None
     print(learn.format_row(run_dir.name, res))
-    print(f"wrote {run_dir / 'eval.json'}")
+    print(f"wrote {run_dir / learn.evaluate.eval_file(args.stochastic)}")
     if fmt is not None:
         try:
             episodes = video.record_run_videos(run_dir, args.video, args.seed, fmt)

@@ -57,6 +57,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default=100,
         help="evaluate the final policy on this many episodes (0: skip)",
     )
+    parser.add_argument(
+        "--stop-on-convergence",
+        action="store_true",
+        help="stop before max_steps once the training episodes installed >= 99 %% in 3 summaries "
+        "in a row (>= 20 episodes each; the config's stop_on_convergence if it has one); "
+        "run.json records the criterion and the step (what `python train.py` passes)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -76,6 +83,8 @@ def main(args: argparse.Namespace) -> int:
         )
     except learn.ConfigError as e:
         raise UsageError(str(e)) from None
+    if args.stop_on_convergence and cfg.behavior.stop_on_convergence is None:
+        cfg.behavior.stop_on_convergence = config.ConvergenceSettings()
     run_dir = Path(args.run_dir) if args.run_dir else config.default_run_dir(cfg_path, cfg)
     demos = args.demos or cfg.demo_path
     if args.make_demos and demos:
@@ -94,6 +103,12 @@ def main(args: argparse.Namespace) -> int:
     except (learn.ConfigError, learn.DemoError, learn.RunDirError) as e:
         raise UsageError(str(e)) from None
     print(f"trained {tr.step} steps in {time.perf_counter() - t0:.0f} s -> {run_dir}")
+    conv = learn.run_files.read_run_info(run_dir).get("convergence") or {}
+    if conv.get("converged_at_step") is not None:
+        print(
+            f"converged at step {conv['converged_at_step']}: installed >= "
+            f"{conv['installed_rate']:.0%} in {conv['summaries']} summaries in a row"
+        )
     for skipped in tr.demo_files_skipped:
         print(f"skipped demo: {skipped}")
     for p in learn.learning_curves(run_dir):

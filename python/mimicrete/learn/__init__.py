@@ -8,9 +8,10 @@
 Modules, by what they own: ``config`` (the YAML schema), ``env`` (which env an id names),
 ``demo_data`` (demos as the trainer reads them), ``episodes`` (episode statistics), ``networks``,
 ``normalizer``, ``buffer`` (rollout, GAE), ``ppo``, ``gail``, ``bc``, ``trainer`` (one update),
-``loop`` (a run: resume, summaries, checkpoints), ``run_files`` (what a run dir holds),
-``evaluate``, ``video`` (rollout videos), ``plots``, ``toyenv``. The names below are imported on
-first use, so importing the package does not import torch.
+``checkpoint`` (what a checkpoint holds), ``loop`` (a run: resume, summaries, checkpoints),
+``run_files`` (what a run dir holds), ``evaluate``, ``video`` (rollout videos), ``plots``,
+``toyenv``. The names below are imported on first use, so importing the package does not import
+torch.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ _EXPORTS = {
     "train": ("loop", "train"),
     "Trainer": ("trainer", "Trainer"),
     "NonFiniteLossError": ("trainer", "NonFiniteLossError"),
-    "ResumeError": ("trainer", "ResumeError"),
+    "ResumeError": ("checkpoint", "ResumeError"),
     "evaluate_run": ("evaluate", "evaluate_run"),
     "format_row": ("evaluate", "format_row"),
     "learning_curves": ("plots", "learning_curves"),
@@ -34,9 +35,9 @@ _EXPORTS = {
 }
 
 _SUBMODULES = {
-    "bc", "buffer", "config", "demo_data", "env", "episodes", "evaluate", "gail", "loop",
-    "networks", "normalizer", "plots", "ppo", "run_files", "scripted_demos", "survivor_demo",
-    "toyenv", "trainer", "video",
+    "bc", "buffer", "checkpoint", "config", "demo_data", "env", "episodes", "evaluate", "gail",
+    "loop", "networks", "normalizer", "plots", "ppo", "run_files", "scripted_demos",
+    "survivor_demo", "toyenv", "trainer", "video",
 }  # fmt: skip
 
 __all__ = sorted(_EXPORTS)

@@ -2,10 +2,13 @@
 
 A second Adam on the actor's parameters only, learning rate = strength x PPO's initial learning
 rate, decayed linearly to 1e-10 over ``steps`` env steps (``steps: 0`` = constant for the whole
-run); once it reaches 1e-10 BC stops. After every PPO update it makes ``num_epoch`` passes over the
-demo buffer in minibatches of ``batch_size`` (capped by ``samples_per_update``). Loss: MSE between
-the policy's *sampled* (reparameterised) continuous action and the demo's, plus cross-entropy of
-the end-effector branch. The observation normaliser is not touched by BC.
+run). After every PPO update it makes ``num_epoch`` passes over the demo buffer in minibatches of
+``batch_size`` (capped by ``samples_per_update``). As in ML-Agents, a round runs at the rate the
+previous round computed and then sets the rate for the next one from the current env step: the
+first round runs at the initial rate, and BC stops once the rate it holds has reached 1e-10 (with
+``steps`` 100,000 and 10,240 steps per update: 10 rounds, at 1.0, 0.90, ..., 0.08 x).
+Loss: MSE between the policy's *sampled* (reparameterised) continuous action and the demo's, plus
+cross-entropy of the end-effector branch. The observation normaliser is not touched by BC.
 """
 
 from __future__ import annotations
@@ -87,10 +90,13 @@ class BehavioralCloning:
         self.samples_per_update = samples_per_update
         self.ee_weight = ee_class_weights(actions, actor.n_cont, ee_class_balance)
         self.opt = torch.optim.Adam(actor.parameters(), lr=initial_lr)
+        self.current_lr = initial_lr  # the rate of the next round (in the checkpoint)
 
     def update(self, step: int, rng: np.random.Generator) -> tuple[float, float] | None:
-        """One BC round at env step ``step``; (mean loss, lr) or None once annealed out."""
-        lr = bc_learning_rate(self.initial_lr, self.steps, step)
+        """One BC round after the update that ended at env step ``step``: at :attr:`current_lr`,
+        which is then set to the schedule's value at ``step``. (mean loss, lr of the round), or
+        None once the rate has annealed out."""
+        lr = self.current_lr
         if lr <= MIN_LR * 1.0001:
             return None
         for g in self.opt.param_groups:
@@ -110,12 +116,19 @@ class BehavioralCloning:
                 loss.backward()
                 self.opt.step()
                 losses.append(loss.item())
+        self.current_lr = bc_learning_rate(self.initial_lr, self.steps, step)
         return float(np.mean(losses)), lr
 
+    def batches_per_pass(self) -> int:
+        """Minibatches in one pass of the warm start over the demo steps."""
+        n = self.obs.shape[0]
+        return max(n // min(self.batch_size, n), 1)
+
     def pretrain(self, grad_steps: int, rng: np.random.Generator) -> list[float]:
-        """Offline warm start (extension ``pretrain_steps``; the paper's "BC is used for
-        pre-training"): ``grad_steps`` minibatch steps at the initial BC learning rate before the
-        first rollout. Returns the loss of every step."""
+        """Offline warm start (extension ``pretrain_passes`` / ``pretrain_steps``; the paper's
+        "BC is used for pre-training"): ``grad_steps`` minibatch steps at the initial BC learning
+        rate before the first rollout, in passes over the shuffled demo steps
+        (:meth:`batches_per_pass` steps each). Returns the loss of every step."""
         for g in self.opt.param_groups:
             g["lr"] = self.initial_lr
         n = self.obs.shape[0]

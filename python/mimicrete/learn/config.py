@@ -12,6 +12,12 @@ is strict too). mimicrete's own additions are marked "extension" below:
   repeated); 0 keeps every step (ML-Agents). See ``demo_data.drop_idle_steps``.
 - ``reward_signals.gail.survivor_bias``: ``"none"`` (ML-Agents exactly) or ``"bootstrap"``
   (the GAIL signal bootstraps through terminal states; see ``gail.py``).
+- ``behaviors.<name>.stop_on_convergence``: stop before ``max_steps`` once the training
+  episodes' installed rate has held a threshold for some summaries (``ConvergenceSettings``);
+  ``mimicrete train --stop-on-convergence`` (what ``python train.py`` passes) turns it on.
+- ``behaviors.<name>.normalizer_update``: when the observation normalisers take in a rollout:
+  ``rollout`` (ML-Agents: before the update that learns from it, so the update starts from
+  log-probabilities the changed normaliser no longer gives) or ``after_update`` (after it).
 - ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads).
 
 Every numeric field is range-checked (:data:`RANGES`) and the error names the field, e.g.
@@ -90,6 +96,7 @@ class BehavioralCloningSettings:
     num_epoch: int | None = None  # None: the trainer's num_epoch
     samples_per_update: int = 0
     pretrain_steps: int = 0  # extension: offline BC gradient steps before the first rollout
+    pretrain_passes: float = 0.0  # extension: the same in passes over the demo steps
     ee_class_balance: float = 0.0  # extension: end-effector CE weights (share ** -balance)
 
 
@@ -107,6 +114,19 @@ class DemoCurriculumSettings:
 
 
 @dataclass
+class ConvergenceSettings:
+    """Extension: stop before ``max_steps`` once training has converged (the paper stopped "when
+    the training step reaches 5,000,000 or converges to the maximum reward"): the installed rate of
+    the training episodes (the sampled policy, episodes from the env's own starts) is at least
+    ``installed_rate`` in each of ``summaries`` summaries in a row, each over at least
+    ``min_episodes`` episodes."""
+
+    installed_rate: float = 0.99
+    summaries: int = 3
+    min_episodes: int = 20
+
+
+@dataclass
 class BehaviorConfig:
     trainer_type: str = "ppo"
     hyperparameters: Hyperparameters = field(default_factory=Hyperparameters)
@@ -121,6 +141,8 @@ class BehaviorConfig:
     demo_episodes: int | None = None  # extension
     demo_drop_idle: float = 0.0  # extension: no-op filtering of the demos (0 = keep all)
     demo_curriculum: DemoCurriculumSettings | None = None  # extension: reverse curriculum
+    stop_on_convergence: ConvergenceSettings | None = None  # extension: early stop
+    normalizer_update: str = "rollout"  # extension: "rollout" (ML-Agents) | "after_update"
 
 
 @dataclass
@@ -215,6 +237,7 @@ RANGES: dict[tuple[type, str], Range] = {
     (BehavioralCloningSettings, "num_epoch"): POSITIVE_INT,
     (BehavioralCloningSettings, "samples_per_update"): NON_NEGATIVE,
     (BehavioralCloningSettings, "pretrain_steps"): NON_NEGATIVE,
+    (BehavioralCloningSettings, "pretrain_passes"): NON_NEGATIVE,
     (BehavioralCloningSettings, "ee_class_balance"): UNIT,
     (DemoCurriculumSettings, "reset_prob"): UNIT,
     (DemoCurriculumSettings, "step_fraction"): Range(0, 1, lo_open=True),
@@ -233,6 +256,9 @@ RANGES: dict[tuple[type, str], Range] = {
     (EnvSettings, "num_envs"): POSITIVE_INT,
     (EnvSettings, "seed"): Range(0, 2**32, hi_open=True),
     (TorchSettings, "num_threads"): POSITIVE_INT,
+    (ConvergenceSettings, "installed_rate"): UNIT,
+    (ConvergenceSettings, "summaries"): POSITIVE_INT,
+    (ConvergenceSettings, "min_episodes"): POSITIVE_INT,
 }
 DEVICES = ("cpu",)
 
@@ -266,6 +292,7 @@ def _build(cls: type, data: Any, where: str) -> Any:
         "gail": GailSettings,
         "behavioral_cloning": BehavioralCloningSettings,
         "demo_curriculum": DemoCurriculumSettings,
+        "stop_on_convergence": ConvergenceSettings,
     }
     for key, value in data.items():
         sub = hints.get(key)
@@ -329,6 +356,16 @@ def _validate(cfg: TrainerConfig) -> None:
             raise ConfigError("reward_signals.gail.use_vail: VAIL is not implemented")
         if g.survivor_bias not in ("none", "bootstrap"):
             raise ConfigError("reward_signals.gail.survivor_bias: 'none' or 'bootstrap'")
+    bc = b.behavioral_cloning
+    if bc is not None and bc.pretrain_steps > 0 and bc.pretrain_passes > 0:
+        raise ConfigError(
+            "behavioral_cloning.pretrain_passes: give the warm start in steps or in passes, "
+            f"not both (pretrain_steps is {bc.pretrain_steps})"
+        )
+    if b.normalizer_update not in ("rollout", "after_update"):
+        raise ConfigError(
+            f"normalizer_update: 'rollout' or 'after_update', got {b.normalizer_update!r}"
+        )
     if not 0.0 <= b.demo_drop_idle < 1.0:
         raise ConfigError(f"demo_drop_idle: a fraction in [0, 1), got {b.demo_drop_idle}")
     if cfg.torch_settings.device not in DEVICES:

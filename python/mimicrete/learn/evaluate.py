@@ -2,7 +2,11 @@
 episode length).
 
 The deterministic policy (Gaussian mean clipped to [-1, 1], most likely end-effector command) runs
-on fresh envs (seed = the run's seed + 10,000 unless given). To avoid favouring short episodes,
+on fresh envs (seed = the run's seed + 10,000 unless given). With ``stochastic`` the policy is
+sampled instead, as ML-Agents runs a trained model unless ``deterministic_inference`` is set (the
+paper does not say which it used); the samples are drawn from a torch generator seeded with the
+eval seed, so a stochastic evaluation is reproducible too. It is written to
+``eval_stochastic.json`` beside the deterministic ``eval.json``. To avoid favouring short episodes,
 ``episodes`` is split evenly over the envs and each env contributes exactly its first
 ``episodes / num_envs`` episodes. ``evaluate_run`` writes ``eval.json`` into the run dir.
 """
@@ -18,23 +22,41 @@ import torch
 
 from .env import make_env
 from .episodes import Episode, EpisodeStats, EpisodeTracker
-from .networks import Actor
+from .networks import Actor, env_action
 from .run_files import load_policy
 
-__all__ = ["evaluate_run", "format_row", "load_policy", "run_episodes"]
+__all__ = ["eval_file", "evaluate_run", "format_row", "load_policy", "run_episodes"]
 
 
 def _num_envs_for(episodes: int, cap: int = 32) -> int:
     return max(d for d in range(1, min(cap, episodes) + 1) if episodes % d == 0)
 
 
+def eval_file(stochastic: bool) -> str:
+    """The file an evaluation writes into the run dir."""
+    return "eval_stochastic.json" if stochastic else "eval.json"
+
+
 @torch.no_grad()
 def run_episodes(
-    actor: Actor, env_id: str, episodes: int, seed: int, max_envs: int = 32
+    actor: Actor,
+    env_id: str,
+    episodes: int,
+    seed: int,
+    max_envs: int = 32,
+    stochastic: bool = False,
 ) -> dict[str, float]:
-    """Mean statistics of ``episodes`` episodes of the deterministic ``actor``."""
+    """Mean statistics of ``episodes`` episodes of ``actor``, deterministic or sampled."""
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
+    with torch.random.fork_rng():
+        torch.manual_seed(seed)
+        return _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic)
+
+
+def _run_episodes(
+    actor: Actor, env_id: str, episodes: int, seed: int, max_envs: int, stochastic: bool
+) -> dict[str, float]:
     n = _num_envs_for(episodes, max_envs)
     per_env = episodes // n
     env = make_env(env_id, n, seed)
@@ -44,7 +66,12 @@ def run_episodes(
     done_count = np.zeros(n, np.int64)
     results: list[Episode] = []
     while (done_count < per_env).any():
-        act = actor.deterministic(torch.from_numpy(obs)).numpy()
+        o = torch.from_numpy(obs)
+        if stochastic:
+            u, k, _ = actor.sample(o)
+            act = env_action(u, k).numpy()
+        else:
+            act = actor.deterministic(o).numpy()
         obs, r, term, trunc, infos = env.step(act)
         obs = np.asarray(obs, np.float32)
         r = np.asarray(r, np.float32)
@@ -63,16 +90,24 @@ def run_episodes(
     }
 
 
-def evaluate_run(run_dir: str | Path, episodes: int, seed: int | None = None) -> dict[str, Any]:
-    """Evaluate ``run_dir/policy.pt`` on ``episodes`` episodes; writes and returns ``eval.json``."""
+def evaluate_run(
+    run_dir: str | Path, episodes: int, seed: int | None = None, stochastic: bool = False
+) -> dict[str, Any]:
+    """Evaluate ``run_dir/policy.pt`` on ``episodes`` episodes; writes and returns ``eval.json``
+    (``eval_stochastic.json`` with ``stochastic``)."""
     run_dir = Path(run_dir)
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     actor, cfg = load_policy(run_dir)
     s = cfg.env_settings.seed + 10_000 if seed is None else seed
-    res = run_episodes(actor, cfg.env_settings.env_id, episodes, s)
-    res = {**res, "seed": s, "env_id": cfg.env_settings.env_id}
-    (run_dir / "eval.json").write_text(json.dumps(res, indent=1))
+    res = run_episodes(actor, cfg.env_settings.env_id, episodes, s, stochastic=stochastic)
+    res = {
+        **res,
+        "seed": s,
+        "env_id": cfg.env_settings.env_id,
+        "policy": "stochastic" if stochastic else "deterministic",
+    }
+    (run_dir / eval_file(stochastic)).write_text(json.dumps(res, indent=1))
     return res
 
 

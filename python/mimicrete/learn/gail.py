@@ -6,8 +6,10 @@
   interpolates x_hat of an expert and a policy sample (the gradient penalty, always on).
 - Updated once per PPO minibatch, against an expert minibatch of the same size.
 - Reward: -log(1 - D * (1 - 1e-7)), which is >= 0.
-- Inputs are normalised by the expert demos' fixed mean/std (ML-Agents updates the encoder's
-  normaliser from expert batches, which converges to the same statistics).
+- Inputs are normalised only with ``gail.network_settings.normalize: true`` (ML-Agents' default is
+  false: raw inputs), and then by the expert demos' fixed mean/std. ML-Agents, with the switch on,
+  updates a running normaliser from every expert minibatch it trains on; the expert data is fixed,
+  so its statistics converge to these.
 
 Survivor bias (``survivor_bias``): the reward above is never negative, so every extra step alive
 earns GAIL reward; an episode that ends early (here: installing the tile, the success!) forfeits
@@ -46,10 +48,17 @@ def signal_terminated(terminated: np.ndarray, survivor_bias: str) -> np.ndarray:
 
 
 class Discriminator(nn.Module):
-    def __init__(self, in_mean: torch.Tensor, in_std: torch.Tensor, hidden: int, layers: int):
+    def __init__(
+        self,
+        in_mean: torch.Tensor,
+        in_std: torch.Tensor,
+        hidden: int,
+        layers: int,
+        normalize: bool = True,
+    ):
         super().__init__()
         n_in = in_mean.shape[0]
-        self.norm = FixedNorm(in_mean, in_std)
+        self.norm: nn.Module = FixedNorm(in_mean, in_std) if normalize else nn.Identity()
         self.body = mlp(n_in, hidden, layers)
         self.out = nn.Linear(hidden, 1)
         nn.init.kaiming_normal_(self.out.weight, nonlinearity="linear")
@@ -91,10 +100,17 @@ def discriminator_loss(
 class Gail:
     """The reward provider: discriminator, its optimiser and the expert data."""
 
-    def __init__(self, expert_inputs: np.ndarray, hidden: int, layers: int, lr: float):
+    def __init__(
+        self,
+        expert_inputs: np.ndarray,
+        hidden: int,
+        layers: int,
+        lr: float,
+        normalize: bool = True,
+    ):
         x = torch.as_tensor(expert_inputs, dtype=torch.float32)
         self.expert = x
-        self.disc = Discriminator(x.mean(0), x.std(0), hidden, layers)
+        self.disc = Discriminator(x.mean(0), x.std(0), hidden, layers, normalize)
         self.opt = torch.optim.Adam(self.disc.parameters(), lr=lr)
 
     @torch.no_grad()

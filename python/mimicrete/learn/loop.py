@@ -3,13 +3,17 @@ final policy. ``train(cfg, run_dir)`` is what ``mimicrete train`` and the experi
 
 Per update (``Trainer.iterate``: rollout -> reward signals -> GAE -> PPO + GAIL -> BC), then a
 summary row every ``summary_freq`` steps (CSV + TensorBoard) and a checkpoint every
-``checkpoint_interval`` steps and at the end; after the last update ``policy.pt`` and
-``policy.onnx``. A non-finite loss stops the run (``NonFiniteLossError``) before anything of that
-update is written, so the last checkpoint stays the last good one.
+``checkpoint_interval`` steps and at the end. With ``stop_on_convergence`` the run ends early
+once the summaries' installed rate has held its threshold ``summaries`` times in a row;
+``run.json`` then records the criterion and the step it was met at (``convergence``). After the
+last update ``policy.pt`` and ``policy.onnx``. A non-finite loss stops the run
+(``NonFiniteLossError``) before anything of that update is written, so the last checkpoint stays
+the last good one.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
@@ -42,6 +46,8 @@ def train(
     tr = Trainer(cfg, run_dir, demos, total, skip_bad_demos=skip_bad_demos)
     config_mod.save(cfg, run_dir / "resolved_config.yaml")
     info: dict[str, Any] = {"max_steps": total, "demos": demos or cfg.demo_path}
+    if resume:  # keep what the run recorded before (its warm start, for one)
+        info = {**run_files.read_run_info(run_dir), **info}
     if tr.demos is not None:
         info["demo_steps_loaded"] = tr.demo_steps_loaded
         info["demo_steps_idle_dropped"] = tr.demo_steps_loaded - len(tr.demos["actions"])
@@ -56,9 +62,16 @@ def train(
         tr.load_state_dict(run_files.load_checkpoint(ck))
         resume_step = tr.step
     else:
-        tr.pretrain()
+        warm = tr.pretrain()
+        if warm is not None:
+            info["bc_warm_start"] = warm
+            run_files.write_run_info(run_dir, info)
     log = run_files.ScalarLog(run_dir, resume_step)
     bar = _progress_bar(total, tr.step) if progress else None
+    conv = cfg.behavior.stop_on_convergence
+    if conv is not None:
+        info["convergence"] = {**dataclasses.asdict(conv), "converged_at_step": None}
+        run_files.write_run_info(run_dir, info)
     ck_every = max(cfg.behavior.checkpoint_interval, 1)
     next_ck = (tr.step // ck_every + 1) * ck_every
     updates = 0
@@ -72,6 +85,11 @@ def train(
                 if row:
                     log.write(tr.step, row)
                 tr.last_summary_step = tr.step
+                if conv is not None and _converged(tr, conv, row or {}):
+                    info["convergence"] = {**dataclasses.asdict(conv), "converged_at_step": tr.step}
+                    run_files.write_run_info(run_dir, info)
+                    tr.save_checkpoint()
+                    break
             if tr.step >= next_ck or tr.step >= total:
                 tr.save_checkpoint()
                 next_ck = (tr.step // ck_every + 1) * ck_every
@@ -89,6 +107,17 @@ def train(
         tr.env.close()
     run_files.save_policy(run_dir, tr.actor, tr.obs_dim, tr.step, cfg)
     return tr
+
+
+def _converged(tr: Trainer, conv: config_mod.ConvergenceSettings, row: dict[str, float]) -> bool:
+    """Count this summary towards convergence; True once ``conv.summaries`` in a row held the
+    installed rate over at least ``conv.min_episodes`` episodes (the streak is in checkpoints)."""
+    ok = (
+        row.get("Environment/Episodes", 0.0) >= conv.min_episodes
+        and row.get("Environment/Installed Rate", 0.0) >= conv.installed_rate
+    )
+    tr.converged_streak = tr.converged_streak + 1 if ok else 0
+    return tr.converged_streak >= conv.summaries
 
 
 def _progress_bar(total: int, initial: int) -> Any:

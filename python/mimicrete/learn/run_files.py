@@ -119,6 +119,15 @@ def prepare_run_dir(run_dir: Path, *, resume: bool, force: bool) -> None:
             p.unlink()
 
 
+def read_run_info(run_dir: Path) -> dict[str, Any]:
+    """``run.json`` of a run dir ({} when there is none or it is not a JSON object)."""
+    try:
+        info = json.loads((run_dir / RUN_INFO).read_text())
+    except (OSError, ValueError):
+        return {}
+    return info if isinstance(info, dict) else {}
+
+
 def write_run_info(run_dir: Path, info: dict[str, Any]) -> None:
     _atomic_write(run_dir / RUN_INFO, json.dumps(info, indent=1))
 

@@ -196,7 +196,7 @@ def toy_config(
             "learning_rate": 5e-4,
             "demo_path": str(demos),
             "survivor_bias": survivor_bias,
-            "network_settings": {"hidden_units": 32, "num_layers": 2},
+            "network_settings": {"normalize": True, "hidden_units": 32, "num_layers": 2},
         }
     b: dict = {
         "trainer_type": "ppo",

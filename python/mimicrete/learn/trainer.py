@@ -37,19 +37,17 @@ The run around it (run dir, resume, checkpoints, the scalar log) is ``loop.py``.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import random
 import time
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from . import checkpoint, run_files
 from . import config as config_mod
-from . import run_files
 from .bc import BehavioralCloning
 from .buffer import Rollout, Signal, UpdateBuffer, gae, horizon_cuts
 from .curriculum import ReverseCurriculum, demo_tracks
@@ -69,10 +67,6 @@ from .ppo import (
 )
 
 SIGNAL_TAG = {"extrinsic": "Extrinsic", "gail": "GAIL"}  # Policy/<tag> Reward, Value Estimate, ...
-
-
-class ResumeError(RuntimeError):
-    """A checkpoint that cannot be resumed exactly (its episodes do not replay)."""
 
 
 class NonFiniteLossError(RuntimeError):
@@ -141,6 +135,7 @@ class Trainer:
                 g.network_settings.hidden_units,
                 g.network_settings.num_layers,
                 g.learning_rate,
+                normalize=g.network_settings.normalize,
             )
         self.bc: BehavioralCloning | None = None
         bcs = self.b.behavioral_cloning
@@ -176,6 +171,7 @@ class Trainer:
 
         self.step = 0
         self.update_idx = 0
+        self.converged_streak = 0  # summaries in a row that met stop_on_convergence
         self.last_summary_step = 0
         self.rollout = Rollout(self.T, self.N, self.obs_dim, N_CONT)
         self.obs: np.ndarray | None = None
@@ -190,19 +186,30 @@ class Trainer:
         self._t_start = self._t_summary  # Environment/Elapsed Seconds counts from here
         self._steps_at_t = 0
 
-    def pretrain(self) -> None:
-        """Offline BC warm start (``behavioral_cloning.pretrain_steps``, a mimicrete extension).
-        The observation normalisers are first seeded with the demos' statistics so that the
-        warm-started policy sees the same inputs once agent data starts flowing in."""
+    def pretrain(self) -> dict[str, float] | None:
+        """Offline BC warm start (``behavioral_cloning.pretrain_steps`` or ``pretrain_passes``,
+        a mimicrete extension); returns its size (gradient steps, passes over the demo steps,
+        demo steps) for ``run.json``, or None without one. The observation normalisers are first
+        seeded with the demos' statistics so that the warm-started policy sees the same inputs
+        once agent data starts flowing in."""
         bcs = self.b.behavioral_cloning
-        if self.bc is None or bcs is None or bcs.pretrain_steps <= 0:
-            return
+        if self.bc is None or bcs is None:
+            return None
+        per_pass = self.bc.batches_per_pass()
+        steps = bcs.pretrain_steps or round(bcs.pretrain_passes * per_pass)
+        if steps <= 0:
+            return None
         demo_obs = torch.from_numpy(np.asarray(self.bc.obs))
         self.actor.norm.update(demo_obs)
         self.critic.norm.update(demo_obs)
-        losses = self.bc.pretrain(bcs.pretrain_steps, self.rng)
+        losses = self.bc.pretrain(steps, self.rng)
         self._check_finite("BC warm-start", losses[-1] if losses else 0.0)
         self._log("Losses/Pretraining Loss", float(np.mean(losses[-50:])))
+        return {
+            "grad_steps": steps,
+            "passes": round(steps / per_pass, 2),
+            "demo_steps": int(self.bc.obs.shape[0]),
+        }
 
     def iterate(self) -> None:
         """One update: rollout -> reward signals -> GAE -> PPO (+ GAIL) -> BC."""
@@ -275,13 +282,13 @@ class Trainer:
     # -- 2. reward signals ------------------------------------------------------------------------
 
     def reward_signals(self) -> list[Signal]:
-        """Update the observation normalisers with the rollout, then every reward signal on it
-        (strength-scaled); per-episode sums go to ``Policy/<Signal> Reward``."""
+        """Update the observation normalisers with the rollout (``normalizer_update: rollout``,
+        ML-Agents' order), then every reward signal on it (strength-scaled); per-episode sums go
+        to ``Policy/<Signal> Reward``."""
         ro = self.rollout
         T, N, D = self.T, self.N, self.obs_dim
-        obs_flat = torch.from_numpy(ro.obs.reshape(T * N, D))
-        self.actor.norm.update(obs_flat)
-        self.critic.norm.update(obs_flat)
+        if self.b.normalizer_update == "rollout":
+            self._update_normalizers()
         rs = self.b.reward_signals
         out = []
         for name in self.signals:
@@ -298,6 +305,11 @@ class Trainer:
             self._episode_signal_sums(sig)
             out.append(sig)
         return out
+
+    def _update_normalizers(self) -> None:
+        obs_flat = torch.from_numpy(self.rollout.obs.reshape(self.T * self.N, self.obs_dim))
+        self.actor.norm.update(obs_flat)
+        self.critic.norm.update(obs_flat)
 
     def _episode_signal_sums(self, sig: Signal) -> None:
         """Per-episode sums of a (strength-scaled) signal, as ML-Agents' Policy/<Signal> Reward."""
@@ -390,6 +402,8 @@ class Trainer:
         self._log("Policy/Approx KL", m["approx_kl"])
         self._log("Policy/Clip Fraction", m["clipfrac"])
         self._bc_round()
+        if self.b.normalizer_update == "after_update":
+            self._update_normalizers()
         self.update_idx += 1
 
     def _ppo_step(
@@ -483,95 +497,11 @@ class Trainer:
     # -- checkpoints ------------------------------------------------------------------------------
 
     def state_dict(self) -> dict[str, Any]:
-        return {
-            "actor": self.actor.state_dict(),
-            "critic": self.critic.state_dict(),
-            "opt": self.opt.state_dict(),
-            "gail": self.gail.state_dict() if self.gail is not None else None,
-            "bc_opt": self.bc.opt.state_dict() if self.bc is not None else None,
-            "step": self.step,
-            "update_idx": self.update_idx,
-            "last_summary_step": self.last_summary_step,
-            "rng": self.rng.bit_generator.state,
-            "torch_rng": torch.get_rng_state(),
-            "np_global_rng": np.random.get_state(),
-            "py_rng": random.getstate(),
-            "curriculum": self.curriculum.state_dict() if self.curriculum is not None else None,
-            "signals": self.signals,
-            "obs_dim": self.obs_dim,
-            "config": self.cfg.to_dict(),
-            "envs": self._envs_state(),
-        }
-
-    def _envs_state(self) -> dict[str, Any] | None:
-        """The vector env and everything per env that outlives a rollout (None before the
-        first reset)."""
-        if self.obs is None:
-            return None
-        ep = self.episodes
-        return {
-            "env": self.env.state(),
-            "obs": self.obs.copy(),
-            "episode_ret": ep.ret.copy(),
-            "episode_length": ep.length.copy(),
-            "episode_picked": ep.picked.copy(),
-            "episode_installed": ep.installed.copy(),
-            "sig_acc": {k: v.copy() for k, v in self._sig_acc.items()},
-            "window": [dataclasses.astuple(e) for e in self._window],
-            "sig_window": {k: list(v) for k, v in self._sig_window.items()},
-            "update_stats": {k: list(v) for k, v in self._update_stats.items()},
-            "recent": (self.recent_picked, self.recent_installed),
-        }
-
-    def _load_envs_state(self, s: dict[str, Any] | None) -> None:
-        if s is None:
-            self.obs = None  # saved before any rollout: reset at the first collect
-            return
-        obs = np.asarray(self.env.restore(s["env"]), np.float32)
-        if not np.array_equal(obs, s["obs"]):
-            bad = int(np.flatnonzero((obs != s["obs"]).any(axis=1))[0])
-            raise ResumeError(
-                f"replaying the checkpoint's running episodes does not reproduce env {bad}'s "
-                "observation: the simulator is not the one that wrote the checkpoint, so the "
-                "run cannot be resumed exactly"
-            )
-        self.obs = obs
-        ep = self.episodes
-        ep.ret[:], ep.length[:] = s["episode_ret"], s["episode_length"]
-        ep.picked[:], ep.installed[:] = s["episode_picked"], s["episode_installed"]
-        self._sig_acc = {k: np.array(v) for k, v in s["sig_acc"].items()}
-        self._window = [Episode(*e) for e in s["window"]]
-        self._sig_window = {k: list(v) for k, v in s["sig_window"].items()}
-        self._update_stats = {k: list(v) for k, v in s["update_stats"].items()}
-        self.recent_picked, self.recent_installed = s["recent"]
+        """Everything an exact resume needs (``checkpoint.py``)."""
+        return checkpoint.trainer_state(self)
 
     def load_state_dict(self, s: dict[str, Any]) -> None:
-        self.actor.load_state_dict(s["actor"])
-        self.critic.load_state_dict(s["critic"])
-        self.opt.load_state_dict(s["opt"])
-        if self.gail is not None:
-            self.gail.load_state_dict(s["gail"])
-        if self.bc is not None:
-            self.bc.opt.load_state_dict(s["bc_opt"])
-        if self.curriculum is not None and s.get("curriculum") is not None:
-            self.curriculum.load_state_dict(s["curriculum"])
-        self.step = int(s["step"])
-        self.update_idx = int(s["update_idx"])
-        self.last_summary_step = int(s["last_summary_step"])
-        self.rng.bit_generator.state = s["rng"]
-        torch.set_rng_state(s["torch_rng"])
-        np.random.set_state(s["np_global_rng"])
-        random.setstate(s["py_rng"])
-        self._steps_at_t = self.step
-        if "envs" in s:
-            self._load_envs_state(s["envs"])
-        else:
-            warnings.warn(
-                "checkpoint of an older version (no env state): the envs restart with a seed "
-                "derived from the update index, so the resumed run is not exact",
-                stacklevel=2,
-            )
-            self.obs = None
+        checkpoint.load_trainer_state(self, s)
 
     def save_checkpoint(self) -> Path:
         """``checkpoints/step_<step>.pt``; refuses (:class:`NonFiniteLossError`) when a weight
