@@ -1,6 +1,7 @@
 """GAE with termination, truncation bootstrap and segment cuts (mimicrete.learn.buffer)."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -83,3 +84,38 @@ def test_horizon_cuts_and_next_obs_uses_final_obs():
     nxt = ro.next_obs()
     assert nxt[0, 0, 0] == 1 and nxt[1, 0, 0] == -7 and nxt[1, 1, 0] == 12
     assert (nxt[2] == 99).all()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_values_and_next_match_the_critic_on_the_true_next_observations(seed):
+    """One critic pass over the distinct observations gives what two full passes (every
+    observation, every true next observation) give, endings and the last step included."""
+    import torch
+
+    from mimicrete.learn.buffer import Rollout
+    from mimicrete.learn.networks import Critic
+
+    rng = np.random.default_rng(seed)
+    T, N, D = 40, 6, 9
+    ro = Rollout(T, N, D, 6)
+    ro.obs[:] = rng.normal(size=ro.obs.shape)
+    ro.last_obs[:] = rng.normal(size=(N, D))
+    ro.final_obs[:] = rng.normal(size=ro.final_obs.shape)
+    ro.terminated[:] = rng.random((T, N)) < 0.05
+    ro.truncated[:] = rng.random((T, N)) < 0.05
+    ro.truncated[-1, 0] = True  # an episode ending at the rollout's last step
+    critic = Critic(D, 2, 32, 2, normalize=True)
+    calls = []
+
+    def value_fn(x):
+        calls.append(len(x))
+        with torch.no_grad():
+            return critic(torch.from_numpy(x)).numpy()
+
+    values, nxt = ro.values_and_next(value_fn)
+    assert calls == [T * N + N + int(ro.ended.sum())]
+    with torch.no_grad():
+        v0 = critic(torch.from_numpy(ro.obs.reshape(-1, D))).numpy().reshape(T, N, 2)
+        n0 = critic(torch.from_numpy(ro.next_obs().reshape(-1, D))).numpy().reshape(T, N, 2)
+    np.testing.assert_allclose(values, v0, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(nxt, n0, rtol=1e-6, atol=1e-6)

@@ -334,11 +334,9 @@ class Trainer:
         ``time_horizon`` steps, the rollout's end); the combined advantage; the flat buffer."""
         ro = self.rollout
         T, N, D = self.T, self.N, self.obs_dim
-        obs_flat = torch.from_numpy(ro.obs.reshape(T * N, D))
-        next_obs = torch.from_numpy(ro.next_obs().reshape(T * N, D))
         with torch.no_grad():
-            values = self.critic(obs_flat).numpy().reshape(T, N, -1).astype(np.float64)
-            next_values = self.critic(next_obs).numpy().reshape(T, N, -1).astype(np.float64)
+            v32, nv32 = ro.values_and_next(lambda x: self.critic(torch.from_numpy(x)).numpy())
+        values, next_values = v32.astype(np.float64), nv32.astype(np.float64)
         cut = ro.ended | horizon_cuts(T, N, self.b.time_horizon)
         advs, rets = [], []
         for i, sig in enumerate(signals):
