@@ -37,6 +37,59 @@ def _our_steps_per_s(cfg, tmp: Path) -> tuple[float, float, float]:
     return steps / (t_roll + t_upd), steps / t_roll, t_upd / UPDATES
 
 
+def _update_breakdown(cfg, tmp: Path) -> None:
+    """Where an update's time goes (BC + GAIL + PPO), per part, and the GAE critic pass before
+    (two passes of T x N rows: every observation and every true next one) and after (one pass
+    over the distinct observations), timed on the same rollouts."""
+    from collections import defaultdict
+
+    from mimicrete.learn.trainer import Trainer
+
+    tr = Trainer(cfg, tmp / "breakdown", None, 5_000_000)
+    spent: dict[str, float] = defaultdict(float)
+
+    def timed(obj, name: str, label: str) -> None:
+        f = getattr(obj, name)
+
+        def g(*a, **k):
+            t = time.perf_counter()
+            r = f(*a, **k)
+            spent[label] += time.perf_counter() - t
+            return r
+
+        setattr(obj, name, g)
+
+    timed(tr, "_ppo_step", "PPO minibatch steps")
+    timed(tr, "_gail_step", "GAIL discriminator steps")
+    timed(tr.gail, "rewards", "GAIL rewards on the rollout")
+    timed(tr, "_bc_round", "BC round")
+    timed(tr, "advantages", "GAE (critic pass + GAE)")
+    gae_old = gae_new = 0.0
+    for _ in range(UPDATES):
+        tr.collect()
+        ro = tr.rollout
+        T, N, D = tr.T, tr.N, tr.obs_dim
+        with torch.no_grad():
+            t0 = time.perf_counter()
+            tr.critic(torch.from_numpy(ro.obs.reshape(T * N, D)))
+            tr.critic(torch.from_numpy(ro.next_obs().reshape(T * N, D)))
+            t1 = time.perf_counter()
+            ro.values_and_next(lambda x: tr.critic(torch.from_numpy(x)).numpy())
+            t2 = time.perf_counter()
+        gae_old += t1 - t0
+        gae_new += t2 - t1
+        t = time.perf_counter()
+        tr.update(tr.advantages(tr.reward_signals()))
+        spent["whole update (signals, GAE, PPO, GAIL, BC)"] += time.perf_counter() - t
+    print(f"  where a BC+GAIL+PPO update goes (toy env, mean of {UPDATES} updates):")
+    for label, sec in spent.items():
+        print(f"    {label:<46s} {sec / UPDATES:6.2f} s")
+    print(
+        f"    GAE critic pass: two full passes {gae_old / UPDATES:.3f} s, distinct observations "
+        f"only {gae_new / UPDATES:.3f} s ({gae_old / max(gae_new, 1e-9):.2f}x)"
+    )
+
+
 def _toy_cfg(tmp: Path, gail: float, bc: float):
     from mimicrete.learn import config
     from mimicrete.learn.toyenv import toy_config
@@ -131,6 +184,7 @@ def run() -> None:
             f"  toy env, ours (BC+GAIL+PPO):  {full:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
             f"update {upd:.2f} s)"
         )
+        _update_breakdown(_toy_cfg(tmp, 0.01, 0.5), tmp)
         try:
             from mimicrete.learn import config
             from mimicrete.learn.env import make_env
