@@ -40,6 +40,20 @@ class Person:
     hesitancy: float  # probability that a reach pauses part-way
     overshoot: float  # typical overshoot as a share of the reach distance
 
+    @classmethod
+    def draw(cls, rng: np.random.Generator, handedness: str) -> Person:
+        """A demonstrator drawn from ``rng``: speed, hand size, tremor, sway, hesitancy and
+        overshoot uniform in their ranges."""
+        return cls(
+            speed=float(rng.uniform(0.15, 0.30)),
+            hand_scale=float(rng.uniform(0.82, 1.18)),
+            handedness=handedness,
+            tremor_mm=float(rng.uniform(0.2, 0.6)),
+            sway_mm=float(rng.uniform(0.2, 0.7)),
+            hesitancy=float(rng.uniform(0.1, 0.4)),
+            overshoot=float(rng.uniform(0.02, 0.08)),
+        )
+
 
 class Motion:
     """Accumulates a TCP path (Base), a gesture-shape track and keyframes at 90 Hz."""
@@ -168,6 +182,27 @@ def _tremor(n: int, dt: float, rng: np.random.Generator, person: Person) -> np.n
         amp = person.tremor_mm * 1e-3 / 3.0
         out += amp * np.sin(2 * np.pi * f * t[:, None] + rng.uniform(0, 2 * np.pi, size=3))
     return out + person.sway_mm * 1e-3 * _slow_noise(n, dt, rng)
+
+
+def tracked_hand(
+    shapes: np.ndarray,
+    hand_rot: np.ndarray,
+    wrist: np.ndarray,
+    person: Person,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The joints a hand tracker reports ``(n, 26, 3)`` for finger ``shapes`` ``(n, 7)`` (changed
+    in place: one-frame finger-tracking glitches, 0.4 % of frames, show a random gesture's
+    shape) on a hand of ``person``'s size and handedness at ``hand_rot`` ``(n, 3, 3)`` and
+    ``wrist`` ``(n, 3)``, with tracking noise (more on occluded joints)."""
+    names = list(hm.GESTURE_SHAPES)
+    for k in np.flatnonzero(rng.random(len(shapes)) < 0.004):
+        shapes[k] = hm.jitter_shape(
+            hm.GESTURE_SHAPES[names[rng.integers(len(names))]], rng
+        ).as_array()
+    local = hm.hand_joints_local_batch(shapes, person.hand_scale, person.handedness)
+    joints = np.einsum("nij,nkj->nki", hand_rot, local) + wrist[:, None, :]
+    return hm.tracking_noise_batch(joints, rng, sigma=0.0004, occluded_sigma=0.004)
 
 
 _UP = np.array([0.0, 0.0, 1.0])
