@@ -257,6 +257,35 @@ def _carry_and_place(
     m.reach(m.here + _UP * 0.08, "retreat")
 
 
+#: Per task, the ranges (m above the grasp point, s) of :func:`_approach_and_grasp`.
+_GRASP: dict[str, dict[str, tuple[float, float]]] = {
+    "suction": {
+        "approach": (0.06, 0.10),
+        "settle": (0.3, 0.7),
+        "settled": (0.5, 0.9),
+        "grasp": (0.5, 0.9),
+    },
+    # the gripper's fingers close at 0.1 m/s
+    "grip": {
+        "approach": (0.08, 0.12),
+        "settle": (0.3, 0.7),
+        "settled": (0.6, 1.0),
+        "grasp": (0.9, 1.3),
+    },
+    "screw": {
+        "approach": (0.07, 0.10),
+        "settle": (0.4, 0.8),
+        "settled": (0.7, 1.1),
+        "grasp": (0.9, 1.3),
+    },
+}
+#: Per pick-and-place task, the ranges (m above the target, s) of :func:`_carry_and_place`.
+_PLACE: dict[str, dict[str, tuple[float, float]]] = {
+    "suction": {"carry": (0.06, 0.10), "lower": (0.0, 0.006), "release": (0.3, 0.6)},
+    "grip": {"carry": (0.07, 0.10), "lower": (0.002, 0.006), "release": (0.6, 1.0)},
+}
+
+
 def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     """The TCP path and gestures of one demonstration of ``scene.task``."""
     task = scene.task
@@ -269,64 +298,37 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     )
     m.hold(rng.uniform(0.3, 0.8), "start")
     obj, tgt = scene.object, scene.target
+    above, held_below = obj, 0.0  # where the grasp is; how far the object hangs below the TCP
     if task == "suction":
-        grasp = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
+        above = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
         clearance = rng.uniform(0.008, 0.016)
-        _approach_and_grasp(
-            m,
-            grasp,
-            approach=(0.06, 0.10),
-            settle=(0.3, 0.7),
-            grasp_at=lambda: grasp + up * clearance,
-            settled=(0.5, 0.9),
-            close=shp[cls_close],
-            close_label=cls_close,
-            grasp=(0.5, 0.9),
-        )
-        _carry_and_place(
-            m,
-            tgt,
-            held_below=clearance + obj[2],  # tile centre to cup centre while held
-            carry=(0.06, 0.10),
-            lower=(0.0, 0.006),
-            release_shape=shp[cls_open],
-            release_label=cls_open,
-            release=(0.3, 0.6),
-        )
+        held_below = clearance + obj[2]  # tile centre to cup centre while held
+
+        def grasp_at() -> np.ndarray:
+            return above + up * clearance
     elif task == "grip":
-        _approach_and_grasp(
-            m,
-            obj,
-            approach=(0.08, 0.12),
-            settle=(0.3, 0.7),
-            grasp_at=lambda: obj + up * rng.uniform(-0.003, 0.003),
-            settled=(0.6, 1.0),
-            close=shp[cls_close],
-            close_label=cls_close,
-            grasp=(0.9, 1.3),  # fingers close at 0.1 m/s
-        )
+
+        def grasp_at() -> np.ndarray:
+            return obj + up * rng.uniform(-0.003, 0.003)
+    elif task == "screw":
+
+        def grasp_at() -> np.ndarray:
+            return obj.copy()
+    else:
+        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    _approach_and_grasp(
+        m, above, grasp_at=grasp_at, close=shp[cls_close], close_label=cls_close, **_GRASP[task]
+    )
+    if task in _PLACE:
         _carry_and_place(
             m,
             tgt,
-            held_below=0.0,
-            carry=(0.07, 0.10),
-            lower=(0.002, 0.006),
+            held_below=held_below,
             release_shape=shp[cls_open],
             release_label=cls_open,
-            release=(0.6, 1.0),
+            **_PLACE[task],
         )
-    elif task == "screw":
-        _approach_and_grasp(
-            m,
-            obj,
-            approach=(0.07, 0.10),
-            settle=(0.4, 0.8),
-            grasp_at=obj.copy,
-            settled=(0.7, 1.1),
-            close=shp[cls_close],
-            close_label=cls_close,
-            grasp=(0.9, 1.3),
-        )
+    else:  # screw
         m.gesture(
             shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten", "closing_tightening"
         )
@@ -341,7 +343,5 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
         m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release", "opening_stopped")
         m.hold(rng.uniform(0.4, 0.8), "release")
         m.reach(m.here + up * 0.08, "retreat")
-    else:
-        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
     m.hold(rng.uniform(0.3, 0.6), "end")
     return m
