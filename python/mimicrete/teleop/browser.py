@@ -364,6 +364,18 @@ def enter_vr(page: Any, timeout_s: float = 20.0) -> None:
     page.wait_for_function("() => window.__mimicrete.inSession", timeout=timeout_s * 1000)
 
 
+@contextmanager
+def vr_page(browser: Any, url: str, **open_kw: Any) -> Iterator[Any]:
+    """:func:`open_page` (``open_kw`` its keywords), then :func:`enter_vr`; the page is closed
+    when the block ends."""
+    page = open_page(browser, url, **open_kw)
+    try:
+        enter_vr(page)
+        yield page
+    finally:
+        page.close()
+
+
 def replay(page: Any, recording: dict[str, Any], mode: str | None = None) -> None:
     """Start replaying ``recording`` (from :func:`build_recording`) in an emulated session."""
     mode = mode or recording["mimicrete"]["mode"]
@@ -568,5 +580,6 @@ __all__ = [
     "replay_samples",
     "serve_static",
     "track_from_log",
+    "vr_page",
     "wait_replay_done",
 ]
