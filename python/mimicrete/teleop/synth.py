@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from mimicrete.hands import layouts
+from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
 from .synth_motion import Person, _slow_noise, _tremor, plan_task, tracked_hand
@@ -113,17 +114,14 @@ def synth_episode(
         tracked[k0 : k0 + length] = False
         joints[k0 : k0 + length] = joints[k0 - 1]  # the runtime repeats its last estimate
     out = layouts.to_layout(joints, layout)
-    header = {
-        "format": "mimicrete.handlog",
-        "version": 1,
-        "layout": layout,
-        "space": calib.space,
-        "handedness": handedness,
-        "units": "m",
-        "task": scene.task,
-        "episode_seed": int(scene.episode_seed),
-        "source": "mimicrete synth-hands (scripted demonstrator)",
-        "extra": {
+    header = handlog.header(
+        layout,
+        calib.space,
+        handedness,
+        task=scene.task,
+        episode_seed=int(scene.episode_seed),
+        source="mimicrete synth-hands (scripted demonstrator)",
+        extra={
             "synth_seed": int(seed),
             "calibration": calib.to_dict(),
             "scene": scene.to_dict(),
@@ -134,7 +132,7 @@ def synth_episode(
             },
             "rate_hz": HAND_RATE_HZ,
         },
-    }
+    )
     return Episode(header, t, tracked, out, phases, frames, gestures, changing)
 
 
