@@ -45,17 +45,7 @@ class FakeServer:
     def __init__(self, page: Any, hello: dict[str, Any] | None = None) -> None:
         self.frames: list[bytes] = []
         self.texts: list[dict[str, Any]] = []
-        self.hello = hello or {
-            "type": "hello",
-            "protocol": 1,
-            "role": "driver",
-            "task": "suction",
-            "layout": "webxr",
-            "control_dt": 0.04,
-            "scene": [],
-            "view_from_base": list(np.eye(4).ravel()),
-            "frames": {},
-        }
+        self.hello = hello or br.driver_hello("suction")
         self.state: dict[str, Any] = {}
         page.route_web_socket("**/ws", self._connect)
 
@@ -241,17 +231,12 @@ def _scene_hello(task: str) -> dict[str, Any]:
 
     calib = standing_calibration()
     env = Session(task, "webxr", "right", calib, 0).env
-    return {
-        "type": "hello",
-        "protocol": 1,
-        "role": "driver",
-        "task": task,
-        "layout": "webxr",
-        "control_dt": 0.04,
-        "scene": scene_entities(env.scene()),
-        "view_from_base": view_from_base(calib),
-        "frames": frame_poses(env.snapshot()),
-    }
+    return br.driver_hello(
+        task,
+        scene=scene_entities(env.scene()),
+        view_from_base=view_from_base(calib),
+        frames=frame_poses(env.snapshot()),
+    )
 
 
 def _drawn_after(page: Any, fake: FakeServer, state: dict[str, Any]) -> dict[str, Any]:
