@@ -12,18 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from _cli_run import run_cli as run
 from mimicrete import demos
 from mimicrete.teleop import synth as sy
-
-
-def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "mimicrete", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=300,
-    )
 
 
 def no_traceback(p: subprocess.CompletedProcess[str]) -> None:

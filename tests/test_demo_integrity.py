@@ -6,15 +6,13 @@ come from the official ``mcap`` reader on the undamaged file."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import mimicrete as mc
+from _cli_run import run_cli
 from mimicrete import _native
 
 pytestmark = pytest.mark.skipif(
@@ -75,20 +73,6 @@ def _flip_in(data: bytes, chunk: dict) -> bytes:
     return bytes(b)
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(Path(mc.__file__).parent.parent), env.get("PYTHONPATH", "")]
-    )
-    return subprocess.run(
-        [sys.executable, "-m", "mimicrete", *args],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
-
-
 @pytest.fixture()
 def demo(tmp_path: Path) -> Path:
     p = tmp_path / "ep.mcap"
@@ -99,7 +83,7 @@ def demo(tmp_path: Path) -> Path:
 def test_inspect_verifies_by_default_and_names_the_damaged_chunk(demo: Path, tmp_path: Path):
     chunks = _chunks(demo)
     assert len(chunks) >= 8
-    r = _cli("inspect", str(demo))
+    r = run_cli("inspect", str(demo))
     assert r.returncode == 0, r.stdout + r.stderr
     assert f"integrity: OK ({len(chunks)} chunks, every CRC checked)" in r.stdout
     for k in (0, len(chunks) // 2, len(chunks) - 1):
@@ -107,7 +91,7 @@ def test_inspect_verifies_by_default_and_names_the_damaged_chunk(demo: Path, tmp
         bad.write_bytes(_flip_in(demo.read_bytes(), chunks[k]))
         lost = len(chunks[k]["msgs"])
         if k < len(chunks) - 1:
-            r = _cli("inspect", str(bad))
+            r = run_cli("inspect", str(bad))
             assert r.returncode == 1, r.stdout + r.stderr
             assert (
                 f"integrity: DAMAGED (1 of {len(chunks)} chunks damaged, {lost} messages lost)"
@@ -117,7 +101,7 @@ def test_inspect_verifies_by_default_and_names_the_damaged_chunk(demo: Path, tmp
             assert "salvage_to" in r.stdout
             continue
         # The JSON report says the same.
-        r = _cli("inspect", "--json", str(bad))
+        r = run_cli("inspect", "--json", str(bad))
         assert r.returncode == 1
         info = json.loads(r.stdout)
         damaged = [c for c in info["integrity"]["chunks"] if c["error"] is not None]
@@ -126,7 +110,7 @@ def test_inspect_verifies_by_default_and_names_the_damaged_chunk(demo: Path, tmp
         ]
         assert info["steps"] == N  # the summary itself is intact
     # --no-verify reads only the summary, as before.
-    r = _cli("inspect", "--no-verify", str(tmp_path / "bad0.mcap"))
+    r = run_cli("inspect", "--no-verify", str(tmp_path / "bad0.mcap"))
     assert r.returncode == 0 and "integrity" not in r.stdout
 
 
@@ -134,7 +118,7 @@ def test_inspect_of_a_cut_file_reports_it(demo: Path, tmp_path: Path):
     cut = tmp_path / "cut.mcap"
     data = demo.read_bytes()
     cut.write_bytes(data[: len(data) // 2])
-    r = _cli("inspect", str(cut))
+    r = run_cli("inspect", str(cut))
     assert r.returncode == 1
     assert "no footer: the file is cut or was never finished" in r.stdout
     assert "salvage_to" in r.stdout
@@ -178,6 +162,6 @@ def test_salvage_recovers_every_other_chunk_and_the_result_loads(
     truncated_rows = np.flatnonzero(d.truncated).tolist()
     assert truncated_rows == ([lost[0] - 1] if lost and lost[0] > 0 else [])
     # The salvaged file is healthy.
-    r = _cli("inspect", str(fixed))
+    r = run_cli("inspect", str(fixed))
     assert r.returncode == 0, r.stdout
     assert "salvage:" in r.stdout and "step_gaps" in r.stdout

@@ -13,6 +13,7 @@ import pytest
 
 import mimicrete as mc
 from mimicrete import _native, kin
+from mimicrete.hands import log as handlog
 
 
 def test_ik_not_converged_carries_iterations_and_residuals():
@@ -47,14 +48,7 @@ def test_ik_unreachable_has_a_reason_and_no_solver_numbers():
 
 
 def test_handlog_error_fields(tmp_path: Path):
-    header = {
-        "format": "mimicrete.handlog",
-        "version": 1,
-        "layout": "mediapipe",
-        "space": "openxr",
-        "handedness": "right",
-        "units": "m",
-    }
+    header = handlog.header("mediapipe", "openxr", "right")
     frame = {"t": 0.0, "tracked": True, "joints": [[0.0, 0.0, 0.0]] * 21}
     bad = dict(frame, t=0.1, joints=[[0.0, 0.0, 0.0]] * 20)
     p = tmp_path / "bad.jsonl"
@@ -91,19 +85,7 @@ def test_python_raised_log_errors_have_the_same_fields(tmp_path: Path):
     from mimicrete.teleop import convert as cv
 
     p = tmp_path / "empty.jsonl"
-    p.write_text(
-        json.dumps(
-            {
-                "format": "mimicrete.handlog",
-                "version": 1,
-                "layout": "mediapipe",
-                "space": "openxr",
-                "handedness": "right",
-                "units": "m",
-            }
-        )
-        + "\n"
-    )
+    p.write_text(json.dumps(handlog.header("mediapipe", "openxr", "right")) + "\n")
     with pytest.raises(mc.LogFormatError) as ei:
         cv.load_log(p)
     assert (ei.value.file, ei.value.line, ei.value.reason) == (str(p), 2, "no frames")

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ import numpy as np
 from mimicrete import _native
 
 __all__ = [
+    "STEP_DTYPES",
     "Demos",
     "configure",
     "inspect",
@@ -32,10 +34,26 @@ __all__ = [
     "read",
     "salvage",
     "salvage_to",
+    "step_arrays",
     "verify",
 ]
 
 STEP_TOPIC = "/demo/step"
+#: The per-step arrays of :class:`Demos` (and of a demo ``.npz``) and their dtypes.
+STEP_DTYPES: dict[str, Any] = {
+    "obs": np.float32,
+    "actions": np.float32,
+    "rewards": np.float32,
+    "terminated": bool,
+    "truncated": bool,
+    "episode": np.int64,
+}
+
+
+def step_arrays(rows: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Per-step values (a sequence for each key of :data:`STEP_DTYPES`) as the arrays
+    :func:`load` gives, with its dtypes."""
+    return {k: np.asarray(rows[k], dtype) for k, dtype in STEP_DTYPES.items()}
 
 
 def _writer_class() -> Any:

@@ -70,16 +70,22 @@ def task_of(env_id: str) -> str:
 SEED_MAX = 2**64 - 1
 
 
-def _seed(seed: Any, what: str = "seed") -> int:
-    """``seed`` as a u64, or a ValueError naming it and the range [0, 2**64-1]."""
+def _integer(value: Any, what: str, expected: str) -> int:
+    """``value`` as an int (bools and non-integral numbers refused), or a ValueError
+    ``"{what} must be {expected}, got …"`` naming its value and type."""
     try:
-        if isinstance(seed, bool):
+        if isinstance(value, bool):
             raise TypeError
-        s = operator.index(seed)
+        return operator.index(value)
     except TypeError:
         raise ValueError(
-            f"{what} must be an integer in [0, 2**64-1], got {seed!r} ({type(seed).__name__})"
+            f"{what} must be {expected}, got {value!r} ({type(value).__name__})"
         ) from None
+
+
+def _seed(seed: Any, what: str = "seed") -> int:
+    """``seed`` as a u64, or a ValueError naming it and the range [0, 2**64-1]."""
+    s = _integer(seed, what, "an integer in [0, 2**64-1]")
     if not 0 <= s <= SEED_MAX:
         raise ValueError(f"{what} must be an integer in [0, 2**64-1], got {s}")
     return s
@@ -87,14 +93,7 @@ def _seed(seed: Any, what: str = "seed") -> int:
 
 def _count(value: Any, what: str) -> int:
     """A positive integer (bools and non-integral numbers refused), or a ValueError naming it."""
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        n = operator.index(value)
-    except TypeError:
-        raise ValueError(
-            f"{what} must be a positive integer, got {value!r} ({type(value).__name__})"
-        ) from None
+    n = _integer(value, what, "a positive integer")
     if n < 1:
         raise ValueError(f"{what} must be at least 1, got {n}")
     return n

@@ -32,6 +32,20 @@ def _write_cfg(tmp_path):
     return path
 
 
+def _train_args(cfg_path, run_dir, eval_episodes: int, *more: str) -> list[str]:
+    """The flags of a quiet ``mimicrete train`` run of ``cfg_path`` into ``run_dir``."""
+    return [
+        "--config",
+        str(cfg_path),
+        "--run-dir",
+        str(run_dir),
+        "--no-progress",
+        "--eval-episodes",
+        str(eval_episodes),
+        *more,
+    ]
+
+
 def _check_run(run_dir):
     resolved = yaml.safe_load((run_dir / "resolved_config.yaml").read_text())
     assert resolved["behaviors"]["Toy"]["max_steps"] == 3072
@@ -64,21 +78,7 @@ def test_train_and_eval_through_cli(tmp_path, capsys):
     main = _cli_main()
     cfg_path = _write_cfg(tmp_path)
     run_dir = tmp_path / "run"
-    assert (
-        main(
-            [
-                "train",
-                "--config",
-                str(cfg_path),
-                "--run-dir",
-                str(run_dir),
-                "--no-progress",
-                "--eval-episodes",
-                "0",
-            ]
-        )
-        == 0
-    )
+    assert main(["train", *_train_args(cfg_path, run_dir, 0)]) == 0
     _check_run(run_dir)
     capsys.readouterr()
     assert main(["eval", str(run_dir), "--episodes", "20"]) == 0
@@ -95,40 +95,13 @@ def test_train_module_entry_points_and_resume_flag(tmp_path):
     run_dir = tmp_path / "run"
     p = argparse.ArgumentParser()
     cli_train.configure(p)
-    args = p.parse_args(
-        [
-            "--config",
-            str(cfg_path),
-            "--run-dir",
-            str(run_dir),
-            "--no-progress",
-            "--eval-episodes",
-            "10",
-            "--max-steps",
-            "1024",
-            "--seed",
-            "3",
-        ]
-    )
+    args = p.parse_args(_train_args(cfg_path, run_dir, 10, "--max-steps", "1024", "--seed", "3"))
     assert cli_train.main(args) == 0
     assert json.loads((run_dir / "eval.json").read_text())["episodes"] == 10
     assert config.load(run_dir / "resolved_config.yaml").env_settings.seed == 3
     # --resume with a larger budget continues from step 1024
     args = p.parse_args(
-        [
-            "--config",
-            str(cfg_path),
-            "--run-dir",
-            str(run_dir),
-            "--no-progress",
-            "--eval-episodes",
-            "0",
-            "--max-steps",
-            "2048",
-            "--seed",
-            "3",
-            "--resume",
-        ]
+        _train_args(cfg_path, run_dir, 0, "--max-steps", "2048", "--seed", "3", "--resume")
     )
     assert cli_train.main(args) == 0
     steps = [int(r["step"]) for r in csv.DictReader(open(run_dir / "scalars.csv"))]

@@ -122,15 +122,21 @@ def test_interrupted_and_resumed_equals_uninterrupted(
     assert any(r["Environment/Episodes"] for r in _scalars(run)[-2:])
 
 
+def _stopped(tmp: Path, env: str, updates: int):
+    """A run of ``env`` stopped after ``updates`` updates (a checkpoint after each): its config,
+    its dir, its latest checkpoint's path and that checkpoint's state."""
+    cfg = _config(tmp, env, 1)
+    run = tmp / "run"
+    learn.train(cfg, run, progress=False, stop_after_updates=updates)
+    ck = run_files.latest_checkpoint(run)
+    assert ck is not None
+    return cfg, run, ck, run_files.load_checkpoint(ck)
+
+
 def test_a_checkpoint_that_does_not_replay_is_refused(tmp_path: Path) -> None:
     """A checkpoint whose stored observations differ from the replay (another simulator) stops
     the resume with a clear error instead of continuing inexactly."""
-    cfg = _config(tmp_path, "sim", 1)
-    run = tmp_path / "run"
-    learn.train(cfg, run, progress=False, stop_after_updates=1)
-    ck = run_files.latest_checkpoint(run)
-    assert ck is not None
-    s = run_files.load_checkpoint(ck)
+    cfg, run, ck, s = _stopped(tmp_path, "sim", 1)
     s["envs"]["obs"][2, -1] += 1e-3
     torch.save(s, ck)
     with pytest.raises(ResumeError, match="env 2's observation: the simulator is not the one"):
@@ -140,12 +146,7 @@ def test_a_checkpoint_that_does_not_replay_is_refused(tmp_path: Path) -> None:
 def test_a_checkpoint_of_an_older_version_resumes_with_a_warning(tmp_path: Path) -> None:
     """Checkpoints written before the env state was stored still resume (the envs restart from
     a derived seed, as that version did), and say the resume is not exact."""
-    cfg = _config(tmp_path, "toy", 1)
-    run = tmp_path / "run"
-    learn.train(cfg, run, progress=False, stop_after_updates=2)
-    ck = run_files.latest_checkpoint(run)
-    assert ck is not None
-    s = run_files.load_checkpoint(ck)
+    cfg, run, ck, s = _stopped(tmp_path, "toy", 2)
     del s["envs"]
     torch.save(s, ck)
     with pytest.warns(UserWarning, match="older version .* not exact"):

@@ -16,6 +16,8 @@ from mimicrete.learn import config, curriculum
 from mimicrete.learn.curriculum import DemoTrack, ReverseCurriculum, start_schedule
 from mimicrete.learn.networks import Actor
 
+from ._small import SMALL_RUN
+
 
 def _need_sim():
     native = pytest.importorskip("mimicrete._native")
@@ -238,11 +240,7 @@ def test_short_fewdemo_run(hand_demos, tmp_path):
     cfg = config.with_overrides(
         cfg,
         [
-            "behavior.hyperparameters.buffer_size=1024",
-            "behavior.hyperparameters.batch_size=256",
-            "behavior.network_settings.hidden_units=32",
-            "behavior.network_settings.num_layers=2",
-            "behavior.behavioral_cloning.pretrain_steps=20",
+            *SMALL_RUN,
             "behavior.max_steps=3072",
             "behavior.summary_freq=1024",
             "behavior.checkpoint_interval=2048",

@@ -10,6 +10,8 @@ import torch
 from mimicrete import learn
 from mimicrete.learn import config, demo_data, evaluate
 
+from ._small import SMALL_RUN
+
 
 def _need_sim():
     native = pytest.importorskip("mimicrete._native")
@@ -30,12 +32,8 @@ def test_short_run_on_tile_suction(tmp_path):
     cfg = config.with_overrides(
         cfg,
         [
-            "behavior.hyperparameters.buffer_size=1024",
-            "behavior.hyperparameters.batch_size=256",
-            "behavior.network_settings.hidden_units=32",
-            "behavior.network_settings.num_layers=2",
+            *SMALL_RUN,
             "behavior.reward_signals.gail.network_settings.hidden_units=32",
-            "behavior.behavioral_cloning.pretrain_steps=20",
             "behavior.demo_episodes=6",
             "behavior.max_steps=2048",
             "behavior.summary_freq=1024",

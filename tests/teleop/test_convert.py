@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from mimicrete import LogFormatError, kin
 from mimicrete.cli import main as cli_main
+from mimicrete.hands import log as handlog
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import session as ss
 from mimicrete.teleop import synth as sy
@@ -40,16 +41,7 @@ def test_load_log_roundtrip(tmp_path, scene_fn):
     np.testing.assert_array_equal(log.joints[4], np.array(raw["joints"]))
 
 
-HEADER = json.dumps(
-    {
-        "format": "mimicrete.handlog",
-        "version": 1,
-        "layout": "mediapipe",
-        "space": "openxr",
-        "handedness": "right",
-        "units": "m",
-    }
-)
+HEADER = json.dumps(handlog.header("mediapipe", "openxr", "right"))
 GOOD = json.dumps({"t": 0.0, "tracked": True, "joints": [[0.0, 0.0, 0.0]] * 21})
 
 

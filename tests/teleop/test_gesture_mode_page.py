@@ -114,13 +114,11 @@ def taught(tmp_path_factory) -> Iterator[dict[str, Any]]:
     seen: dict[str, Any] = {"out": out, "shipped_file": shipped_file}
     server = TeleopServer(live)
     with br.launch() as chromium, ServerThread(server) as run:
-        page = br.open_page(
+        with br.vr_page(
             chromium,
             f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0",
             viewport=(640, 720),
-        )
-        try:
-            br.enter_vr(page)
+        ) as page:
             page.wait_for_function(
                 "() => window.__mimicrete.gestures && window.__mimicrete.gestures.active"
             )
@@ -210,8 +208,6 @@ def taught(tmp_path_factory) -> Iterator[dict[str, Any]]:
                 timeout=60_000,
             )
             seen["errors"] = [e for e in page.mimicrete_errors if "pageerror" in e]
-        finally:
-            page.close()
     seen["saved"] = live.last_saved
     yield seen
 

@@ -24,16 +24,14 @@ def iwer_samples():
     try:
         with br.serve_static() as url, br.launch() as browser:
             sinks: dict[str, br.FrameSink] = {}
-            page = br.open_page(
+            with br.vr_page(
                 browser,
                 f"{url}/?emulate=quest3&devui=0",
                 before_load=lambda p: sinks.setdefault("s", br.FrameSink(p)),
-            )
-            br.enter_vr(page)
-            source = br.IwerPoseSource(page, sinks["s"], POSES, seed=3)
-            rec = gr.record(source, [(c, 100) for c in POSES], min_interval_s=0.03)
-            errors = [e for e in page.mimicrete_errors if "pageerror" in e]
-            page.close()
+            ) as page:
+                source = br.IwerPoseSource(page, sinks["s"], POSES, seed=3)
+                rec = gr.record(source, [(c, 100) for c in POSES], min_interval_s=0.03)
+                errors = [e for e in page.mimicrete_errors if "pageerror" in e]
     except FileNotFoundError as e:  # no built page / no chromium
         pytest.fail(str(e))
     assert errors == []

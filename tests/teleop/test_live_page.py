@@ -62,13 +62,11 @@ def _record_one(chromium, tmp_path, task: str, screenshot: Path | None = None):
         view = "&spectator=1&spectator_hz=5" if screenshot is not None else ""
         # a small window while the episode runs (software WebGL on a loaded machine keeps the XR
         # frame rate up), the README's size for the picture
-        page = br.open_page(
+        with br.vr_page(
             chromium,
             f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0{view}",
             viewport=(480, 270),
-        )
-        try:
-            br.enter_vr(page)
+        ) as page:
             # the recording reaches the page first (seconds on a loaded machine), so that the
             # hand starts moving as soon as the episode starts
             rec = br.build_recording(right=log)
@@ -112,8 +110,6 @@ def _record_one(chromium, tmp_path, task: str, screenshot: Path | None = None):
             page.wait_for_timeout(300)  # a few more states reach the HUD
             hud = page.inner_text("#hud")
             errors = list(page.mimicrete_errors)
-        finally:
-            page.close()
     return live, server, hud, errors, shot
 
 
@@ -206,11 +202,9 @@ def test_recentre_maps_the_hand_onto_the_tool(chromium, tmp_path):
     hand = _still_hand(far, calib)
     wrist_local = hand.joints[0, 0]
     with ServerThread(TeleopServer(live)) as run:
-        page = br.open_page(
+        with br.vr_page(
             chromium, f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0", viewport=(320, 240)
-        )
-        try:
-            br.enter_vr(page)
+        ) as page:
             br.replay(page, br.build_recording(right=hand))
             page.wait_for_function(
                 "() => { const s = window.__mimicrete.state;"
@@ -243,8 +237,6 @@ def test_recentre_maps_the_hand_onto_the_tool(chromium, tmp_path):
                 lambda: (live.session.target.copy(), live.session.env.snapshot()["tool0"]["t"])
             )
             errors = list(page.mimicrete_errors)
-        finally:
-            page.close()
     assert not errors, errors
     # saved, and what the server sent is the saved calibration's view_from_base
     saved = Calibration.from_dict(json.loads((tmp_path / "out" / "calibration.json").read_text()))

@@ -8,11 +8,8 @@ IWER replay); the end-to-end test against ``mimicrete teleop`` lives with the se
 
 from __future__ import annotations
 
-import functools
-import http.server
 import json
 import struct
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -28,28 +25,12 @@ STATIC = Path(__file__).resolve().parents[2] / "python" / "mimicrete" / "teleop"
 FRAME = struct.Struct("<4sIddII75f75f")
 
 
-class _Static(http.server.SimpleHTTPRequestHandler):
-    """``/`` → index.html, ``/static/x`` → STATIC/x, as the real server lays it out."""
-
-    def translate_path(self, path: str) -> str:
-        path = path.split("?", 1)[0]
-        rel = "index.html" if path == "/" else path.removeprefix("/static/")
-        return str(STATIC / rel)
-
-    def log_message(self, *args: Any) -> None:
-        pass
-
-
 @pytest.fixture(scope="module")
 def base_url() -> Iterator[str]:
     if not (STATIC / "main.js").exists():
         pytest.fail(f"{STATIC} has no built page: run `make web` (npm ci && npm run build in web/)")
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Static))
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    yield f"http://127.0.0.1:{server.server_address[1]}"
-    server.shutdown()
-    server.server_close()
+    with br.serve_static(STATIC) as url:
+        yield url
 
 
 @pytest.fixture(scope="module")
@@ -64,17 +45,7 @@ class FakeServer:
     def __init__(self, page: Any, hello: dict[str, Any] | None = None) -> None:
         self.frames: list[bytes] = []
         self.texts: list[dict[str, Any]] = []
-        self.hello = hello or {
-            "type": "hello",
-            "protocol": 1,
-            "role": "driver",
-            "task": "suction",
-            "layout": "webxr",
-            "control_dt": 0.04,
-            "scene": [],
-            "view_from_base": list(np.eye(4).ravel()),
-            "frames": {},
-        }
+        self.hello = hello or br.driver_hello("suction")
         self.state: dict[str, Any] = {}
         page.route_web_socket("**/ws", self._connect)
 
@@ -203,51 +174,49 @@ def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, m
     json.dumps(rec)  # plain JSON: what the page receives
 
     fake: dict[str, FakeServer] = {}
-    page = br.open_page(
+    with br.vr_page(
         chromium,
         # IWER's dev UI loads in one mode and is left out (?devui=0, lighter) in the other
         f"{base_url}/?emulate=quest3" + ("" if mode == "exact" else "&devui=0"),
         before_load=lambda p: fake.setdefault("s", FakeServer(p)),
-    )
-    br.enter_vr(page)
-    page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 5")
-    br.replay(page, rec)
-    br.wait_replay_done(page, timeout_s=60)
-    page.wait_for_timeout(200)
-    samples = {s[0]: s for s in br.replay_samples(page)}
-    frames = [decode(f) for f in list(fake["s"].frames)]
-    checked = {"right": 0, "left": 0, "absent": 0}
-    worst = 0.0
-    between = 0  # frames whose playback clock fell strictly between two records
-    record_ms = {f[0] for f in rec["frames"]}
-    for f in frames:
-        if f["seq"] not in samples:
-            continue
-        _, time_ms, index = samples[f["seq"]]
-        for side in ("right", "left"):
-            want = br.iwer_expected(rec, time_ms, side, index)
-            got = f[side]
-            assert (got is None) == (want is None), (f["seq"], side, time_ms)
-            if want is None:
-                checked["absent"] += 1
+    ) as page:
+        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 5")
+        br.replay(page, rec)
+        br.wait_replay_done(page, timeout_s=60)
+        page.wait_for_timeout(200)
+        samples = {s[0]: s for s in br.replay_samples(page)}
+        frames = [decode(f) for f in list(fake["s"].frames)]
+        checked = {"right": 0, "left": 0, "absent": 0}
+        worst = 0.0
+        between = 0  # frames whose playback clock fell strictly between two records
+        record_ms = {f[0] for f in rec["frames"]}
+        for f in frames:
+            if f["seq"] not in samples:
                 continue
-            worst = max(worst, float(np.max(np.abs(got - want))))
-            checked[side] += 1
-        between += time_ms not in record_ms
-    print(f"{mode}: {len(frames)} frames, checked {checked}, worst |Δ| {worst:.2e} m")
-    assert worst < 1e-5
-    # the replay covered the log: most frames checked, both hands and the untracked gap seen
-    assert checked["right"] >= 20 and checked["left"] >= 10 and checked["absent"] >= 2
-    if mode == "interpolate":
-        assert between >= 20  # IWER really interpolated, and we matched it
-    else:
-        assert between == 0
-        shown = {s[2] for s in samples.values()}
-        assert max(shown) == rec["mimicrete"]["records"] - 1  # reached the last record
-    # the states the fake server echoed gave round-trip samples
-    assert page.evaluate("window.__mimicrete.rtt.length") >= len(frames) - 5
-    assert page.mimicrete_errors == []
-    page.close()
+            _, time_ms, index = samples[f["seq"]]
+            for side in ("right", "left"):
+                want = br.iwer_expected(rec, time_ms, side, index)
+                got = f[side]
+                assert (got is None) == (want is None), (f["seq"], side, time_ms)
+                if want is None:
+                    checked["absent"] += 1
+                    continue
+                worst = max(worst, float(np.max(np.abs(got - want))))
+                checked[side] += 1
+            between += time_ms not in record_ms
+        print(f"{mode}: {len(frames)} frames, checked {checked}, worst |Δ| {worst:.2e} m")
+        assert worst < 1e-5
+        # the replay covered the log: most frames checked, both hands and the untracked gap seen
+        assert checked["right"] >= 20 and checked["left"] >= 10 and checked["absent"] >= 2
+        if mode == "interpolate":
+            assert between >= 20  # IWER really interpolated, and we matched it
+        else:
+            assert between == 0
+            shown = {s[2] for s in samples.values()}
+            assert max(shown) == rec["mimicrete"]["records"] - 1  # reached the last record
+        # the states the fake server echoed gave round-trip samples
+        assert page.evaluate("window.__mimicrete.rtt.length") >= len(frames) - 5
+        assert page.mimicrete_errors == []
 
 
 def _scene_hello(task: str) -> dict[str, Any]:
@@ -262,17 +231,12 @@ def _scene_hello(task: str) -> dict[str, Any]:
 
     calib = standing_calibration()
     env = Session(task, "webxr", "right", calib, 0).env
-    return {
-        "type": "hello",
-        "protocol": 1,
-        "role": "driver",
-        "task": task,
-        "layout": "webxr",
-        "control_dt": 0.04,
-        "scene": scene_entities(env.scene()),
-        "view_from_base": view_from_base(calib),
-        "frames": frame_poses(env.snapshot()),
-    }
+    return br.driver_hello(
+        task,
+        scene=scene_entities(env.scene()),
+        view_from_base=view_from_base(calib),
+        frames=frame_poses(env.snapshot()),
+    )
 
 
 def _drawn_after(page: Any, fake: FakeServer, state: dict[str, Any]) -> dict[str, Any]:
@@ -295,48 +259,48 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
     hello = _scene_hello(task)
     fake: dict[str, FakeServer] = {}
     pip = "&spectator=pip&spectator_hz=10" if task == "grip" else ""  # the corner view too
-    page = br.open_page(
+    with br.vr_page(
         chromium,
         f"{base_url}/?emulate=quest3&devui=0{pip}",
         viewport=(320, 240),
         before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
-    )
-    br.enter_vr(page)
-    page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
-    s = fake["s"]
-    frames = hello["frames"]
-    if task == "suction":
-        off = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": False}})
-        on = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": True}})
-        assert off["cups"] == on["cups"] == 4
-        assert off["cupsLit"] == 0 and on["cupsLit"] == 4
-    else:
-        kind = "gripper" if task == "grip" else "screw"
-        half = next(
-            e["cubes"][0]["size"]["y"] / 2 for e in hello["scene"] if e["id"].startswith("finger")
-        )
-        for opening in (0.085, 0.04, 0.0):
-            ee: dict[str, Any] = {"kind": kind, "opening": opening}
-            if kind == "screw":
-                ee.update(on=opening < 0.03, spin=0)
-            drawn = _drawn_after(page, s, {"frames": frames, "ee": ee})
-            y = opening / 2 + half
-            assert drawn["fingers"]["finger_left"] == pytest.approx(y, abs=1e-6)
-            assert drawn["fingers"]["finger_right"] == pytest.approx(-y, abs=1e-6)
-    if task == "screw":
-        for spin, angle in ((1, -1.0), (-1, 0.5), (0, 0.5)):
-            turned = dict(frames)
-            p = frames["object"]
-            turned["object"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
-            ee = {"kind": "screw", "on": spin != 0, "spin": spin, "opening": 0.019}
-            drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
-            assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)
-            assert drawn["spinRing"] == (spin != 0) and drawn["spinDirection"] == spin
-    if pip:
-        page.wait_for_function("() => window.__mimicrete.spectator().frames > 2")
-        box = page.eval_on_selector("#spectator", "(c) => c.getBoundingClientRect().toJSON()")
-        assert 0 < box["width"] < 320 and box["x"] > 0  # a corner of the window
-    else:
-        assert page.evaluate("window.__mimicrete.spectator()") is None
-    assert page.mimicrete_errors == []
-    page.close()
+    ) as page:
+        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
+        s = fake["s"]
+        frames = hello["frames"]
+        if task == "suction":
+            off = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": False}})
+            on = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": True}})
+            assert off["cups"] == on["cups"] == 4
+            assert off["cupsLit"] == 0 and on["cupsLit"] == 4
+        else:
+            kind = "gripper" if task == "grip" else "screw"
+            half = next(
+                e["cubes"][0]["size"]["y"] / 2
+                for e in hello["scene"]
+                if e["id"].startswith("finger")
+            )
+            for opening in (0.085, 0.04, 0.0):
+                ee: dict[str, Any] = {"kind": kind, "opening": opening}
+                if kind == "screw":
+                    ee.update(on=opening < 0.03, spin=0)
+                drawn = _drawn_after(page, s, {"frames": frames, "ee": ee})
+                y = opening / 2 + half
+                assert drawn["fingers"]["finger_left"] == pytest.approx(y, abs=1e-6)
+                assert drawn["fingers"]["finger_right"] == pytest.approx(-y, abs=1e-6)
+        if task == "screw":
+            for spin, angle in ((1, -1.0), (-1, 0.5), (0, 0.5)):
+                turned = dict(frames)
+                p = frames["object"]
+                turned["object"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
+                ee = {"kind": "screw", "on": spin != 0, "spin": spin, "opening": 0.019}
+                drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
+                assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)
+                assert drawn["spinRing"] == (spin != 0) and drawn["spinDirection"] == spin
+        if pip:
+            page.wait_for_function("() => window.__mimicrete.spectator().frames > 2")
+            box = page.eval_on_selector("#spectator", "(c) => c.getBoundingClientRect().toJSON()")
+            assert 0 < box["width"] < 320 and box["x"] > 0  # a corner of the window
+        else:
+            assert page.evaluate("window.__mimicrete.spectator()") is None
+        assert page.mimicrete_errors == []

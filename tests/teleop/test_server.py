@@ -14,6 +14,7 @@ import pytest
 from aiohttp.test_utils import TestClient, TestServer
 
 from mimicrete import demos
+from mimicrete.hands.log import HandLogData
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import synth as sy
 from mimicrete.teleop.live import Live
@@ -61,28 +62,48 @@ def _run(coro):
     return asyncio.run(coro)
 
 
+def _suction(tmp_path) -> tuple[HandLogData, Live]:
+    """A synthetic suction hand log and a live session calibrated and seeded for it."""
+    log = _log(tmp_path)
+    return log, Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+
+
+def _serve(server: TeleopServer, body):
+    """``await body(client)`` against ``server`` on a loopback test client, closed afterwards."""
+
+    async def go():
+        client = await _client(server)
+        try:
+            return await body(client)
+        finally:
+            await client.close()
+
+    return _run(go())
+
+
+async def _driver(client: TestClient):
+    """A WebSocket that has said hello as the driver, and the server's hello."""
+    ws = await client.ws_connect("/ws")
+    return ws, await _hello(ws)
+
+
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_live_episode_installs_and_its_handlog_converts_to_the_same_demo(tmp_path, task):
     log = _log(tmp_path, task)
     calib = cv.calibration_of(log)
     live = Live(task, tmp_path / "out", calibration=calib, seed=int(log.header["episode_seed"]))
 
-    async def go():
-        client = await _client(TeleopServer(live))
-        try:
-            ws = await client.ws_connect("/ws")
-            hello = await _hello(ws)
-            assert hello["role"] == "driver" and hello["task"] == task
-            assert any(e["frame_id"] == "object" for e in hello["scene"])
-            assert len(hello["view_from_base"]) == 16
-            await ws.send_json({"type": "control", "action": "start"})
-            states = await _stream(ws, log, until=lambda m: not m["recording"])
-            await ws.close()
-            return states
-        finally:
-            await client.close()
+    async def go(client):
+        ws, hello = await _driver(client)
+        assert hello["role"] == "driver" and hello["task"] == task
+        assert any(e["frame_id"] == "object" for e in hello["scene"])
+        assert len(hello["view_from_base"]) == 16
+        await ws.send_json({"type": "control", "action": "start"})
+        states = await _stream(ws, log, until=lambda m: not m["recording"])
+        await ws.close()
+        return states
 
-    states = _run(go())
+    states = _serve(TeleopServer(live), go)
     assert states[0]["recording"] and states[-1]["last_result"] == live.task.success
     saved = live.last_saved
     assert saved["finished"] and saved["result"] == live.task.success
@@ -98,23 +119,17 @@ def test_live_episode_installs_and_its_handlog_converts_to_the_same_demo(tmp_pat
 
 
 def test_follows_the_hand_and_reports_why_not(tmp_path):
-    log = _log(tmp_path)
-    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+    log, live = _suction(tmp_path)
 
-    async def go():
-        client = await _client(TeleopServer(live))
-        try:
-            ws = await client.ws_connect("/ws")
-            await _hello(ws)
-            first = await _stream(ws, log)
-            # the hand lost: the robot holds and the HUD says why
-            await ws.send_bytes(pack_frame(99999, float(log.t[-1]) + 0.1, 0.0, None))
-            lost = await ws.receive_json(timeout=10)
-            return first, lost
-        finally:
-            await client.close()
+    async def go(client):
+        ws, _ = await _driver(client)
+        first = await _stream(ws, log)
+        # the hand lost: the robot holds and the HUD says why
+        await ws.send_bytes(pack_frame(99999, float(log.t[-1]) + 0.1, 0.0, None))
+        lost = await ws.receive_json(timeout=10)
+        return first, lost
 
-    first, lost = _run(go())
+    first, lost = _serve(TeleopServer(live), go)
     assert first[0]["why"] == "no hand yet" or first[0]["following"]
     assert not first[-1]["recording"] and first[-1]["why"] in ("not recording", None)
     assert lost["why"] == "hand not tracked"
@@ -122,51 +137,39 @@ def test_follows_the_hand_and_reports_why_not(tmp_path):
 
 
 def test_bad_input_is_dropped_and_counted_and_never_fatal(tmp_path):
-    log = _log(tmp_path)
-    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+    log, live = _suction(tmp_path)
 
-    async def go():
-        client = await _client(TeleopServer(live))
-        try:
-            ws = await client.ws_connect("/ws")
-            await _hello(ws)
-            await ws.send_bytes(b"\x00" * 10)  # wrong size
-            await ws.send_bytes(b"XXXX" + b"\x00" * (FRAME_BYTES - 4))  # wrong magic
-            nan = np.full((25, 3), np.nan)
-            await ws.send_bytes(pack_frame(1, 0.0, 0.0, nan))  # NaN in a tracked hand
-            await ws.send_str("not json")
-            await ws.send_json({"type": "teleport"})
-            states = await _stream(ws, log, seq0=10, until=lambda m: True)
-            return states[-1]
-        finally:
-            await client.close()
+    async def go(client):
+        ws, _ = await _driver(client)
+        await ws.send_bytes(b"\x00" * 10)  # wrong size
+        await ws.send_bytes(b"XXXX" + b"\x00" * (FRAME_BYTES - 4))  # wrong magic
+        nan = np.full((25, 3), np.nan)
+        await ws.send_bytes(pack_frame(1, 0.0, 0.0, nan))  # NaN in a tracked hand
+        await ws.send_str("not json")
+        await ws.send_json({"type": "teleport"})
+        states = await _stream(ws, log, seq0=10, until=lambda m: True)
+        return states[-1]
 
-    last = _run(go())
+    last = _serve(TeleopServer(live), go)
     assert last["dropped"] == {"malformed": 3, "nan": 1, "unknown": 1, "not_driver": 0}
 
 
 def test_second_client_watches_and_cannot_drive(tmp_path):
-    log = _log(tmp_path)
-    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+    log, live = _suction(tmp_path)
 
-    async def go():
-        client = await _client(TeleopServer(live))
-        try:
-            a = await client.ws_connect("/ws")
-            await _hello(a)
-            b = await client.ws_connect("/ws")
-            await b.send_json({"type": "hello", "protocol": 1, "role": "driver"})
-            err = await b.receive_json(timeout=10)
-            hello_b = await b.receive_json(timeout=10)
-            await b.send_bytes(pack_frame(0, 0.0, 0.0, log.joints[0]))
-            await b.send_json({"type": "control", "action": "start"})
-            states = await _stream(a, log, until=lambda m: m["seq"] >= 8)
-            watched = await b.receive_json(timeout=10)
-            return err, hello_b, states[-1], watched
-        finally:
-            await client.close()
+    async def go(client):
+        a, _ = await _driver(client)
+        b = await client.ws_connect("/ws")
+        await b.send_json({"type": "hello", "protocol": 1, "role": "driver"})
+        err = await b.receive_json(timeout=10)
+        hello_b = await b.receive_json(timeout=10)
+        await b.send_bytes(pack_frame(0, 0.0, 0.0, log.joints[0]))
+        await b.send_json({"type": "control", "action": "start"})
+        states = await _stream(a, log, until=lambda m: m["seq"] >= 8)
+        watched = await b.receive_json(timeout=10)
+        return err, hello_b, states[-1], watched
 
-    err, hello_b, last, watched = _run(go())
+    err, hello_b, last, watched = _serve(TeleopServer(live), go)
     assert err["type"] == "error" and hello_b["role"] == "viewer"
     assert last["dropped"]["not_driver"] == 2 and not last["recording"]
     assert watched["type"] == "state"
@@ -175,41 +178,31 @@ def test_second_client_watches_and_cannot_drive(tmp_path):
 def test_token_and_origin_are_checked(tmp_path):
     live = Live("suction", tmp_path / "out")
 
-    async def go():
-        client = await _client(TeleopServer(live, token="s3cret"))
-        try:
-            r1 = await client.get("/ws")
-            r2 = await client.get("/ws?token=wrong")
-            r3 = await client.get("/ws?token=s3cret", headers={"Origin": "http://evil.example"})
-            ws = await client.ws_connect("/ws?token=s3cret")
-            hello = await _hello(ws)
-            return r1.status, r2.status, r3.status, hello["role"]
-        finally:
-            await client.close()
+    async def go(client):
+        r1 = await client.get("/ws")
+        r2 = await client.get("/ws?token=wrong")
+        r3 = await client.get("/ws?token=s3cret", headers={"Origin": "http://evil.example"})
+        ws = await client.ws_connect("/ws?token=s3cret")
+        hello = await _hello(ws)
+        return r1.status, r2.status, r3.status, hello["role"]
 
-    assert _run(go()) == (403, 403, 403, "driver")
+    assert _serve(TeleopServer(live, token="s3cret"), go) == (403, 403, 403, "driver")
 
 
 def test_disconnect_mid_episode_keeps_what_was_recorded(tmp_path):
-    log = _log(tmp_path)
-    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+    log, live = _suction(tmp_path)
 
-    async def go():
-        client = await _client(TeleopServer(live))
-        try:
-            ws = await client.ws_connect("/ws")
-            await _hello(ws)
-            await ws.send_json({"type": "control", "action": "start"})
-            await _stream(ws, log, until=lambda m: m["step"] >= 40)
-            await ws.close()
-            for _ in range(100):  # the server notices the close
-                if not live.recording:
-                    break
-                await asyncio.sleep(0.02)
-        finally:
-            await client.close()
+    async def go(client):
+        ws, _ = await _driver(client)
+        await ws.send_json({"type": "control", "action": "start"})
+        await _stream(ws, log, until=lambda m: m["step"] >= 40)
+        await ws.close()
+        for _ in range(100):  # the server notices the close
+            if not live.recording:
+                break
+            await asyncio.sleep(0.02)
 
-    _run(go())
+    _serve(TeleopServer(live), go)
     saved = live.last_saved
     assert saved is not None and not saved["finished"] and saved["result"] == "disconnected"
     assert saved["demo"].endswith(".mcap.partial")
@@ -226,17 +219,13 @@ def _left(shape: str) -> np.ndarray:
     from mimicrete.hands import model as hm
     from mimicrete.hands.layouts import to_layout
 
+    base = "opening" if shape == "pinch" else shape
+    j = to_layout(
+        hm.hand_joints(hm.GESTURE_SHAPES[base], np.eye(3), np.zeros(3), handedness="left"),
+        "webxr",
+    )
     if shape == "pinch":  # thumb tip on the index tip: move the thumb there
-        j = to_layout(
-            hm.hand_joints(hm.GESTURE_SHAPES["opening"], np.eye(3), np.zeros(3), handedness="left"),
-            "webxr",
-        )  # noqa: E501
         j[4] = j[9] + 0.005
-    else:
-        j = to_layout(
-            hm.hand_joints(hm.GESTURE_SHAPES[shape], np.eye(3), np.zeros(3), handedness="left"),
-            "webxr",
-        )  # noqa: E501
     return j + np.array([-0.3, -0.3, -0.4])
 
 
@@ -245,8 +234,7 @@ def test_left_hand_starts_stops_and_discards_without_controllers(tmp_path):
     1.5 s discards the one running. The right hand keeps driving meanwhile."""
     from mimicrete.teleop.protocol import parse_frame
 
-    log = _log(tmp_path)
-    live = Live("suction", tmp_path / "out", calibration=cv.calibration_of(log), seed=3)
+    log, live = _suction(tmp_path)
     t = [float(log.t[0])]
 
     def hold(left: np.ndarray | None, seconds: float, k0: int) -> int:

@@ -189,28 +189,28 @@ def browser_round_trip(seconds: float = SECONDS) -> dict[str, Any]:
     server = TeleopServer(live)
     server.log = lambda msg: None
     with ServerThread(server) as run, br.launch() as browser:
-        page = br.open_page(
+        with br.vr_page(
             browser,
             f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0",
             viewport=(320, 240),
-        )
-        br.enter_vr(page)
-        page.click("#btn-start")
-        br.replay(page, br.build_recording(right=track_r, left=track_l))
-        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 30")
-        page.evaluate(
-            "() => { const h = window.__mimicrete; h.rtt.length = 0;"
-            " h.mark = {...h.counts, t: performance.now()}; }"
-        )
-        n_server = run.call(lambda: len(server.stats.server_ms))
-        time.sleep(seconds)
-        page_side = page.evaluate(
-            "() => { const h = window.__mimicrete; return {rtt: h.rtt.slice(),"
-            " counts: h.counts, mark: h.mark, t: performance.now()}; }"
-        )
-        errors = list(page.mimicrete_errors)
-        stats = run.call(lambda: (list(server.stats.server_ms[n_server:]), server.stats.dropped))
-        page.close()
+        ) as page:
+            page.click("#btn-start")
+            br.replay(page, br.build_recording(right=track_r, left=track_l))
+            page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 30")
+            page.evaluate(
+                "() => { const h = window.__mimicrete; h.rtt.length = 0;"
+                " h.mark = {...h.counts, t: performance.now()}; }"
+            )
+            n_server = run.call(lambda: len(server.stats.server_ms))
+            time.sleep(seconds)
+            page_side = page.evaluate(
+                "() => { const h = window.__mimicrete; return {rtt: h.rtt.slice(),"
+                " counts: h.counts, mark: h.mark, t: performance.now()}; }"
+            )
+            errors = list(page.mimicrete_errors)
+            stats = run.call(
+                lambda: (list(server.stats.server_ms[n_server:]), server.stats.dropped)
+            )
     c, m = page_side["counts"], page_side["mark"]
     elapsed = (page_side["t"] - m["t"]) / 1000.0
     return {

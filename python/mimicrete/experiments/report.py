@@ -126,6 +126,15 @@ def _departures(runs: list[Run]) -> list[str]:
     return out
 
 
+def _table(columns: list[str], rows: list[list[object]]) -> list[str]:
+    """A Markdown table: the header of ``columns``, its rule and one line a row."""
+    return [
+        "| " + " | ".join(columns) + " |",
+        "|" + "---|" * len(columns),
+        *("| " + " | ".join(map(str, row)) + " |" for row in rows),
+    ]
+
+
 def _list(gs) -> str:
     return ", ".join(str(g) for g in sorted(gs))
 
@@ -241,19 +250,29 @@ def section_table5(r: ReportInput) -> list[str]:
         "Ours: `mimicrete eval` (deterministic policy, `eval.json`), mean ± sample standard "
         "deviation over seeds (n = seeds evaluated). Paper: one run per group, 100 executions.",
         "",
-        "| Group | Algorithms (strength) | Demos | n | Picked (ours) | Picked (paper) | "
-        "Installed (ours) | Installed (paper) | Episode length (ours) | Episode length (paper) |",
-        "|---|---|---|---|---|---|---|---|---|---|",
     ]
+    rows = []
     for g, st in r.stats.items():
         alg, demos = PAPER_TABLE3.get(g, ("?", "?"))
         pp, pi, pl = PAPER_TABLE5.get(g, (math.nan, math.nan, math.nan))
-        lines.append(
-            f"| {g} | {alg} | {demos} | {st.installed[2]} | {_pct(st.picked)} | {100 * pp:.0f} % | "
-            f"{_pct(st.installed)} | {100 * pi:.0f} % | {_num(st.length)} | {pl:.0f} |"
+        rows.append(
+            [
+                g,
+                alg,
+                demos,
+                st.installed[2],
+                _pct(st.picked),
+                f"{100 * pp:.0f} %",
+                _pct(st.installed),
+                f"{100 * pi:.0f} %",
+                _num(st.length),
+                f"{pl:.0f}",
+            ]
         )
-    lines.append("")
-    return lines
+    columns = ["Group", "Algorithms (strength)", "Demos", "n", "Picked (ours)", "Picked (paper)"]
+    columns += ["Installed (ours)", "Installed (paper)"]
+    columns += ["Episode length (ours)", "Episode length (paper)"]
+    return [*lines, *_table(columns, rows), ""]
 
 
 def section_comparison(r: ReportInput) -> list[str]:
@@ -312,14 +331,14 @@ def section_gail_loss(r: ReportInput) -> list[str]:
             else ""
         ),
         "",
-        "| Group | n | GAIL loss (ours) | GAIL loss (paper) |",
-        "|---|---|---|---|",
     ]
+    rows = []
     for g, paper in PAPER_GAIL_LOSS.items():
         st = r.stats.get(g)
         ours = _num(st.gail_loss, ".2f") if st else "–"
         n = st.gail_loss[2] if st else 0
-        lines.append(f"| {g} | {n} | {ours} | {paper:.2f} |")
+        rows.append([g, n, ours, f"{paper:.2f}"])
+    lines += _table(["Group", "n", "GAIL loss (ours)", "GAIL loss (paper)"], rows)
     if "gail" in r.figures:
         lines += ["", f"![GAIL loss]({r.rel(r.figures['gail'])})"]
     lines.append("")
@@ -335,30 +354,27 @@ def section_steps_to_threshold(r: ReportInput) -> list[str]:
         "The paper reports no such number; it trained "
         "until 5M steps or convergence.",
         "",
-        "| Group | seeds reaching it | steps (mean ± SD of those) | per seed | "
-        "installed rate at the cut (training) |",
-        "|---|---|---|---|---|",
     ]
+    rows = []
     for g, st in r.stats.items():
         hits = [s for s in st.steps_to if s is not None]
         per = ", ".join(_steps(s) if s is not None else "never" for s in st.steps_to) or "–"
-        lines.append(
-            f"| {g} | {len(hits)}/{len(st.steps_to)} | "
-            f"{_num(mean_sd(hits), ',.0f') if hits else '–'} | {per} | "
-            f"{_pct(st.final_installed_train)} |"
+        rows.append(
+            [
+                g,
+                f"{len(hits)}/{len(st.steps_to)}",
+                _num(mean_sd(hits), ",.0f") if hits else "–",
+                per,
+                _pct(st.final_installed_train),
+            ]
         )
-    lines.append("")
-    return lines
+    columns = ["Group", "seeds reaching it", "steps (mean ± SD of those)", "per seed"]
+    columns.append("installed rate at the cut (training)")
+    return [*lines, *_table(columns, rows), ""]
 
 
 def section_runs(r: ReportInput) -> list[str]:
-    lines = [
-        "## Runs",
-        "",
-        "| Run | Status | Final step | Wall clock (train + eval) | Steps/s | Picked | Installed "
-        "| Length |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
+    rows = []
     for run in r.runs:
         wc = f"{run.wall_clock_s / 60:.1f} min" if run.wall_clock_s else "–"
         sps = (
@@ -367,14 +383,21 @@ def section_runs(r: ReportInput) -> list[str]:
             else "–"
         )
         e = run.eval or {}
-        lines.append(
-            f"| {run.name} | {run.status} | {_steps(run.final_step)} | {wc} | {sps} | "
-            f"{_pct(mean_sd([e.get('picked_rate')]))} | "
-            f"{_pct(mean_sd([e.get('installed_rate')]))} | "
-            f"{_num(mean_sd([e.get('mean_episode_length')]))} |"
+        rows.append(
+            [
+                run.name,
+                run.status,
+                _steps(run.final_step),
+                wc,
+                sps,
+                _pct(mean_sd([e.get("picked_rate")])),
+                _pct(mean_sd([e.get("installed_rate")])),
+                _num(mean_sd([e.get("mean_episode_length")])),
+            ]
         )
-    lines.append("")
-    return lines
+    columns = ["Run", "Status", "Final step", "Wall clock (train + eval)", "Steps/s", "Picked"]
+    columns += ["Installed", "Length"]
+    return ["## Runs", "", *_table(columns, rows), ""]
 
 
 def section_crashes(r: ReportInput) -> list[str]:

@@ -71,16 +71,30 @@ class GestureModel:
         tracked: np.ndarray | None = None,
     ) -> np.ndarray:
         """Classes of consecutive frames ``(T, N, dims)`` of one stream (object array; ``None``
-        where the frame is untracked or degenerate), the same as :meth:`predict_margin` frame
-        by frame."""
+        where the frame is untracked — not asked — or degenerate), the same as
+        :meth:`predict_margin` frame by frame (after :meth:`reset`)."""
         f = self.features(np.asarray(joints), handedness, layout)
         ok = np.all(np.isfinite(f), axis=1)
         if tracked is not None:
             ok &= np.asarray(tracked, dtype=bool)
         out = np.full(len(f), None, dtype=object)
         if ok.any():
-            out[ok] = self.pipeline.predict(f[ok])
+            out[ok] = self.pipeline.predict(self._sequence_inputs(f[ok]))
         return out
+
+    def _sequence_inputs(self, f: np.ndarray) -> np.ndarray:
+        """The SVM's inputs for the usable frames' features ``f`` of one stream, in order."""
+        return f
+
+    def _stream_input(self, f: np.ndarray) -> np.ndarray:
+        """The SVM's input for the next usable frame's features ``f`` of the stream."""
+        return f
+
+    def _fast_svc(self) -> Any:
+        """:class:`FastRbfSvc` of the pipeline, made once; False when it is not scaler + RBF."""
+        if self._fast is None:
+            self._fast = FastRbfSvc.from_pipeline(self.pipeline) or False
+        return self._fast
 
     def _state(self) -> dict[str, Any]:
         """What :meth:`save` stores besides the pipeline and the input description."""
@@ -109,10 +123,9 @@ class GestureModel:
         f = self.features(joints, handedness, layout)
         if not np.all(np.isfinite(f)):
             return None
-        if self._fast is None:
-            self._fast = FastRbfSvc.from_pipeline(self.pipeline) or False
-        if self._fast:
-            return self._fast.predict_one(f)
+        fast = self._fast_svc()
+        if fast:
+            return fast.predict_one(f)
         return str(self.pipeline.predict(f[None])[0])
 
     def predict_margin(
@@ -120,15 +133,15 @@ class GestureModel:
     ) -> tuple[str | None, float | None]:
         """:meth:`predict_one` and the decision margin of the class it gives
         (:meth:`FastRbfSvc.decide`; None when the model is not a scaler + RBF SVC or the hand is
-        degenerate)."""
+        degenerate; a degenerate hand does not enter a temporal model's window)."""
         f = self.features(joints, handedness, layout)
         if not np.all(np.isfinite(f)):
             return None, None
-        if self._fast is None:
-            self._fast = FastRbfSvc.from_pipeline(self.pipeline) or False
-        if self._fast:
-            return self._fast.decide(f)
-        return str(self.pipeline.predict(f[None])[0]), None
+        x = self._stream_input(f)
+        fast = self._fast_svc()
+        if fast:
+            return fast.decide(x)
+        return str(self.pipeline.predict(x[None])[0]), None
 
     def score(self, joints: np.ndarray, labels: np.ndarray, handedness: Any = "right") -> float:
         """Accuracy on labelled hands."""

@@ -121,22 +121,14 @@ def drill_sequence(
     −z ahead), turned up to ~±45° about every axis from palm-down, slowly; handedness right
     (80 %) or left unless given. Same ``(task, seed)``, same drill.
     """
-    from mimicrete.teleop.synth_motion import Motion, Person, _slow_noise, _tremor
+    from mimicrete.teleop.synth_motion import Motion, Person, _slow_noise, _tremor, tracked_hand
     from mimicrete.teleop.synth_scene import HAND_RATE_HZ
 
     task = TASK_MODEL.get(task, task)
     classes = TASK_CLASSES[task]
     rng = np.random.default_rng([seed, 0xD711])
     hand = handedness or ("left" if rng.random() < 0.2 else "right")
-    person = Person(
-        speed=float(rng.uniform(0.15, 0.30)),
-        hand_scale=float(rng.uniform(0.82, 1.18)),
-        handedness=hand,
-        tremor_mm=float(rng.uniform(0.2, 0.6)),
-        sway_mm=float(rng.uniform(0.2, 0.7)),
-        hesitancy=float(rng.uniform(0.1, 0.4)),
-        overshoot=float(rng.uniform(0.02, 0.08)),
-    )
+    person = Person.draw(rng, hand)
     centre = np.array([0.15 if hand == "right" else -0.15, -0.35, -0.45])
     box = np.array([0.25, 0.15, 0.2])
 
@@ -165,14 +157,7 @@ def drill_sequence(
     pos = pos + _tremor(n, dt, rng, person)
     tilt = 0.45 * _slow_noise(n, dt, rng, tau=1.5) + rng.uniform(-0.4, 0.4, size=3)
     rot = _rotations(tilt) @ _PALM_DOWN
-    names = list(hm.GESTURE_SHAPES)
-    for k in np.flatnonzero(rng.random(n) < 0.004):  # one-frame finger-tracking glitches
-        shapes[k] = hm.jitter_shape(
-            hm.GESTURE_SHAPES[names[rng.integers(len(names))]], rng
-        ).as_array()
-    local = hm.hand_joints_local_batch(shapes, person.hand_scale, hand)
-    joints = np.einsum("nij,nkj->nki", rot, local) + pos[:, None, :]
-    joints = hm.tracking_noise_batch(joints, rng, sigma=0.0004, occluded_sigma=0.004)
+    joints = tracked_hand(shapes, rot, pos, person, rng)
     tracked = np.ones(n, dtype=bool)
     if rng.random() < 0.5:  # a short tracking dropout
         k0 = int(rng.integers(1, n - 12))

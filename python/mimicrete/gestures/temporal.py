@@ -35,7 +35,7 @@ import numpy as np
 
 from .classes import TASK_CLASSES, TASK_MODEL
 from .features import features_3d
-from .model import FastRbfSvc, GestureModel
+from .model import GestureModel
 from .sequences import GestureSequence, sequence_dataset
 
 DEFAULT_WINDOW = 9  # frames: 0.1 s at 90 Hz
@@ -118,27 +118,17 @@ class TemporalGestureModel(GestureModel):
         """Forget the window (a new stream: another episode, or the hand came back after long)."""
         self._buf.clear()
 
-    def _push(self, f: np.ndarray) -> np.ndarray:
+    def _stream_input(self, f: np.ndarray) -> np.ndarray:
+        """The frame enters the window; the window's features (:meth:`predict_margin`)."""
         self._buf.append(f)
         win = np.stack(self._buf)  # (n ≤ W, F)
         if len(win) < self.window:
             win = np.concatenate([np.repeat(win[:1], self.window - len(win), axis=0), win])
         return np.concatenate([_part(p, f, win, axis=0) for p in self.parts])
 
-    def predict_margin(
-        self, joints: np.ndarray, handedness: str = "right", layout: str | None = None
-    ) -> tuple[str | None, float | None]:
-        """The next frame of the stream: its class and decision margin (None, None for a
-        degenerate hand, which does not enter the window)."""
-        f = self.features(joints, handedness, layout)
-        if not np.all(np.isfinite(f)):
-            return None, None
-        x = self._push(f)
-        if self._fast is None:
-            self._fast = FastRbfSvc.from_pipeline(self.pipeline) or False
-        if self._fast:
-            return self._fast.decide(x)
-        return str(self.pipeline.predict(x[None])[0]), None
+    def _sequence_inputs(self, f: np.ndarray) -> np.ndarray:
+        """A whole stream's window features at once (:meth:`predict_sequence`)."""
+        return window_features(f, self.window, self.parts)
 
     def predict_one(
         self, joints: np.ndarray, handedness: str = "right", layout: str | None = None
@@ -152,26 +142,6 @@ class TemporalGestureModel(GestureModel):
         """Classes of a batch ``(T, N, 3)`` taken as one sequence from a fresh window
         (degenerate frames give ``None``); does not touch the streaming state."""
         return self.predict_sequence(joints, handedness, layout)
-
-    def predict_sequence(
-        self,
-        joints: np.ndarray,
-        handedness: Any = "right",
-        layout: str | None = None,
-        tracked: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """What :meth:`predict_margin` answers frame by frame after :meth:`reset`, for a whole
-        sequence at once (object array; ``None`` where the frame is untracked — not asked —
-        or degenerate)."""
-        f = self.features(np.asarray(joints), handedness, layout)
-        ok = np.all(np.isfinite(f), axis=1)
-        if tracked is not None:
-            ok &= np.asarray(tracked, dtype=bool)
-        out = np.full(len(f), None, dtype=object)
-        if ok.any():
-            x = window_features(f[ok], self.window, self.parts)
-            out[ok] = self.pipeline.predict(x)
-        return out
 
     def score(self, joints: np.ndarray, labels: np.ndarray, handedness: Any = "right") -> float:
         """Accuracy over one sequence."""

@@ -22,7 +22,21 @@ from mimicrete import _native
 
 from .layouts import LAYOUT_JOINTS
 
-__all__ = ["LAYOUT_JOINTS", "HandLogData", "parse", "parse_text", "write"]
+__all__ = ["LAYOUT_JOINTS", "HandLogData", "header", "parse", "parse_text", "write"]
+
+
+def header(layout: str, space: str, handedness: str, **more: Any) -> dict[str, Any]:
+    """A hand log's header line (format ``mimicrete.handlog`` version 1, units m): the required
+    fields, then ``more`` (task, episode_seed, source, extra) in the order given."""
+    return {
+        "format": "mimicrete.handlog",
+        "version": 1,
+        "layout": layout,
+        "space": space,
+        "handedness": handedness,
+        "units": "m",
+        **more,
+    }
 
 
 @dataclass

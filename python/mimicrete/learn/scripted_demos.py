@@ -19,14 +19,13 @@ def scripted_demos(
     import gymnasium as gym
 
     from mimicrete import _native, envs
+    from mimicrete.demos import STEP_DTYPES, step_arrays
 
     envs.register_envs()
     env = gym.make(f"mimicrete/{task}-v0")
     sim = env.unwrapped.sim
     expert = _native.SimExpert(task)
-    rows: dict[str, list] = {
-        k: [] for k in ("obs", "actions", "rewards", "terminated", "truncated", "episode")
-    }
+    rows: dict[str, list] = {k: [] for k in STEP_DTYPES}
     ep, s = 0, seed
     while ep < episodes:
         obs, _ = env.reset(seed=s)
@@ -54,14 +53,7 @@ def scripted_demos(
             rows[k].extend(ep_rows[k])
         ep += 1
     env.close()
-    return {
-        "obs": np.asarray(rows["obs"], np.float32),
-        "actions": np.asarray(rows["actions"], np.float32),
-        "rewards": np.asarray(rows["rewards"], np.float32),
-        "terminated": np.asarray(rows["terminated"], bool),
-        "truncated": np.asarray(rows["truncated"], bool),
-        "episode": np.asarray(rows["episode"], np.int64),
-    }
+    return step_arrays(rows)
 
 
 def main() -> None:

@@ -18,6 +18,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
+from mimicrete.demos import STEP_DTYPES, step_arrays
+
 FRAME = 16
 STACK = 5
 OBS_DIM = FRAME * STACK
@@ -141,9 +143,7 @@ def expert_demos(
     env = ToyTileVecEnv(1, max_episode_steps=max_episode_steps, seed=seed)
     rng = np.random.default_rng(seed + 1)
     obs, _ = env.reset(seed=seed)
-    rows: dict[str, list] = {
-        k: [] for k in ("obs", "actions", "rewards", "terminated", "truncated", "episode")
-    }
+    rows: dict[str, list] = {k: [] for k in STEP_DTYPES}
     ep = 0
     while ep < episodes:
         goal = TARGET if env.holding[0] else env.tile[0]
@@ -160,14 +160,7 @@ def expert_demos(
         rows["episode"].append(ep)
         if term[0] or trunc[0]:
             ep += 1
-    return {
-        "obs": np.asarray(rows["obs"], np.float32),
-        "actions": np.asarray(rows["actions"], np.float32),
-        "rewards": np.asarray(rows["rewards"], np.float32),
-        "terminated": np.asarray(rows["terminated"], bool),
-        "truncated": np.asarray(rows["truncated"], bool),
-        "episode": np.asarray(rows["episode"], np.int64),
-    }
+    return step_arrays(rows)
 
 
 def toy_config(

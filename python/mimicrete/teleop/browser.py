@@ -364,6 +364,18 @@ def enter_vr(page: Any, timeout_s: float = 20.0) -> None:
     page.wait_for_function("() => window.__mimicrete.inSession", timeout=timeout_s * 1000)
 
 
+@contextmanager
+def vr_page(browser: Any, url: str, **open_kw: Any) -> Iterator[Any]:
+    """:func:`open_page` (``open_kw`` its keywords), then :func:`enter_vr`; the page is closed
+    when the block ends."""
+    page = open_page(browser, url, **open_kw)
+    try:
+        enter_vr(page)
+        yield page
+    finally:
+        page.close()
+
+
 def replay(page: Any, recording: dict[str, Any], mode: str | None = None) -> None:
     """Start replaying ``recording`` (from :func:`build_recording`) in an emulated session."""
     mode = mode or recording["mimicrete"]["mode"]
@@ -417,6 +429,23 @@ def serve_static(directory: str | Path | None = None) -> Iterator[str]:
         server.server_close()
 
 
+def driver_hello(task: str = "grip", **fields: Any) -> dict[str, Any]:
+    """The hello a stand-in server gives the driver: WebXR joints, 25 Hz control, no scene and
+    the identity view unless ``fields`` (scene, view_from_base, frames, ...) say otherwise."""
+    return {
+        "type": "hello",
+        "protocol": 1,
+        "role": "driver",
+        "task": task,
+        "layout": "webxr",
+        "control_dt": 0.04,
+        "scene": [],
+        "view_from_base": list(np.eye(4).ravel()),
+        "frames": {},
+        **fields,
+    }
+
+
 class FrameSink:
     """Answers the page's WebSocket inside Playwright (``page.route_web_socket``): a driver hello,
     then one empty state per hand frame; keeps the hand frames (parsed,
@@ -425,17 +454,7 @@ class FrameSink:
 
     def __init__(self, page: Any, task: str = "grip") -> None:
         self.frames: list[Any] = []
-        self.hello = {
-            "type": "hello",
-            "protocol": 1,
-            "role": "driver",
-            "task": task,
-            "layout": "webxr",
-            "control_dt": 0.04,
-            "scene": [],
-            "view_from_base": list(np.eye(4).ravel()),
-            "frames": {},
-        }
+        self.hello = driver_hello(task)
         page.route_web_socket("**/ws", self._connect)
 
     def _connect(self, ws: Any) -> None:
@@ -559,6 +578,7 @@ __all__ = [
     "Track",
     "WEBXR_JOINT_NAMES",
     "build_recording",
+    "driver_hello",
     "enter_vr",
     "iwer_expected",
     "launch",
@@ -568,5 +588,6 @@ __all__ = [
     "replay_samples",
     "serve_static",
     "track_from_log",
+    "vr_page",
     "wait_replay_done",
 ]

@@ -12,7 +12,7 @@ import numpy as np
 from mimicrete import demos
 from mimicrete.gestures import GestureModel
 
-from .session import CONTROL_DT, Counts
+from .session import CONTROL_DT, Counts, Step
 
 
 def episode_meta(
@@ -67,37 +67,26 @@ class DemoSink:
     def event(self, t: float, name: str, props: dict[str, Any]) -> None:
         self.w.write_event(t, name, {k: str(v) for k, v in props.items()})
 
-    def step(
-        self,
-        step: int,
-        t: float,
-        obs: np.ndarray,
-        action: np.ndarray,
-        reward: float,
-        terminated: bool,
-        truncated: bool,
-        gesture: str,
-        snap: dict[str, Any],
-        events: list[str],
-    ) -> None:
-        """One env step; ``snap`` is the simulator's snapshot after it (f64 joints, poses)."""
+    def step(self, step: Step, gesture: str, snap: dict[str, Any]) -> None:
+        """One env step, recorded with the smoothed ``gesture`` it obeyed and ``snap``, the
+        simulator's snapshot after it (f64 joints, poses)."""
 
         def pose(p: dict[str, Any]) -> list[float]:
             return [*map(float, p["t"]), *map(float, p["q"])]
 
         self.w.write_step(
-            step,
-            t,
-            np.ascontiguousarray(obs, dtype=np.float32),
-            np.ascontiguousarray(action, dtype=np.float32),
-            reward,
-            terminated,
-            truncated,
+            step.index,
+            step.t,
+            np.ascontiguousarray(step.obs, dtype=np.float32),
+            np.ascontiguousarray(step.action, dtype=np.float32),
+            step.reward,
+            step.terminated,
+            step.truncated,
             gesture,
             [float(x) for x in snap["q"]],
             pose(snap["tool0"]),
             pose(snap["object"]),
-            events,
+            step.events,
         )
 
     def close(self, success: bool, counts: Counts, extra: dict[str, Any] | None = None) -> None:

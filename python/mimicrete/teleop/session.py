@@ -138,26 +138,6 @@ class Counts:
         return dict(self.__dict__)
 
 
-class Recorder(Protocol):
-    """Where a session's episode goes (``teleop.record.DemoSink`` writes an MCAP demo)."""
-
-    def hand(self, t: float, joints: np.ndarray, tracked: bool, hand_t: float) -> None: ...
-    def event(self, t: float, name: str, props: dict[str, Any]) -> None: ...
-    def step(
-        self,
-        step: int,
-        t: float,
-        obs: np.ndarray,
-        action: np.ndarray,
-        reward: float,
-        terminated: bool,
-        truncated: bool,
-        gesture: str,
-        snap: dict[str, Any],
-        events: list[str],
-    ) -> None: ...
-
-
 @dataclass
 class Step:
     """One control step: the action chosen from ``obs`` and what the simulator made of it."""
@@ -172,6 +152,16 @@ class Step:
     events: list[str]
     following: bool  # the arm moves toward the hand's target this step
     why: str | None  # why it does not: "no hand yet", "target unreachable"
+
+
+class Recorder(Protocol):
+    """Where a session's episode goes (``teleop.record.DemoSink`` writes an MCAP demo)."""
+
+    def hand(self, t: float, joints: np.ndarray, tracked: bool, hand_t: float) -> None: ...
+    def event(self, t: float, name: str, props: dict[str, Any]) -> None: ...
+    def step(self, step: Step, gesture: str, snap: dict[str, Any]) -> None:
+        """One control step, the smoothed gesture it obeyed ("" before any) and the
+        simulator's snapshot after it (``SimEnv.snapshot``)."""
 
 
 @dataclass
@@ -408,18 +398,7 @@ class Session:
             why,
         )
         if self.recorder is not None:
-            self.recorder.step(
-                step.index,
-                t,
-                obs_before,
-                a,
-                step.reward,
-                step.terminated,
-                step.truncated,
-                self.smoother.state or "",
-                self.env.snapshot(),
-                events,
-            )
+            self.recorder.step(step, self.smoother.state or "", self.env.snapshot())
         self.step_index += 1
         self.counts.steps = self.step_index
         return step

@@ -35,10 +35,10 @@ from typing import Any
 import numpy as np
 
 from mimicrete.hands import layouts
-from mimicrete.hands import model as hm
+from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
-from .synth_motion import Person, _slow_noise, _tremor, plan_task
+from .synth_motion import Person, _slow_noise, _tremor, plan_task, tracked_hand
 from .synth_scene import (  # noqa: F401  (re-exported: the demonstrator's public names)
     HAND_RATE_HZ,
     SHAPE_OF,
@@ -86,15 +86,7 @@ def synth_episode(
     layout = layouts.check_layout(layout)
     calib = calib or Calibration()
     rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
-    person = Person(
-        speed=float(rng.uniform(0.15, 0.30)),
-        hand_scale=float(rng.uniform(0.82, 1.18)),
-        handedness=handedness,
-        tremor_mm=float(rng.uniform(0.2, 0.6)),
-        sway_mm=float(rng.uniform(0.2, 0.7)),
-        hesitancy=float(rng.uniform(0.1, 0.4)),
-        overshoot=float(rng.uniform(0.02, 0.08)),
-    )
+    person = Person.draw(rng, handedness)
     motion = plan_task(scene, rng, person)
     tcp, shapes, phases, transport = motion.arrays()
     gestures, changing = motion.gestures()
@@ -113,15 +105,7 @@ def synth_episode(
     frames[:, :3, 3] = tcp - rot[:, :, 2] * scene.tcp_z  # tool z points down, to the TCP
     frames[:, 3, 3] = 1.0
     hand_rot, wrist = hand_pose_for_tool0(frames, handedness, calib)
-    glitch = np.flatnonzero(rng.random(n) < 0.004)  # one-frame finger-tracking glitches
-    names = list(hm.GESTURE_SHAPES)
-    for k in glitch:
-        shapes[k] = hm.jitter_shape(
-            hm.GESTURE_SHAPES[names[rng.integers(len(names))]], rng
-        ).as_array()
-    local = hm.hand_joints_local_batch(shapes, person.hand_scale, handedness)
-    joints = np.einsum("nij,nkj->nki", hand_rot, local) + wrist[:, None, :]
-    joints = hm.tracking_noise_batch(joints, rng, sigma=0.0004, occluded_sigma=0.004)
+    joints = tracked_hand(shapes, hand_rot, wrist, person, rng)
     tracked = np.ones(n, dtype=bool)
     moving = np.flatnonzero(transport)
     if len(moving) > 20 and rng.random() < 0.5:  # a short tracking dropout while moving
@@ -130,17 +114,14 @@ def synth_episode(
         tracked[k0 : k0 + length] = False
         joints[k0 : k0 + length] = joints[k0 - 1]  # the runtime repeats its last estimate
     out = layouts.to_layout(joints, layout)
-    header = {
-        "format": "mimicrete.handlog",
-        "version": 1,
-        "layout": layout,
-        "space": calib.space,
-        "handedness": handedness,
-        "units": "m",
-        "task": scene.task,
-        "episode_seed": int(scene.episode_seed),
-        "source": "mimicrete synth-hands (scripted demonstrator)",
-        "extra": {
+    header = handlog.header(
+        layout,
+        calib.space,
+        handedness,
+        task=scene.task,
+        episode_seed=int(scene.episode_seed),
+        source="mimicrete synth-hands (scripted demonstrator)",
+        extra={
             "synth_seed": int(seed),
             "calibration": calib.to_dict(),
             "scene": scene.to_dict(),
@@ -151,7 +132,7 @@ def synth_episode(
             },
             "rate_hz": HAND_RATE_HZ,
         },
-    }
+    )
     return Episode(header, t, tracked, out, phases, frames, gestures, changing)
 
 

@@ -40,6 +40,20 @@ class Person:
     hesitancy: float  # probability that a reach pauses part-way
     overshoot: float  # typical overshoot as a share of the reach distance
 
+    @classmethod
+    def draw(cls, rng: np.random.Generator, handedness: str) -> Person:
+        """A demonstrator drawn from ``rng``: speed, hand size, tremor, sway, hesitancy and
+        overshoot uniform in their ranges."""
+        return cls(
+            speed=float(rng.uniform(0.15, 0.30)),
+            hand_scale=float(rng.uniform(0.82, 1.18)),
+            handedness=handedness,
+            tremor_mm=float(rng.uniform(0.2, 0.6)),
+            sway_mm=float(rng.uniform(0.2, 0.7)),
+            hesitancy=float(rng.uniform(0.1, 0.4)),
+            overshoot=float(rng.uniform(0.02, 0.08)),
+        )
+
 
 class Motion:
     """Accumulates a TCP path (Base), a gesture-shape track and keyframes at 90 Hz."""
@@ -170,6 +184,27 @@ def _tremor(n: int, dt: float, rng: np.random.Generator, person: Person) -> np.n
     return out + person.sway_mm * 1e-3 * _slow_noise(n, dt, rng)
 
 
+def tracked_hand(
+    shapes: np.ndarray,
+    hand_rot: np.ndarray,
+    wrist: np.ndarray,
+    person: Person,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The joints a hand tracker reports ``(n, 26, 3)`` for finger ``shapes`` ``(n, 7)`` (changed
+    in place: one-frame finger-tracking glitches, 0.4 % of frames, show a random gesture's
+    shape) on a hand of ``person``'s size and handedness at ``hand_rot`` ``(n, 3, 3)`` and
+    ``wrist`` ``(n, 3)``, with tracking noise (more on occluded joints)."""
+    names = list(hm.GESTURE_SHAPES)
+    for k in np.flatnonzero(rng.random(len(shapes)) < 0.004):
+        shapes[k] = hm.jitter_shape(
+            hm.GESTURE_SHAPES[names[rng.integers(len(names))]], rng
+        ).as_array()
+    local = hm.hand_joints_local_batch(shapes, person.hand_scale, person.handedness)
+    joints = np.einsum("nij,nkj->nki", hand_rot, local) + wrist[:, None, :]
+    return hm.tracking_noise_batch(joints, rng, sigma=0.0004, occluded_sigma=0.004)
+
+
 _UP = np.array([0.0, 0.0, 1.0])
 
 
@@ -222,6 +257,35 @@ def _carry_and_place(
     m.reach(m.here + _UP * 0.08, "retreat")
 
 
+#: Per task, the ranges (m above the grasp point, s) of :func:`_approach_and_grasp`.
+_GRASP: dict[str, dict[str, tuple[float, float]]] = {
+    "suction": {
+        "approach": (0.06, 0.10),
+        "settle": (0.3, 0.7),
+        "settled": (0.5, 0.9),
+        "grasp": (0.5, 0.9),
+    },
+    # the gripper's fingers close at 0.1 m/s
+    "grip": {
+        "approach": (0.08, 0.12),
+        "settle": (0.3, 0.7),
+        "settled": (0.6, 1.0),
+        "grasp": (0.9, 1.3),
+    },
+    "screw": {
+        "approach": (0.07, 0.10),
+        "settle": (0.4, 0.8),
+        "settled": (0.7, 1.1),
+        "grasp": (0.9, 1.3),
+    },
+}
+#: Per pick-and-place task, the ranges (m above the target, s) of :func:`_carry_and_place`.
+_PLACE: dict[str, dict[str, tuple[float, float]]] = {
+    "suction": {"carry": (0.06, 0.10), "lower": (0.0, 0.006), "release": (0.3, 0.6)},
+    "grip": {"carry": (0.07, 0.10), "lower": (0.002, 0.006), "release": (0.6, 1.0)},
+}
+
+
 def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     """The TCP path and gestures of one demonstration of ``scene.task``."""
     task = scene.task
@@ -234,64 +298,37 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     )
     m.hold(rng.uniform(0.3, 0.8), "start")
     obj, tgt = scene.object, scene.target
+    above, held_below = obj, 0.0  # where the grasp is; how far the object hangs below the TCP
     if task == "suction":
-        grasp = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
+        above = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
         clearance = rng.uniform(0.008, 0.016)
-        _approach_and_grasp(
-            m,
-            grasp,
-            approach=(0.06, 0.10),
-            settle=(0.3, 0.7),
-            grasp_at=lambda: grasp + up * clearance,
-            settled=(0.5, 0.9),
-            close=shp[cls_close],
-            close_label=cls_close,
-            grasp=(0.5, 0.9),
-        )
-        _carry_and_place(
-            m,
-            tgt,
-            held_below=clearance + obj[2],  # tile centre to cup centre while held
-            carry=(0.06, 0.10),
-            lower=(0.0, 0.006),
-            release_shape=shp[cls_open],
-            release_label=cls_open,
-            release=(0.3, 0.6),
-        )
+        held_below = clearance + obj[2]  # tile centre to cup centre while held
+
+        def grasp_at() -> np.ndarray:
+            return above + up * clearance
     elif task == "grip":
-        _approach_and_grasp(
-            m,
-            obj,
-            approach=(0.08, 0.12),
-            settle=(0.3, 0.7),
-            grasp_at=lambda: obj + up * rng.uniform(-0.003, 0.003),
-            settled=(0.6, 1.0),
-            close=shp[cls_close],
-            close_label=cls_close,
-            grasp=(0.9, 1.3),  # fingers close at 0.1 m/s
-        )
+
+        def grasp_at() -> np.ndarray:
+            return obj + up * rng.uniform(-0.003, 0.003)
+    elif task == "screw":
+
+        def grasp_at() -> np.ndarray:
+            return obj.copy()
+    else:
+        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    _approach_and_grasp(
+        m, above, grasp_at=grasp_at, close=shp[cls_close], close_label=cls_close, **_GRASP[task]
+    )
+    if task in _PLACE:
         _carry_and_place(
             m,
             tgt,
-            held_below=0.0,
-            carry=(0.07, 0.10),
-            lower=(0.002, 0.006),
+            held_below=held_below,
             release_shape=shp[cls_open],
             release_label=cls_open,
-            release=(0.6, 1.0),
+            **_PLACE[task],
         )
-    elif task == "screw":
-        _approach_and_grasp(
-            m,
-            obj,
-            approach=(0.07, 0.10),
-            settle=(0.4, 0.8),
-            grasp_at=obj.copy,
-            settled=(0.7, 1.1),
-            close=shp[cls_close],
-            close_label=cls_close,
-            grasp=(0.9, 1.3),
-        )
+    else:  # screw
         m.gesture(
             shp["closing_tightening"], rng.uniform(0.25, 0.5), "tighten", "closing_tightening"
         )
@@ -306,7 +343,5 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
         m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release", "opening_stopped")
         m.hold(rng.uniform(0.4, 0.8), "release")
         m.reach(m.here + up * 0.08, "retreat")
-    else:
-        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
     m.hold(rng.uniform(0.3, 0.6), "end")
     return m
