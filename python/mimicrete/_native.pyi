@@ -286,6 +286,15 @@ class SimVecEnv:
         self, base_seed: int, episodes: list[int], seeds: list[int], actions: list[ArrayLike]
     ) -> _F32:
         """Rebuild every env from ``state()``'s parts → obs (num_envs, obs_dim) as when taken."""
+    def set_variation(
+        self,
+        object_x: tuple[float, float] | None = None,
+        target_jitter: float = 0.0,
+        robust: bool = False,
+    ) -> None:
+        """How episodes start from the next reset: the object's x uniform in ``object_x`` (m;
+        None: the paper's [0, 0.15]) and the target moved by up to ``target_jitter`` m in x and
+        y; ``robust=True``: x in [-0.075, 0.225], jitter 0.02. ValueError out of range."""
     def reset_replay(self, i: int, seed: int, actions: ArrayLike) -> _F32:
         """Reset env i to episode ``seed`` and replay ``actions`` (k, act_dim) in it (a recorded
         episode's first k steps); the other envs do not move → env i's observation (obs_dim,).

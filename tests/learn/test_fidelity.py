@@ -85,6 +85,18 @@ def test_stochastic_eval_is_its_own_reproducible_file(toy_yaml, tmp_path, capsys
     assert json.loads((run_dir / "eval_stochastic.json").read_text()) == sto  # same seed, same
 
 
+def test_robust_eval_of_a_toy_run_is_a_usage_error(toy_yaml, tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    assert train(toy_yaml, run_dir, "--max-steps", "512") == 0
+    capsys.readouterr()
+    assert cli.main(["eval", str(run_dir), "--robust"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        "mimicrete eval: error: a robust evaluation needs the simulator's env, not Toy-v0"
+    )
+    assert not (run_dir / "eval_robust.json").exists()
+
+
 def test_warm_start_in_passes_is_recorded(toy_yaml, tmp_path, capsys):
     run_dir = tmp_path / "run"
     assert train(toy_yaml, run_dir, "--max-steps", "512",

@@ -53,6 +53,13 @@ def test_short_run_on_tile_suction(tmp_path):
     res = evaluate.evaluate_run(run, 8)
     assert res["episodes"] == 8 and 1 <= res["mean_episode_length"] <= 750
     assert json.loads((run / "eval.json").read_text())["env_id"] == "TileSuction-v0"
+    # the robust evaluation (wider starts) through the CLI: its own file, the same row shape
+    from mimicrete import cli
+
+    assert cli.main(["eval", str(run), "--episodes", "8", "--robust"]) == 0
+    rob = json.loads((run / "eval_robust.json").read_text())
+    assert rob["starts"] == "robust" and rob["episodes"] == 8
+    assert json.loads((run / "eval.json").read_text()) == {**res, "starts": "training"}
     # the exported ONNX runs to the same actions on real observations
     import onnxruntime as ort
 

@@ -251,6 +251,23 @@ impl SimVecEnv {
         to2(py, obs, n, od)
     }
 
+    /// How episodes start from the next reset: the object's x range (m) and the target's jitter
+    /// (m); `robust=True` gives tile-sim's robustness evaluation (`Variation::robust`).
+    #[pyo3(signature = (object_x = None, target_jitter = 0.0, robust = false))]
+    fn set_variation(
+        &mut self,
+        object_x: Option<[f32; 2]>,
+        target_jitter: f32,
+        robust: bool,
+    ) -> PyResult<()> {
+        let v = match (robust, object_x) {
+            (true, _) => tile_sim::Variation::robust(),
+            (false, Some(x)) => tile_sim::Variation { object_x: x, target_jitter },
+            (false, None) => tile_sim::Variation { target_jitter, ..Default::default() },
+        };
+        self.venv.set_variation(v).map_err(sim_err)
+    }
+
     /// Reset env `i` to episode `seed` and replay `actions` (k, act_dim) in it (a recorded
     /// episode's first k steps); the other envs do not move → env `i`'s observation (obs_dim,).
     fn reset_replay<'py>(

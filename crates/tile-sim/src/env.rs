@@ -121,18 +121,72 @@ pub struct Env {
     hist: Vec<f32>,
     skipped_steps: u64,
     skip_idle_physics: bool,
+    variation: Variation,
+}
+
+/// How episode starts vary: the object's x range and how far the target may move. The default is
+/// the paper's (x uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]`, fixed target); [`Variation::robust`]
+/// is the robustness evaluation's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Variation {
+    /// The object's start x is uniform in `[object_x[0], object_x[1]]` (m, Base frame).
+    pub object_x: [f32; 2],
+    /// The target moves by `(dx, dy)`, each uniform in `[-target_jitter, target_jitter]` (m), per
+    /// episode (TileSuction and BlockGrip; the pad stays: a 0.2 m pad holds a 0.15 m tile moved
+    /// 2.5 cm). 0 = the fixed target.
+    pub target_jitter: f32,
+}
+
+impl Default for Variation {
+    fn default() -> Self {
+        Variation { object_x: [world::OBJECT_X_MIN, world::OBJECT_X_MAX], target_jitter: 0.0 }
+    }
+}
+
+impl Variation {
+    /// The robustness evaluation: the x range widened by half its width on each side
+    /// (`[-0.075, 0.225]` m) and the target moved by up to ±2 cm in x and y.
+    pub fn robust() -> Variation {
+        let half = 0.5 * (world::OBJECT_X_MAX - world::OBJECT_X_MIN);
+        Variation { object_x: [world::OBJECT_X_MIN - half, world::OBJECT_X_MAX + half], target_jitter: 0.02 }
+    }
+
+    /// Checks the ranges (finite, ordered, jitter in [0, 0.025] m, x within the table's reach).
+    pub fn validate(&self) -> Result<(), SimError> {
+        let [lo, hi] = self.object_x;
+        let bad = |what: String| Err(SimError::InvalidArgument(what));
+        if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -0.3 || hi > 0.3 {
+            return bad(format!("object_x [{lo}, {hi}] must be an ordered range within [-0.3, 0.3] m"));
+        }
+        if !(0.0..=0.025).contains(&self.target_jitter) {
+            return bad(format!("target_jitter {} must be in [0, 0.025] m", self.target_jitter));
+        }
+        Ok(())
+    }
 }
 
 /// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset: x
 /// uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` from the seed, y = `OBJECT_Y`, resting height.
 pub fn object_start(task: Task, seed: u64) -> Vector {
+    episode_start(task, seed, &Variation::default()).0
+}
+
+/// The object's start and the target's offset of episode `seed` under `v` (the default draws
+/// exactly what [`object_start`] always drew; the offset comes after, from the same stream).
+fn episode_start(task: Task, seed: u64, v: &Variation) -> (Vector, Vector) {
     let mut ep = ChaCha8Rng::seed_from_u64(seed);
-    let x: f32 = ep.random_range(world::OBJECT_X_MIN..=world::OBJECT_X_MAX);
-    match task {
+    let x: f32 = ep.random_range(v.object_x[0]..=v.object_x[1]);
+    let mut offset = Vector::ZERO;
+    if v.target_jitter > 0.0 && task != Task::Screw {
+        let j = v.target_jitter;
+        offset = Vector::new(ep.random_range(-j..=j), ep.random_range(-j..=j), 0.0);
+    }
+    let start = match task {
         Task::TileSuction => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::TILE_HALF[2]),
         Task::BlockGrip => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::BLOCK_HALF),
         Task::Screw => Vector::new(x, world::OBJECT_Y, world::NUT_START_Z),
-    }
+    };
+    (start, offset)
 }
 
 /// The static scene of episode `seed` of `task` (what [`Env::scene`] gives after `reset(seed)`),
@@ -170,6 +224,7 @@ impl Env {
             hist: vec![0.0; task.obs_dim()],
             skipped_steps: 0,
             skip_idle_physics: true,
+            variation: Variation::default(),
         };
         env.reset_with(first);
         env
@@ -235,8 +290,20 @@ impl Env {
         Ok(actions.len() / ad)
     }
 
+    /// How this env's episodes start from now on (the next reset); refused if out of range.
+    pub fn set_variation(&mut self, v: Variation) -> Result<(), SimError> {
+        v.validate()?;
+        self.variation = v;
+        Ok(())
+    }
+
+    /// How this env's episodes start.
+    pub fn variation(&self) -> Variation {
+        self.variation
+    }
+
     fn reset_with(&mut self, seed: u64) {
-        let start = object_start(self.task, seed);
+        let (start, offset) = episode_start(self.task, seed, &self.variation);
         let x = start.x;
         let (w, h) = world::build(self.task, start);
         self.world = w;
@@ -249,7 +316,7 @@ impl Env {
                 world::OBJECT_Y,
                 world::NUT_START_Z - (SCREW_TURNS as f32) * world::THREAD_PITCH,
             )),
-            t => Pose::from_translation(world::pad_target(t)),
+            t => Pose::from_translation(world::pad_target(t) + offset),
         };
         self.step_idx = 0;
         self.done = false;

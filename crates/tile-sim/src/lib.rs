@@ -69,7 +69,7 @@ pub mod world;
 
 pub use env::{
     Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
-    episode_scene, object_start,
+    Variation, episode_scene, object_start,
 };
 pub use vecenv::{StepBuffers, StepOut, VecEnv, VecEnvState, episode_seed};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};

@@ -171,6 +171,16 @@ impl VecEnv {
         })
     }
 
+    /// How every env's episodes start from the next reset on ([`Variation`]); refused (and
+    /// nothing changed) if out of range. Not part of [`VecEnv::state`]: set it again after a restore.
+    pub fn set_variation(&mut self, v: crate::Variation) -> Result<(), SimError> {
+        v.validate()?;
+        for env in &mut self.envs {
+            env.set_variation(v)?;
+        }
+        Ok(())
+    }
+
     pub fn task(&self) -> Task {
         self.task
     }

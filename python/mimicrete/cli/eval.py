@@ -1,7 +1,8 @@
-"""`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--video N]`: the paper's Table 5 row for
-a trained run, written to ``RUN_DIR/eval.json`` (``eval_stochastic.json`` for the sampled policy),
-and videos of the first N evaluation episodes in ``RUN_DIR/videos/``. Parses the flags and calls
-``mimicrete.learn.evaluate_run`` and ``mimicrete.learn.video.record_run_videos``."""
+"""`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--robust] [--video N]`: the paper's
+Table 5 row for a trained run, written to ``RUN_DIR/eval.json`` (``eval_stochastic.json`` for the
+sampled policy, ``eval_robust*.json`` from the wider starts), and videos of the first N evaluation
+episodes in ``RUN_DIR/videos/``. Parses the flags and calls ``mimicrete.learn.evaluate_run`` and
+``mimicrete.learn.video.record_run_videos``."""
 
 from __future__ import annotations
 
@@ -20,6 +21,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="sample the policy (as ML-Agents runs a model without deterministic_inference) "
         "instead of taking its most likely action; writes RUN_DIR/eval_stochastic.json",
+    )
+    parser.add_argument(
+        "--robust",
+        action="store_true",
+        help="start episodes wider than in training: the tile's x range widened by half on each "
+        "side ([-0.075, 0.225] m) and the target moved by up to 2 cm; writes "
+        "RUN_DIR/eval_robust.json (eval_robust_stochastic.json with --stochastic)",
     )
     parser.add_argument(
         "--video",
@@ -58,11 +66,13 @@ def main(args: argparse.Namespace) -> int:
         if args.video:  # what would stop the videos, before the evaluation runs
             fmt = video.resolve_format(args.video_format)
             video.check_renderable(load_policy(run_dir)[1].env_settings.env_id)
-        res = learn.evaluate_run(run_dir, args.episodes, args.seed, stochastic=args.stochastic)
-    except (PolicyFileError, video.VideoError) as e:
+        res = learn.evaluate_run(
+            run_dir, args.episodes, args.seed, stochastic=args.stochastic, robust=args.robust
+        )
+    except (PolicyFileError, video.VideoError, ValueError) as e:
         raise UsageError(str(e)) from None
     print(learn.format_row(run_dir.name, res))
-    print(f"wrote {run_dir / learn.evaluate.eval_file(args.stochastic)}")
+    print(f"wrote {run_dir / learn.evaluate.eval_file(args.stochastic, args.robust)}")
     if fmt is not None:
         try:
             episodes = video.record_run_videos(run_dir, args.video, args.seed, fmt)

@@ -6,7 +6,10 @@ on fresh envs (seed = the run's seed + 10,000 unless given). With ``stochastic``
 sampled instead, as ML-Agents runs a trained model unless ``deterministic_inference`` is set (the
 paper does not say which it used); the samples are drawn from a torch generator seeded with the
 eval seed, so a stochastic evaluation is reproducible too. It is written to
-``eval_stochastic.json`` beside the deterministic ``eval.json``. To avoid favouring short episodes,
+``eval_stochastic.json`` beside the deterministic ``eval.json``. With ``robust`` the episodes start
+wider than in training (tile-sim's ``Variation::robust``: the tile's x range widened by half on
+each side, [-0.075, 0.225] m, and the target moved by up to ±2 cm in x and y), written to
+``eval_robust.json`` (``eval_robust_stochastic.json``). To avoid favouring short episodes,
 ``episodes`` is split evenly over the envs and each env contributes exactly its first
 ``episodes / num_envs`` episodes. ``evaluate_run`` writes ``eval.json`` into the run dir.
 """
@@ -32,9 +35,9 @@ def _num_envs_for(episodes: int, cap: int = 32) -> int:
     return max(d for d in range(1, min(cap, episodes) + 1) if episodes % d == 0)
 
 
-def eval_file(stochastic: bool) -> str:
+def eval_file(stochastic: bool, robust: bool = False) -> str:
     """The file an evaluation writes into the run dir."""
-    return "eval_stochastic.json" if stochastic else "eval.json"
+    return "eval" + ("_robust" if robust else "") + ("_stochastic" if stochastic else "") + ".json"
 
 
 @torch.no_grad()
@@ -45,21 +48,35 @@ def run_episodes(
     seed: int,
     max_envs: int = 32,
     stochastic: bool = False,
+    robust: bool = False,
 ) -> dict[str, float]:
-    """Mean statistics of ``episodes`` episodes of ``actor``, deterministic or sampled."""
+    """Mean statistics of ``episodes`` episodes of ``actor``, deterministic or sampled, from the
+    training's starts or the robust ones."""
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     with torch.random.fork_rng():
         torch.manual_seed(seed)
-        return _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic)
+        return _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic, robust)
 
 
 def _run_episodes(
-    actor: Actor, env_id: str, episodes: int, seed: int, max_envs: int, stochastic: bool
+    actor: Actor,
+    env_id: str,
+    episodes: int,
+    seed: int,
+    max_envs: int,
+    stochastic: bool,
+    robust: bool,
 ) -> dict[str, float]:
     n = _num_envs_for(episodes, max_envs)
     per_env = episodes // n
     env = make_env(env_id, n, seed)
+    if robust:
+        sim = getattr(env, "sim", None)
+        if sim is None:
+            env.close()
+            raise ValueError(f"a robust evaluation needs the simulator's env, not {env_id}")
+        sim.set_variation(robust=True)
     obs, _ = env.reset(seed=seed)
     obs = np.asarray(obs, np.float32)
     tracker = EpisodeTracker(n)
@@ -91,23 +108,29 @@ def _run_episodes(
 
 
 def evaluate_run(
-    run_dir: str | Path, episodes: int, seed: int | None = None, stochastic: bool = False
+    run_dir: str | Path,
+    episodes: int,
+    seed: int | None = None,
+    stochastic: bool = False,
+    robust: bool = False,
 ) -> dict[str, Any]:
     """Evaluate ``run_dir/policy.pt`` on ``episodes`` episodes; writes and returns ``eval.json``
-    (``eval_stochastic.json`` with ``stochastic``)."""
+    (or :func:`eval_file`'s name for ``stochastic`` / ``robust``)."""
     run_dir = Path(run_dir)
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     actor, cfg = load_policy(run_dir)
     s = cfg.env_settings.seed + 10_000 if seed is None else seed
-    res = run_episodes(actor, cfg.env_settings.env_id, episodes, s, stochastic=stochastic)
+    env_id = cfg.env_settings.env_id
+    res = run_episodes(actor, env_id, episodes, s, stochastic=stochastic, robust=robust)
     res = {
         **res,
         "seed": s,
-        "env_id": cfg.env_settings.env_id,
+        "env_id": env_id,
         "policy": "stochastic" if stochastic else "deterministic",
+        "starts": "robust" if robust else "training",
     }
-    (run_dir / eval_file(stochastic)).write_text(json.dumps(res, indent=1))
+    (run_dir / eval_file(stochastic, robust)).write_text(json.dumps(res, indent=1))
     return res
 
 
