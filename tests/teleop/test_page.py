@@ -251,14 +251,9 @@ def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, m
 
 
 def _scene_hello(task: str) -> dict[str, Any]:
-    """A hello with the real scene of ``task`` (tile-sim's items as the server sends them)."""
+    """A hello with the real scene of ``task`` (the demos' ``/scene``, as the server sends it)."""
     from mimicrete.teleop.session import Session
-    from mimicrete.teleop.view import (
-        frame_poses,
-        scene_entities,
-        standing_calibration,
-        view_from_base,
-    )
+    from mimicrete.teleop.view import frame_poses, standing_calibration, view_from_base
 
     calib = standing_calibration()
     env = Session(task, "webxr", "right", calib, 0).env
@@ -269,7 +264,7 @@ def _scene_hello(task: str) -> dict[str, Any]:
         "task": task,
         "layout": "webxr",
         "control_dt": 0.04,
-        "scene": scene_entities(env.scene()),
+        "scene": env.scene_entities(),
         "view_from_base": view_from_base(calib),
         "frames": frame_poses(env.snapshot()),
     }
@@ -326,8 +321,8 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
     if task == "screw":
         for spin, angle in ((1, -1.0), (-1, 0.5), (0, 0.5)):
             turned = dict(frames)
-            p = frames["object"]
-            turned["object"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
+            p = frames["tile"]
+            turned["tile"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
             ee = {"kind": "screw", "on": spin != 0, "spin": spin, "opening": 0.019}
             drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
             assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)

@@ -43,7 +43,7 @@ from aiohttp import WSMsgType, web
 from .gesturemode import GestureModeError
 from .live import Live
 from .protocol import VERSION, FrameError, parse_frame
-from .view import scene_entities, view_from_base
+from .view import view_from_base
 
 STATIC = Path(__file__).resolve().parent / "static"
 
@@ -206,7 +206,7 @@ class TeleopServer:
             "task": live.task.name,
             "layout": "webxr",
             "control_dt": 0.04,
-            "scene": scene_entities(live.session.env.scene()),
+            "scene": live.session.env.scene_entities(),
             "view_from_base": view_from_base(live.calibration),
             "mode": "gestures" if live.gesture_mode else "teleop",
             "gesture_model": live.model_status(),
