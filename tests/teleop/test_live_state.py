@@ -1,13 +1,64 @@
 """The state the live server sends after each frame (``Live.state``): the frames the scene's
-entities are locked to."""
+entities are locked to, and why the arm does not follow, read off the session's newest control
+step (it holds between steps and is forgotten with its session)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from mimicrete.hands.layouts import to_layout
+from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
 from mimicrete.teleop.live import Live
+from mimicrete.teleop.protocol import HandFrame
+from mimicrete.teleop.synth_scene import TOOL_DOWN, hand_pose_for_tool0
 from mimicrete.teleop.view import standing_calibration
+
+RATE_HZ = 90.0
+
+
+def _hand_at(tool0_base: np.ndarray) -> np.ndarray:
+    """WebXR joints (25, 3) of an open right hand that puts tool0 (pointing down) at
+    ``tool0_base`` through the standing calibration."""
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = TOOL_DOWN, tool0_base
+    rot, wrist = hand_pose_for_tool0(pose, "right", standing_calibration())
+    openxr = hand_joints(GESTURE_SHAPES["opening"], rot, wrist, 1.0, "right")
+    return to_layout(openxr[None], "webxr")[0]
+
+
+def _push(live: Live, joints: np.ndarray, t0: float, seconds: float) -> float:
+    """Push ``seconds`` of 90 Hz frames of a still right hand from ``t0``; the next frame's time."""
+    n = int(seconds * RATE_HZ)
+    for k in range(n):
+        t = t0 + k / RATE_HZ
+        live.push(HandFrame(k, t, 0.0, True, False, joints, np.zeros((25, 3))))
+    return t0 + n / RATE_HZ
+
+
+def test_why_comes_from_the_newest_step_of_the_current_session(tmp_path):
+    live = Live("suction", tmp_path / "out", calibration=standing_calibration(), seed=11)
+    assert live.last_step is None and live.state()["why"] == "no hand yet"
+    far = _hand_at(np.array([0.95, 0.30, 0.25]))  # Base; the UR3 reaches ~0.5 m
+    t = _push(live, far, 0.0, 1.0)
+    state = live.state()
+    assert live.last_step is not None and live.last_step.why == "target unreachable"
+    assert state["why"] == "target unreachable" and not state["following"]
+    # a frame that runs no control step keeps the newest step's reason
+    step = live.session.step_index
+    live.push(HandFrame(0, t, 0.0, True, False, far, np.zeros((25, 3))))
+    assert live.session.step_index == step
+    assert live.state()["why"] == "target unreachable"
+    # a new session (the recording) has no step yet: nothing of the preview's carries over
+    live.start()
+    assert live.last_step is None and live.state()["why"] == "no hand yet"
+    tool0 = np.asarray(live.session.env.snapshot()["tool0"]["t"])
+    _push(live, _hand_at(tool0), t, 1.0)
+    state = live.state()
+    assert live.last_step is not None and live.last_step.why is None
+    assert state["why"] is None and state["following"] and state["recording"]
+    live.discard()
+    live.close()
 
 
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])

@@ -263,8 +263,7 @@ class TeleopServer:
             return
         self.stats.frames += 1
         self.stats.frame_times.append(time.monotonic())
-        steps = self.live.push(f)
-        self.live.note_steps(steps)
+        self.live.push(f)
         state = self.live.state()
         state.update(
             seq=f.seq,
