@@ -78,3 +78,26 @@ def test_state_frames_pose_every_frame_of_the_scene(tmp_path, task):
         for name, pose in want.items():
             np.testing.assert_allclose(frames[name], pose, atol=1e-12, err_msg=name)
     live.close()
+
+
+@pytest.mark.parametrize("task", ["suction", "screw"])
+def test_a_new_scene_goes_out_when_the_next_episode_moves_it(tmp_path, task):
+    """The hello carries the current session's scene; a later session whose scene differs (the
+    screw task's plate and bolt move with the seed; the suction task's table, pad and target do
+    not) sends a ``scene`` message with its entities."""
+    live = Live(task, tmp_path / "out", calibration=standing_calibration(), seed=0)
+    assert live.scene == live.session.env.scene_entities()
+    first = live.scene
+    for _ in range(3):  # each stop saves the episode and previews the next seed
+        live.start()
+        live.stop()
+    sent = [e["scene"] for e in live.events if e["type"] == "scene"]
+    assert live.scene == live.session.env.scene_entities()
+    if task == "suction":
+        assert sent == [] and live.scene == first
+    else:
+        assert sent and sent[-1] == live.scene != first
+        for scene in sent:
+            bolt = next(e for e in scene if e["id"] == "bolt")
+            assert bolt["frame_id"] == "base"
+    live.close()

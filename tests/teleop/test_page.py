@@ -76,6 +76,7 @@ class FakeServer:
             "frames": {},
         }
         self.state: dict[str, Any] = {}
+        self.pending: list[dict[str, Any]] = []  # sent before the next state
         page.route_web_socket("**/ws", self._connect)
 
     def _connect(self, ws: Any) -> None:
@@ -89,6 +90,8 @@ class FakeServer:
                 ws.send(json.dumps(self.hello))
             return
         self.frames.append(m)
+        while self.pending:
+            ws.send(json.dumps(self.pending.pop(0)))
         seq, sent_ms = struct.unpack_from("<I", m, 4)[0], struct.unpack_from("<d", m, 16)[0]
         ws.send(
             json.dumps(
@@ -250,13 +253,13 @@ def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, m
     page.close()
 
 
-def _scene_hello(task: str) -> dict[str, Any]:
+def _scene_hello(task: str, seed: int = 0) -> dict[str, Any]:
     """A hello with the real scene of ``task`` (the demos' ``/scene``, as the server sends it)."""
     from mimicrete.teleop.session import Session
     from mimicrete.teleop.view import frame_poses, standing_calibration, view_from_base
 
     calib = standing_calibration()
-    env = Session(task, "webxr", "right", calib, 0).env
+    env = Session(task, "webxr", "right", calib, seed).env
     return {
         "type": "hello",
         "protocol": 1,
@@ -327,6 +330,18 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
             drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
             assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)
             assert drawn["spinRing"] == (spin != 0) and drawn["spinDirection"] == spin
+        # a new episode's scene (the plate and bolt move with the seed) replaces the drawn one
+        other = _scene_hello(task, seed=2)
+        bolt = next(e for e in other["scene"] if e["id"] == "bolt")["cylinders"][0]["pose"]
+        assert bolt != next(e for e in hello["scene"] if e["id"] == "bolt")["cylinders"][0]["pose"]
+        s.pending.append({"type": "scene", "scene": other["scene"]})
+        page.wait_for_function("() => window.__mimicrete.events.some((e) => e.type === 'scene')")
+        ee = {"kind": "screw", "on": True, "spin": 1, "opening": 0.0}
+        drawn = _drawn_after(page, s, {"frames": other["frames"], "ee": ee})
+        assert drawn["entities"]["bolt"] == pytest.approx([bolt["position"][k] for k in "xyz"])
+        assert sorted(drawn["entities"]) == sorted(e["id"] for e in other["scene"])
+        assert drawn["fingers"]["finger_left"] == pytest.approx(half, abs=1e-6)
+        assert drawn["spinRing"] and drawn["nutAngle"] is not None
     if pip:
         page.wait_for_function("() => window.__mimicrete.spectator().frames > 2")
         box = page.eval_on_selector("#spectator", "(c) => c.getBoundingClientRect().toJSON()")

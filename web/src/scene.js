@@ -223,7 +223,8 @@ export class RobotScene {
   }
 
   /** What is drawn, for tests: lit cups, finger centres (tool y, m), the nut's angle about its
-   * frame's Z (rad) and whether the spin ring shows. */
+   * frame's Z (rad), whether the spin ring shows, and each entity's first primitive's position in
+   * its frame. */
   describe() {
     const fingers = {};
     for (const f of this.fingers) fingers[f.name] = f.y0 + f.group.position.y;
@@ -240,6 +241,9 @@ export class RobotScene {
       spinRing: Boolean(this.spinRing?.visible),
       spinDirection: this.spin,
       viewFromBase: this.root.matrix.toArray(),
+      entities: Object.fromEntries(
+        [...this.entities].map(([id, g]) => [id, g.children[0]?.position.toArray() ?? null]),
+      ),
       frames: Object.fromEntries([...this.frames].map(([k, f]) => [k, [...f.position.toArray(), ...f.quaternion.toArray()]])),
     };
   }

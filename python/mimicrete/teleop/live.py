@@ -130,6 +130,9 @@ class Live:
         # worker thread does it, so the frames of the next episode are not held up
         self._io = ThreadPoolExecutor(max_workers=1, thread_name_prefix="teleop-save")
         self._pending: list[Future[None]] = []
+        self.events: list[dict[str, Any]] = []  # episode messages for the clients
+        #: the scene the clients were sent (a new session whose scene differs sends it again)
+        self.scene: list[dict[str, Any]] | None = None
         self.preview = self._session(self.seed + self.next_index, None)
         self.pinch_since: float | None = None
         self.fist_since: float | None = None
@@ -137,7 +140,6 @@ class Live:
         self.last_right: np.ndarray | None = None
         #: the newest control step and the session it belongs to (:attr:`last_step`)
         self._last_step: tuple[Session, Step] | None = None
-        self.events: list[dict[str, Any]] = []  # episode messages for the clients
         # the gesture mode: its samples stay while the user records episodes in between
         self.gestures: GestureMode | None = None
         self.gesture_mode = False
@@ -560,7 +562,10 @@ class Live:
     # ------------------------------------------------------------------ internals
 
     def _session(self, seed: int, sink: DemoSink | None) -> Session:
-        return Session(
+        """A new session, which becomes the current one. Where its episode's scene differs from
+        the one the clients have (the screw task's plate and bolt move with the seed), a
+        ``scene`` message with the new entities goes out."""
+        s = Session(
             self.task.name,
             LAYOUT,
             "right",
@@ -569,6 +574,12 @@ class Live:
             model=self.model,
             recorder=sink,
         )
+        scene = s.env.scene_entities()
+        if scene != self.scene:
+            if self.scene is not None:  # the first one goes out in the hello
+                self.events.append({"type": "scene", "scene": scene})
+            self.scene = scene
+        return s
 
     def _first_free_index(self) -> int:
         used = [

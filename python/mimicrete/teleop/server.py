@@ -206,7 +206,7 @@ class TeleopServer:
             "task": live.task.name,
             "layout": "webxr",
             "control_dt": 0.04,
-            "scene": live.session.env.scene_entities(),
+            "scene": live.scene,
             "view_from_base": view_from_base(live.calibration),
             "mode": "gestures" if live.gesture_mode else "teleop",
             "gesture_model": live.model_status(),
@@ -287,7 +287,7 @@ class TeleopServer:
             if ev["type"] == "gestures":
                 if ev["event"] != "progress":  # not each sample
                     self.log(_gesture_line(ev))
-            else:
+            elif ev["type"] != "scene":  # (the scene of a new episode: too long to print)
                 self.log(json.dumps(ev))
             await self._broadcast(ev)
 
