@@ -47,6 +47,7 @@ class FakeServer:
         self.texts: list[dict[str, Any]] = []
         self.hello = hello or br.driver_hello("suction")
         self.state: dict[str, Any] = {}
+        self.pending: list[dict[str, Any]] = []  # sent before the next state
         page.route_web_socket("**/ws", self._connect)
 
     def _connect(self, ws: Any) -> None:
@@ -60,6 +61,8 @@ class FakeServer:
                 ws.send(json.dumps(self.hello))
             return
         self.frames.append(m)
+        while self.pending:
+            ws.send(json.dumps(self.pending.pop(0)))
         seq, sent_ms = struct.unpack_from("<I", m, 4)[0], struct.unpack_from("<d", m, 16)[0]
         ws.send(
             json.dumps(
@@ -219,21 +222,16 @@ def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, m
         assert page.mimicrete_errors == []
 
 
-def _scene_hello(task: str) -> dict[str, Any]:
-    """A hello with the real scene of ``task`` (tile-sim's items as the server sends them)."""
+def _scene_hello(task: str, seed: int = 0) -> dict[str, Any]:
+    """A hello with the real scene of ``task`` (the demos' ``/scene``, as the server sends it)."""
     from mimicrete.teleop.session import Session
-    from mimicrete.teleop.view import (
-        frame_poses,
-        scene_entities,
-        standing_calibration,
-        view_from_base,
-    )
+    from mimicrete.teleop.view import frame_poses, standing_calibration, view_from_base
 
     calib = standing_calibration()
-    env = Session(task, "webxr", "right", calib, 0).env
+    env = Session(task, "webxr", "right", calib, seed).env
     return br.driver_hello(
         task,
-        scene=scene_entities(env.scene()),
+        scene=env.scene_entities(),
         view_from_base=view_from_base(calib),
         frames=frame_poses(env.snapshot()),
     )
@@ -291,12 +289,28 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
         if task == "screw":
             for spin, angle in ((1, -1.0), (-1, 0.5), (0, 0.5)):
                 turned = dict(frames)
-                p = frames["object"]
-                turned["object"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
+                p = frames["tile"]
+                turned["tile"] = [*p[:3], 0.0, 0.0, np.sin(angle / 2), np.cos(angle / 2)]
                 ee = {"kind": "screw", "on": spin != 0, "spin": spin, "opening": 0.019}
                 drawn = _drawn_after(page, s, {"frames": turned, "ee": ee})
                 assert drawn["nutAngle"] == pytest.approx(angle, abs=1e-6)
                 assert drawn["spinRing"] == (spin != 0) and drawn["spinDirection"] == spin
+            # a new episode's scene (the plate and bolt move with the seed) replaces the drawn one
+            other = _scene_hello(task, seed=2)
+            bolt = next(e for e in other["scene"] if e["id"] == "bolt")["cylinders"][0]["pose"]
+            assert (
+                bolt != next(e for e in hello["scene"] if e["id"] == "bolt")["cylinders"][0]["pose"]
+            )
+            s.pending.append({"type": "scene", "scene": other["scene"]})
+            page.wait_for_function(
+                "() => window.__mimicrete.events.some((e) => e.type === 'scene')"
+            )
+            ee = {"kind": "screw", "on": True, "spin": 1, "opening": 0.0}
+            drawn = _drawn_after(page, s, {"frames": other["frames"], "ee": ee})
+            assert drawn["entities"]["bolt"] == pytest.approx([bolt["position"][k] for k in "xyz"])
+            assert sorted(drawn["entities"]) == sorted(e["id"] for e in other["scene"])
+            assert drawn["fingers"]["finger_left"] == pytest.approx(half, abs=1e-6)
+            assert drawn["spinRing"] and drawn["nutAngle"] is not None
         if pip:
             page.wait_for_function("() => window.__mimicrete.spectator().frames > 2")
             box = page.eval_on_selector("#spectator", "(c) => c.getBoundingClientRect().toJSON()")

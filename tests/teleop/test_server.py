@@ -96,7 +96,7 @@ def test_live_episode_installs_and_its_handlog_converts_to_the_same_demo(tmp_pat
     async def go(client):
         ws, hello = await _driver(client)
         assert hello["role"] == "driver" and hello["task"] == task
-        assert any(e["frame_id"] == "object" for e in hello["scene"])
+        assert {e["frame_id"] for e in hello["scene"]} - {"base"} <= set(hello["frames"])
         assert len(hello["view_from_base"]) == 16
         await ws.send_json({"type": "control", "action": "start"})
         states = await _stream(ws, log, until=lambda m: not m["recording"])
@@ -133,7 +133,7 @@ def test_follows_the_hand_and_reports_why_not(tmp_path):
     assert first[0]["why"] == "no hand yet" or first[0]["following"]
     assert not first[-1]["recording"] and first[-1]["why"] in ("not recording", None)
     assert lost["why"] == "hand not tracked"
-    assert {"base", "link6", "object", "tool0"} <= set(first[-1]["frames"])
+    assert {"shoulder_link", "wrist_3_link", "tile", "tool0"} <= set(first[-1]["frames"])
 
 
 def test_bad_input_is_dropped_and_counted_and_never_fatal(tmp_path):

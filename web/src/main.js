@@ -178,6 +178,12 @@ function onMessage(msg) {
       }
       break;
     }
+    case 'scene': // a new episode whose scene differs (the screw task's plate and bolt move)
+      hook.events.push({ type: 'scene', entities: msg.scene?.length ?? 0 });
+      robot.build(msg.scene, null); // the view stays
+      if (hook.state) robot.update(hook.state);
+      reframe();
+      break;
     case 'calibration':
       robot.setView(msg.view_from_base);
       reframe();

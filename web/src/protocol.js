@@ -99,7 +99,7 @@ export function gesturesMessage(action, { cls = null, perClass = null } = {}) {
   return JSON.stringify(msg);
 }
 
-const KNOWN_TYPES = new Set(['hello', 'state', 'calibration', 'episode', 'error', 'gestures']);
+const KNOWN_TYPES = new Set(['hello', 'state', 'scene', 'calibration', 'episode', 'error', 'gestures']);
 
 /**
  * Parse one text message from the server. Returns the object, or null (with a console warning)

@@ -2,13 +2,16 @@
 // named frame posed every state by `frames` (poses in the robot's Base frame, Z up, metres), all
 // under one group whose matrix is `view_from_base` (Base → XR `local`, column-major).
 //
-// The end effector's moving parts are found by the scene items' names (the entity id is
-// `name#index`, see python/mimicrete/teleop/view.py) and keep their geometry from the server:
+// The entities are the demos' `/scene` (demo-log's scene.rs through SimEnv.scene_entities()): the
+// robot as cylinders locked to the URDF links (`shoulder_link` … `tool0`), tile-sim's table, pad
+// and target in `base`, the end effector in `tool0` and the object in `tile`. An entity's id is
+// its scene item's name, numbered when the name repeats (`cup_0` … `cup_3`). The end effector's
+// moving parts are found by those names and keep their geometry from the server:
 // - `cup`: the suction cups, lit while {"kind":"suction","on":true};
 // - `finger_left` / `finger_right`: drawn by tile-sim at the open limit; at run time each sits at
 //   tool-y ±(opening / 2 + its half thickness) (tile-sim world.rs), from {"kind":"gripper",
 //   "opening": m} or the screw task's gripper {"opening": m};
-// - `nut`: the screw task's nut. Its frame (`object`) already turns with the thread (the server's
+// - `nut`: the screw task's nut. Its frame (`tile`) already turns with the thread (the server's
 //   pose); a plain cylinder turning shows nothing, so the page adds a notch on its rim and, while
 //   {"kind":"screw","spin":±1} turns it, a ring of arrows around it going the same way.
 import * as THREE from 'three';
@@ -16,11 +19,9 @@ import * as THREE from 'three';
 const LIT = new THREE.Color(0.1, 0.95, 0.35);
 const SPIN_RAD_PER_S = 2 * Math.PI; // the ring's animation (the nut's own angle is the server's)
 
-/** The item name of an entity id (`cup#14` → `cup`). */
+/** The scene item's name of an entity id (`cup_3` → `cup`; `finger_left` stays). */
 export function itemName(id) {
-  const s = String(id ?? '');
-  const i = s.lastIndexOf('#');
-  return i >= 0 ? s.slice(0, i) : s;
+  return String(id ?? '').replace(/_\d+$/, '');
 }
 
 function poseOf(p) {
@@ -91,6 +92,7 @@ export class RobotScene {
     this.root.matrixAutoUpdate = false;
     scene.add(this.root);
     this.frames = new Map(); // frame_id → Object3D under root ('base' is root itself)
+    this.entities = new Map(); // entity id → its group (in its frame)
     this.cups = []; // materials lit while suction is on
     this.fingers = []; // { group, sign, halfY, y0 }
     this.nut = null; // { group, radius, halfHeight }
@@ -110,6 +112,7 @@ export class RobotScene {
     for (const f of this.frames.values()) this.root.remove(f);
     for (const c of [...this.root.children]) if (c !== this.target) this.root.remove(c);
     this.frames.clear();
+    this.entities.clear();
     this.cups = [];
     this.fingers = [];
     this.nut = null;
@@ -118,6 +121,7 @@ export class RobotScene {
     for (const entity of entities ?? []) {
       const group = entityGroup(entity);
       this.frame(entity.frame_id ?? 'base').add(group);
+      this.entities.set(entity.id ?? '', group);
       const name = itemName(entity.id);
       if (name === 'cup') {
         group.traverse((o) => o.material && this.cups.push(o.material));
@@ -219,7 +223,8 @@ export class RobotScene {
   }
 
   /** What is drawn, for tests: lit cups, finger centres (tool y, m), the nut's angle about its
-   * frame's Z (rad) and whether the spin ring shows. */
+   * frame's Z (rad), whether the spin ring shows, and each entity's first primitive's position in
+   * its frame. */
   describe() {
     const fingers = {};
     for (const f of this.fingers) fingers[f.name] = f.y0 + f.group.position.y;
@@ -236,6 +241,9 @@ export class RobotScene {
       spinRing: Boolean(this.spinRing?.visible),
       spinDirection: this.spin,
       viewFromBase: this.root.matrix.toArray(),
+      entities: Object.fromEntries(
+        [...this.entities].map(([id, g]) => [id, g.children[0]?.position.toArray() ?? null]),
+      ),
       frames: Object.fromEntries([...this.frames].map(([k, f]) => [k, [...f.position.toArray(), ...f.quaternion.toArray()]])),
     };
   }

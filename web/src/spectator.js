@@ -9,17 +9,21 @@ import * as THREE from 'three';
 const VIEW_DIRECTION = new THREE.Vector3(-0.75, 0.8, 0.9).normalize();
 const MARGIN_M = 0.1; // around each point that must be in view (the head's radius)
 
-/** Points that must be in view, in `local`: the head (origin), the robot's base, tool, object,
- * target (each a frame of the robot scene, mapped by view_from_base). */
+/** Points that must be in view, in `local`: the head (origin), the robot's base, tool and object
+ * (frames `tool0` and `tile` of the robot scene, mapped by view_from_base) and the centre of the
+ * scene's `target` entity (where the object goes; the screw task has none, its bolt is under the
+ * nut). */
 function workspacePoints(robot) {
   robot.root.updateMatrixWorld(true);
   const points = [new THREE.Vector3(0, 0, 0)];
   const m = robot.root.matrix;
   points.push(new THREE.Vector3(0, 0, 0).applyMatrix4(m));
-  for (const id of ['tool0', 'object', 'target']) {
+  for (const id of ['tool0', 'tile']) {
     const f = robot.frames.get(id);
     if (f) points.push(f.position.clone().applyMatrix4(m));
   }
+  const target = robot.entities.get('target');
+  if (target) points.push(new THREE.Box3().setFromObject(target).getCenter(new THREE.Vector3()));
   return points;
 }
 

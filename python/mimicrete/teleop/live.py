@@ -130,12 +130,16 @@ class Live:
         # worker thread does it, so the frames of the next episode are not held up
         self._io = ThreadPoolExecutor(max_workers=1, thread_name_prefix="teleop-save")
         self._pending: list[Future[None]] = []
+        self.events: list[dict[str, Any]] = []  # episode messages for the clients
+        #: the scene the clients were sent (a new session whose scene differs sends it again)
+        self.scene: list[dict[str, Any]] | None = None
         self.preview = self._session(self.seed + self.next_index, None)
         self.pinch_since: float | None = None
         self.fist_since: float | None = None
         self.pinch_fired = False
         self.last_right: np.ndarray | None = None
-        self.events: list[dict[str, Any]] = []  # episode messages for the clients
+        #: the newest control step and the session it belongs to (:attr:`last_step`)
+        self._last_step: tuple[Session, Step] | None = None
         # the gesture mode: its samples stay while the user records episodes in between
         self.gestures: GestureMode | None = None
         self.gesture_mode = False
@@ -184,6 +188,8 @@ class Live:
             ep.joints.append(joints)
         s = self.session
         steps = s.push(f.t, f.right_tracked, joints)
+        if steps:
+            self._last_step = (s, steps[-1])
         if s.done:
             if ep is not None:
                 self.stop()
@@ -354,15 +360,18 @@ class Live:
     # ------------------------------------------------------------------ state out
 
     def state(self) -> dict[str, Any]:
+        """What the page shows after a frame, from one simulator snapshot (the frames' poses and
+        the end effector) and the session's newest control step (why the arm does not follow)."""
         s = self.session
         snap = s.env.snapshot()
+        last = self.last_step
         why = None
         if s.target is None:
             why = "no hand yet"
         elif s.counts.frames and self.last_frame_untracked(s):
             why = "hand not tracked"
-        elif s.counts.unreachable and self._last_step_unreachable:
-            why = "target unreachable"
+        elif last is not None and last.why == "target unreachable":
+            why = last.why
         elif not self.recording:
             why = "not recording"
         target = None
@@ -385,11 +394,12 @@ class Live:
             "mode": "gestures" if self.gesture_mode else "teleop",
         }
 
-    _last_step_unreachable = False
-
-    def note_steps(self, steps: list[Step]) -> None:
-        if steps:
-            self._last_step_unreachable = steps[-1].why == "target unreachable"
+    @property
+    def last_step(self) -> Step | None:
+        """The newest control step of the current session (None before its first)."""
+        if self._last_step is None or self._last_step[0] is not self.session:
+            return None
+        return self._last_step[1]
 
     @staticmethod
     def last_frame_untracked(s: Session) -> bool:
@@ -552,7 +562,10 @@ class Live:
     # ------------------------------------------------------------------ internals
 
     def _session(self, seed: int, sink: DemoSink | None) -> Session:
-        return Session(
+        """A new session, which becomes the current one. Where its episode's scene differs from
+        the one the clients have (the screw task's plate and bolt move with the seed), a
+        ``scene`` message with the new entities goes out."""
+        s = Session(
             self.task.name,
             LAYOUT,
             "right",
@@ -561,6 +574,12 @@ class Live:
             model=self.model,
             recorder=sink,
         )
+        scene = s.env.scene_entities()
+        if scene != self.scene:
+            if self.scene is not None:  # the first one goes out in the hello
+                self.events.append({"type": "scene", "scene": scene})
+            self.scene = scene
+        return s
 
     def _first_free_index(self) -> int:
         used = [

@@ -43,7 +43,7 @@ from aiohttp import WSMsgType, web
 from .gesturemode import GestureModeError
 from .live import Live
 from .protocol import VERSION, FrameError, parse_frame
-from .view import scene_entities, view_from_base
+from .view import view_from_base
 
 STATIC = Path(__file__).resolve().parent / "static"
 
@@ -206,7 +206,7 @@ class TeleopServer:
             "task": live.task.name,
             "layout": "webxr",
             "control_dt": 0.04,
-            "scene": scene_entities(live.session.env.scene()),
+            "scene": live.scene,
             "view_from_base": view_from_base(live.calibration),
             "mode": "gestures" if live.gesture_mode else "teleop",
             "gesture_model": live.model_status(),
@@ -263,8 +263,7 @@ class TeleopServer:
             return
         self.stats.frames += 1
         self.stats.frame_times.append(time.monotonic())
-        steps = self.live.push(f)
-        self.live.note_steps(steps)
+        self.live.push(f)
         state = self.live.state()
         state.update(
             seq=f.seq,
@@ -288,7 +287,7 @@ class TeleopServer:
             if ev["type"] == "gestures":
                 if ev["event"] != "progress":  # not each sample
                     self.log(_gesture_line(ev))
-            else:
+            elif ev["type"] != "scene":  # (the scene of a new episode: too long to print)
                 self.log(json.dumps(ev))
             await self._broadcast(ev)
 

@@ -1,10 +1,10 @@
-"""What the live page draws: the simulator's scene as Foxglove ``SceneEntity`` JSON, and the poses
-of the frames those entities are locked to.
+"""What the live page draws, besides the scene itself: the poses of the scene's frames, the end
+effector's state, and where the scene sits in the user's tracking space.
 
-The geometry comes from tile-sim (``SimEnv.scene()``: the table, the robot's links, the end
-effector, the pad, the target and the object, each in a named frame) and the poses from its
-snapshot (``links`` 0-6 = Base … tool0, ``object``, ``tool0``), so the page shows exactly the
-world that is simulated.
+The scene is the one the demos' ``/scene`` carries, made in one place (demo-log's ``scene.rs``,
+through the bindings): ``SimEnv.scene_entities()`` gives its Foxglove ``SceneEntity`` JSON (the
+robot frame-locked to the URDF links, the table, pad, target, end effector in ``tool0`` and the
+object in ``tile``), and :func:`frame_poses` poses those frames from one simulator snapshot.
 """
 
 from __future__ import annotations
@@ -13,108 +13,17 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import kin
+from mimicrete import _native, kin
 from mimicrete.kin import Calibration
 
 
-def _pose(t: Any, q: Any) -> dict[str, Any]:
-    return {
-        "position": dict(zip("xyz", map(float, t), strict=True)),
-        "orientation": dict(zip("xyzw", map(float, q), strict=True)),
-    }
-
-
-def _color(rgba: Any) -> dict[str, float]:
-    return dict(zip("rgba", map(float, rgba), strict=True))
-
-
-def _quat_z_to(v: np.ndarray) -> list[float]:
-    """Quaternion (x, y, z, w) turning +Z onto the unit vector ``v``."""
-    z = np.array([0.0, 0.0, 1.0])
-    c = float(np.dot(z, v))
-    if c < -0.999999:
-        return [1.0, 0.0, 0.0, 0.0]
-    axis = np.cross(z, v)
-    q = np.array([axis[0], axis[1], axis[2], 1.0 + c])
-    return (q / np.linalg.norm(q)).tolist()
-
-
-def _frame_id(frame: str) -> str:
-    return "base" if frame == "world" else frame
-
-
-def scene_entities(items: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """tile-sim scene items → Foxglove ``SceneEntity`` objects (one per item; a capsule is a
-    cylinder between its end points with a sphere at each end)."""
-    out = []
-    for i, it in enumerate(items):
-        ent: dict[str, Any] = {
-            "id": f"{it['name']}#{i}",
-            "frame_id": _frame_id(it["frame"]),
-            "cubes": [],
-            "cylinders": [],
-            "spheres": [],
-        }
-        color = _color(it["rgba"])
-        kind = it["kind"]
-        if kind == "box":
-            size = [2.0 * float(h) for h in it["half_extents"]]
-            ent["cubes"].append(
-                {
-                    "pose": _pose(it["translation"], it["rotation"]),
-                    "size": dict(zip("xyz", size, strict=True)),
-                    "color": color,
-                }
-            )
-        elif kind == "cylinder":
-            d, h = 2.0 * float(it["radius"]), 2.0 * float(it["half_height"])
-            ent["cylinders"].append(
-                {
-                    "pose": _pose(it["translation"], it["rotation"]),
-                    "size": {"x": d, "y": d, "z": h},
-                    "bottom_scale": 1.0,
-                    "top_scale": 1.0,
-                    "color": color,
-                }
-            )
-        elif kind == "capsule":
-            a, b = np.asarray(it["a"], float), np.asarray(it["b"], float)
-            off = np.asarray(it["translation"], float)
-            a, b = a + off, b + off
-            d = 2.0 * float(it["radius"])
-            axis = b - a
-            length = float(np.linalg.norm(axis))
-            if length > 1e-9:
-                ent["cylinders"].append(
-                    {
-                        "pose": _pose((a + b) / 2.0, _quat_z_to(axis / length)),
-                        "size": {"x": d, "y": d, "z": length},
-                        "bottom_scale": 1.0,
-                        "top_scale": 1.0,
-                        "color": color,
-                    }
-                )
-            for p in (a, b):
-                ent["spheres"].append(
-                    {
-                        "pose": _pose(p, [0, 0, 0, 1]),
-                        "size": {"x": d, "y": d, "z": d},
-                        "color": color,
-                    }
-                )
-        out.append(ent)
-    return out
-
-
 def frame_poses(snap: dict[str, Any]) -> dict[str, list[float]]:
-    """``{frame_id: [x, y, z, qx, qy, qz, qw]}`` in Base for every frame the scene uses."""
-    frames = {"base": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]}
-    for i, p in enumerate(snap["links"]):
-        frames[f"link{i}"] = [*map(float, p["t"]), *map(float, p["q"])]
-    for name in ("object", "tool0", "tcp", "target"):
-        p = snap[name]
-        frames[name] = [*map(float, p["t"]), *map(float, p["q"])]
-    return frames
+    """``{frame_id: [x, y, z, qx, qy, qz, qw]}`` in Base of every frame the scene's entities are
+    locked to (the URDF links ``shoulder_link`` … ``tool0`` at the snapshot's joints, ``tile`` at
+    its object; ``base`` is the identity and not listed), from a snapshot the caller already has:
+    ``_native.scene_frames``, the frames ``SimEnv.scene_frames()`` and the demos' ``/tf`` give."""
+    o = snap["object"]
+    return _native.scene_frames(snap["q"], [*o["t"], *o["q"]])
 
 
 def effector_state(task: str, snap: dict[str, Any]) -> dict[str, Any]:
