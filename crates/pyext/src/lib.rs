@@ -2,9 +2,17 @@
 //! conversion between numpy/Python values and the crates' types, error mapping, and releasing the
 //! interpreter lock around heavy work. One file per wrapped crate:
 //! `kin.rs` (ur3-kin), `sim.rs` (tile-sim and the task scenes), `demo.rs` (demo-log); `errors.rs`
-//! holds the exception tree (with the Rust errors' fields) and the Python ↔ JSON value conversion.
+//! holds the exception tree (with the Rust errors' fields) and the value conversions
+//! (Python ↔ JSON, numpy ↔ `demo_log::NdArray`).
 
 use pyo3::prelude::*;
+
+/// Add each `#[pyfunction]` to module `m`.
+macro_rules! add_functions {
+    ($m:expr => $($f:ident),+ $(,)?) => {
+        $($m.add_function(wrap_pyfunction!($f, $m)?)?;)+
+    };
+}
 
 mod demo;
 mod errors;
