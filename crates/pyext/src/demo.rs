@@ -1,14 +1,11 @@
 //! Bindings for demo-log: hand logs ↔ numpy, the MCAP `DemoWriter`, demo reading and salvage.
-//! Dicts cross as JSON values and serde records (`errors::{from_py, to_py}`), arrays as
-//! `demo_log::NdArray` (`errors::{nd_from_py, nd_to_py}`); their keys, defaults, shapes and
-//! checks are demo-log's (`EpisodeMeta::from_json`, `HandLogHeader::from_fields`,
-//! `HandLog::{to_arrays, from_arrays}`, `HandFrame::from_arrays`, `Pose::from_numbers`).
-//! Errors: `errors::{handlog_err, demo_err}`.
+//! Keys, defaults, shapes and checks are demo-log's (`EpisodeMeta::from_json`,
+//! `HandLogHeader::from_fields`, `HandLog::{to_arrays, from_arrays}`, `Pose::from_json`).
 
-use crate::errors::{demo_err, from_py, handlog_err, matrix, nd_from_py, nd_to_py, to_py};
+use crate::errors::{demo_err, from_py, handlog_err, matrix, nd_from_py, nd_to_py, to_py, vector};
 use demo_log::{
     DemoWriter as RsWriter, EpisodeMeta, EpisodeSummary, HandArrays, HandFrame, HandLog, HandLogHeader,
-    NdArray, ParseMode, ParseReport, Pose, StepRecord, WriterOptions,
+    ParseMode, ParseReport, Pose, StepRecord, WriterOptions,
 };
 use numpy::{PyReadonlyArray1, PyReadonlyArrayDyn};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -27,15 +24,10 @@ fn mode(name: &str) -> PyResult<ParseMode> {
 }
 
 fn handlog_to_py<'py>(py: Python<'py>, log: &HandLog, rep: &ParseReport) -> PyResult<Dict<'py>> {
-    let a = log.to_arrays();
-    let d = PyDict::new(py);
-    d.set_item("header", to_py(py, &log.header_fields())?)?;
-    d.set_item("t", nd_to_py(py, a.t)?)?;
-    d.set_item("tracked", nd_to_py(py, a.tracked)?)?;
-    d.set_item("joints", nd_to_py(py, a.joints)?)?;
-    d.set_item("orientations", a.orientations.map(|o| nd_to_py(py, o)).transpose()?)?;
-    d.set_item("report", to_py(py, rep)?)?;
-    Ok(d)
+    let (a, header) = (log.to_arrays(), to_py(py, &log.header_fields())?);
+    let orientations = a.orientations.map(|o| nd_to_py(py, o)).transpose()?;
+    Ok(dict!(py; "header" => header, "t" => nd_to_py(py, a.t)?, "tracked" => nd_to_py(py, a.tracked)?,
+        "joints" => nd_to_py(py, a.joints)?, "orientations" => orientations, "report" => to_py(py, rep)?))
 }
 
 /// Parse a hand-log file → dict header, t, tracked, joints, orientations, report.
@@ -225,37 +217,26 @@ impl PyDemoWriter {
 /// Read one demo → dict obs, actions, rewards, terminated, truncated, t, meta.
 #[pyfunction]
 fn demo_read<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Dict<'py>> {
-    let ep = py.detach(|| demo_log::read_demo(&path)).map_err(demo_err)?;
-    let d = PyDict::new(py);
-    d.set_item("obs", matrix(py, ep.obs, ep.obs_dim)?)?;
-    d.set_item("actions", matrix(py, ep.actions, ep.act_dim)?)?;
-    d.set_item("rewards", nd_to_py(py, NdArray::vector(ep.rewards))?)?;
-    d.set_item("terminated", nd_to_py(py, NdArray::vector(ep.terminated))?)?;
-    d.set_item("truncated", nd_to_py(py, NdArray::vector(ep.truncated))?)?;
-    d.set_item("t", nd_to_py(py, NdArray::vector(ep.t))?)?;
-    d.set_item("meta", ep.meta)?;
-    Ok(d)
+    let e = py.detach(|| demo_log::read_demo(&path)).map_err(demo_err)?;
+    let (obs, actions) = (matrix(py, e.obs, e.obs_dim)?, matrix(py, e.actions, e.act_dim)?);
+    Ok(dict!(py; "obs" => obs, "actions" => actions, "rewards" => vector(py, e.rewards),
+        "terminated" => vector(py, e.terminated), "truncated" => vector(py, e.truncated),
+        "t" => vector(py, e.t), "meta" => e.meta))
 }
 
 /// A demo file or every `*.mcap` of a directory (sorted), concatenated, with episode, files, metas.
 #[pyfunction]
 fn demo_load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Dict<'py>> {
-    let ds = py.detach(|| demo_log::load_dataset(&path)).map_err(demo_err)?;
-    let d = PyDict::new(py);
-    d.set_item("obs", matrix(py, ds.obs, ds.obs_dim)?)?;
-    d.set_item("actions", matrix(py, ds.actions, ds.act_dim)?)?;
-    d.set_item("rewards", nd_to_py(py, NdArray::vector(ds.rewards))?)?;
-    d.set_item("terminated", nd_to_py(py, NdArray::vector(ds.terminated))?)?;
-    d.set_item("truncated", nd_to_py(py, NdArray::vector(ds.truncated))?)?;
-    let episode = ds.episode.iter().map(|&e| i64::from(e)).collect();
-    d.set_item("episode", nd_to_py(py, NdArray::vector(episode))?)?;
-    d.set_item("files", ds.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>())?;
-    d.set_item("metas", ds.metas)?;
-    Ok(d)
+    let d = py.detach(|| demo_log::load_dataset(&path)).map_err(demo_err)?;
+    let (obs, actions) = (matrix(py, d.obs, d.obs_dim)?, matrix(py, d.actions, d.act_dim)?);
+    let episode = vector(py, d.episode.iter().map(|&e| i64::from(e)).collect());
+    let files: Vec<String> = d.files.iter().map(|f| f.display().to_string()).collect();
+    Ok(dict!(py; "obs" => obs, "actions" => actions, "rewards" => vector(py, d.rewards),
+        "terminated" => vector(py, d.terminated), "truncated" => vector(py, d.truncated),
+        "episode" => episode, "files" => files, "metas" => d.metas))
 }
 
-/// Check a demo's integrity (every chunk's CRC, the data-section and summary CRCs, completeness):
-/// `demo_log::VerifyReport` as a dict (chunks: `ChunkCheck` dicts) plus ok.
+/// Check a demo's integrity: `demo_log::VerifyReport` as a dict, plus ok.
 #[pyfunction]
 fn demo_verify<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
     let r = py.detach(|| demo_log::verify(&path)).map_err(demo_err)?;
@@ -264,8 +245,7 @@ fn demo_verify<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny
     Ok(d)
 }
 
-/// Every complete message of a (possibly cut) demo: (list of `RecoveredMessage` dicts, data as
-/// bytes; `SalvageReport` dict).
+/// Every complete message of a (possibly cut) demo (`RecoveredMessage` dicts) and the report.
 #[pyfunction]
 fn demo_salvage<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let (msgs, rep) = py.detach(|| demo_log::salvage(&path)).map_err(demo_err)?;

@@ -1,15 +1,12 @@
-//! The exception tree every binding raises from, carrying the Rust errors' fields:
-//! `MimicreteError(Exception)` → `IkError` (`reason`, `iters`, `pos_residual_m`,
-//! `rot_residual_rad`), `SimError` (`reason`), `LogFormatError` (`file`, `line`, `reason`).
-//! Fields a failure does not have are None (also the class-level defaults, so an instance raised
-//! from Python code has them too). Misuse (bad shapes, unknown names) raises `ValueError`.
-//! Also the value conversions: Python data ↔ JSON values (serde_json) and serde records, numpy
-//! arrays ↔ `demo_log::NdArray`.
+//! The exception tree, carrying the Rust errors' fields: `MimicreteError` → `IkError` (`reason`,
+//! `iters`, `pos_residual_m`, `rot_residual_rad`), `SimError` (`reason`), `LogFormatError` (`file`,
+//! `line`, `reason`); absent fields are None. Misuse raises `ValueError`. Also the conversions
+//! Python ↔ JSON values / serde records, numpy ↔ `demo_log::NdArray`.
 
 use demo_log::NdArray;
 use demo_log::serde_json::{Number, Value};
 use numpy::ndarray::ArrayD;
-use numpy::{Element, IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn};
+use numpy::{Element, IntoPyArray, PyArray1, PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyOSError, PyValueError};
 use pyo3::prelude::*;
@@ -34,8 +31,7 @@ fn obj<'py, T: IntoPyObjectExt<'py>>(py: Python<'py>, v: T) -> Option<Py<PyAny>>
     v.into_py_any(py).ok()
 }
 
-/// ur3-kin errors: `Unreachable` / `NotConverged` → `IkError` with their fields; the others
-/// (bad names, non-finite or non-rigid input, degenerate hands) → `ValueError`.
+/// ur3-kin errors: `Unreachable` / `NotConverged` → `IkError` with their fields, the rest `ValueError`.
 pub(crate) fn kin_err(e: ur3_kin::KinError) -> PyErr {
     use ur3_kin::KinError as K;
     let msg = e.to_string();
@@ -80,8 +76,7 @@ pub(crate) fn handlog_err(e: demo_log::HandLogError) -> PyErr {
     log_format(&e.file, Some(e.line), &e.reason)
 }
 
-/// demo-log errors: malformed files → `LogFormatError` (file, line when known, reason);
-/// unreadable/unwritable files → `OSError`; values the writer cannot record → `ValueError`.
+/// demo-log errors: malformed files → `LogFormatError`, I/O → `OSError`, bad values → `ValueError`.
 pub(crate) fn demo_err(e: demo_log::DemoError) -> PyErr {
     use demo_log::DemoError as D;
     match e {
@@ -95,16 +90,14 @@ pub(crate) fn demo_err(e: demo_log::DemoError) -> PyErr {
     }
 }
 
-/// A `LogFormatError` raised from Python code with the same fields and message rule as the native
-/// ones (`file:line: reason`, or `file: reason` when `line` is None).
+/// A `LogFormatError` for Python code, with the native ones' fields and message.
 #[pyfunction]
 #[pyo3(signature = (file, line, reason))]
 fn log_format_error(py: Python<'_>, file: &str, line: Option<usize>, reason: &str) -> Py<PyAny> {
     log_format(file, line, reason).into_value(py).into_any()
 }
 
-/// A Rust value (serde) as Python data: structs and maps as dicts, sequences as lists, tuples as
-/// tuples, bytes as bytes.
+/// A serde value as Python data: dicts, lists, tuples, bytes.
 pub(crate) fn to_py<'py, T: serde::Serialize + ?Sized>(
     py: Python<'py>,
     v: &T,
@@ -112,8 +105,7 @@ pub(crate) fn to_py<'py, T: serde::Serialize + ?Sized>(
     pythonize::pythonize(py, v).map_err(PyErr::from)
 }
 
-/// Python data as a JSON value: dicts (str keys), lists, tuples, numpy arrays and scalars
-/// (`tolist()`), path-likes (as str), str, int, finite float, bool, None.
+/// Python data as JSON: dicts, lists, tuples, numpy (`tolist()`), path-likes, str, int, float, bool, None.
 pub(crate) fn from_py(o: &Bound<'_, PyAny>) -> PyResult<Value> {
     Ok(if o.is_none() {
         Value::Null
@@ -142,6 +134,11 @@ pub(crate) fn from_py(o: &Bound<'_, PyAny>) -> PyResult<Value> {
 pub(crate) fn nd_to_py<T: Element>(py: Python<'_>, a: NdArray<T>) -> PyResult<Bound<'_, PyArrayDyn<T>>> {
     let a = ArrayD::from_shape_vec(a.shape, a.data).map_err(|e| PyValueError::new_err(e.to_string()))?;
     Ok(a.into_pyarray(py))
+}
+
+/// A 1-D numpy array of `v`.
+pub(crate) fn vector<T: Element>(py: Python<'_>, v: Vec<T>) -> Bound<'_, PyArray1<T>> {
+    v.into_pyarray(py)
 }
 
 /// A numpy array `(len / cols, cols)` from row-major `v`.

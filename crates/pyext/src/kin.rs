@@ -1,6 +1,5 @@
-//! Bindings for ur3-kin: numpy arrays ↔ the crate's types, error mapping (`errors::kin_err`), the
-//! interpreter lock released around batched work. The batch loops, their per-row failure policy
-//! and the checks of settings are ur3-kin's (`fk_batch`, `ik_batch_matrices`,
+//! Bindings for ur3-kin: numpy ↔ the crate's types, the interpreter lock released around batches.
+//! Batch loops, per-row failures and setting checks are ur3-kin's (`ik_batch_matrices`,
 //! `hand_to_target_batch`, `split_failures`, `IkOptions::with_tol`, `Calibration::new`).
 
 use crate::errors::kin_err;

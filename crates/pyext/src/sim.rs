@@ -1,12 +1,8 @@
-//! Bindings for tile-sim: `SimEnv` (one world) and `SimVecEnv` (N worlds stepped across threads
-//! with the interpreter lock released), the scripted expert, the task scenes. Conversion and error
-//! mapping (`errors::sim_err`) only; the final-observation rule is tile-sim's, the scene
-//! demo-log's (`demo_log::episode_scene`, `frame_poses`).
-//!
-//! Shapes (f32 unless noted): single env obs `(obs_dim,)`, action `(act_dim,)`; vector env obs
-//! `(num_envs, obs_dim)`, actions `(num_envs, act_dim)`, per-env scalars `(num_envs,)`.
+//! Bindings for tile-sim: `SimEnv`, `SimVecEnv` (N worlds stepped across threads, interpreter lock
+//! released), the scripted expert, the task scenes (demo-log's `episode_scene`, `frame_poses`).
+//! Shapes (f32): obs `(obs_dim,)` / `(num_envs, obs_dim)`, actions `(act_dim,)` / `(num_envs, act_dim)`.
 
-use crate::errors::{demo_err, matrix, nd_from_py, sim_err, to_py};
+use crate::errors::{demo_err, matrix, nd_from_py, sim_err, to_py, vector};
 use numpy::ndarray::Array1;
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
@@ -106,7 +102,7 @@ impl SimEnv {
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<F32s<'py>> {
         self.env.reset(seed, &mut self.obs).map_err(sim_err)?;
-        Ok(Array1::from(self.obs.clone()).into_pyarray(py))
+        Ok(vector(py, self.obs.clone()))
     }
 
     /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
@@ -121,7 +117,7 @@ impl SimEnv {
             [("picked", out.picked), ("held", out.held), ("installed", out.installed), ("fell", out.fell)]
                 .into_py_dict(py)?;
         info.set_item("step", self.env.snapshot().step)?;
-        Ok((Array1::from(self.obs.clone()).into_pyarray(py), out.reward, out.terminated, out.truncated, info))
+        Ok((vector(py, self.obs.clone()), out.reward, out.terminated, out.truncated, info))
     }
 
     /// The current stacked observation `(obs_dim,)`.
@@ -162,8 +158,7 @@ impl SimEnv {
     }
 }
 
-/// N envs stepped across threads, GIL released, same-step auto-reset; episode seeds from
-/// `tile_sim::episode_seed(seed, i, episode)` (env i starts with `seed + i`).
+/// N envs stepped across threads, same-step auto-reset, seeds `tile_sim::episode_seed(seed, i, episode)`.
 #[pyclass(module = "mimicrete._native")]
 pub struct SimVecEnv {
     venv: VecEnv,
@@ -242,7 +237,7 @@ impl SimVecEnv {
         let acts = flat(&actions, &[rows(&actions), ad], "actions")?;
         let mut obs = vec![0.0; od];
         self.venv.reset_replay(i, seed, &acts, &mut obs).map_err(sim_err)?;
-        Ok(Array1::from_vec(obs).into_pyarray(py))
+        Ok(vector(py, obs))
     }
 
     /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
@@ -256,10 +251,10 @@ impl SimVecEnv {
         let SimVecEnv { venv, buf, .. } = self;
         py.detach(|| venv.step_buffers(&acts, buf)).map_err(sim_err)?;
         let b = &self.buf;
-        let v = |x: &Vec<bool>| Array1::from(x.clone()).into_pyarray(py);
+        let v = |x: &Vec<bool>| vector(py, x.clone());
         Ok((
             matrix(py, b.obs.clone(), od)?,
-            Array1::from(b.reward.clone()).into_pyarray(py),
+            vector(py, b.reward.clone()),
             v(&b.terminated),
             v(&b.truncated),
             matrix(py, b.final_obs.clone(), od)?,
@@ -275,14 +270,10 @@ impl SimVecEnv {
     /// what `restore` needs to rebuild every env mid-episode (tile-sim's `VecEnvState`).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let st = self.venv.state();
-        let ad = self.act_dim;
-        let d = PyDict::new(py);
-        d.set_item("base_seed", st.base_seed)?;
-        d.set_item("episodes", Array1::from(st.episodes).into_pyarray(py))?;
-        d.set_item("seeds", Array1::from(st.seeds).into_pyarray(py))?;
-        let acts = st.actions.into_iter().map(|a| matrix(py, a, ad)).collect::<PyResult<Vec<_>>>()?;
-        d.set_item("actions", PyList::new(py, acts)?)?;
-        Ok(d)
+        let acts =
+            st.actions.into_iter().map(|a| matrix(py, a, self.act_dim)).collect::<PyResult<Vec<_>>>()?;
+        Ok(dict!(py; "base_seed" => st.base_seed, "episodes" => vector(py, st.episodes),
+            "seeds" => vector(py, st.seeds), "actions" => PyList::new(py, acts)?))
     }
 
     /// Rebuild the envs from a `state()` dict (replaying each running episode) → obs (num_envs,
@@ -341,7 +332,7 @@ impl SimExpert {
     fn act<'py>(&mut self, py: Python<'py>, env: &SimEnv) -> F32s<'py> {
         let mut a = vec![0.0; env.env.task().act_dim()];
         self.ex.act(&env.env.snapshot(), &mut a);
-        Array1::from(a).into_pyarray(py)
+        vector(py, a)
     }
 }
 
