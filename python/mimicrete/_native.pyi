@@ -20,6 +20,8 @@ _StrPath = str | os.PathLike[str]
 _F64 = NDArray[np.float64]
 _F32 = NDArray[np.float32]
 _Bool = NDArray[np.bool_]
+# A calibration: (base_from_space (4, 4) or None for ur3-kin's default, scale, space name).
+_Calibration = tuple[_F64 | None, float, str]
 
 __version__: str
 
@@ -140,27 +142,21 @@ def kin_hand_to_target(
     index_proximal: _F64,
     middle_proximal: _F64,
     handedness: str,
-    base_from_space: _F64 | None,
-    scale: float,
-    space: str,
+    calibration: _Calibration,
 ) -> _F64:
-    """Hand joints (3,) each, in `space` → tool0 target (4, 4) in Base."""
+    """Hand joints (3,) each, in the calibration's space → tool0 target (4, 4) in Base."""
 
 def kin_hand_to_target_batch(
     wrist: _F64,
     index_proximal: _F64,
     middle_proximal: _F64,
     handedness: str,
-    base_from_space: _F64 | None,
-    scale: float,
-    space: str,
+    calibration: _Calibration,
 ) -> tuple[_F64, _Bool]:
     """(N, 3) each → (T (N, 4, 4), ok (N,)); degenerate frames give ok False and identity T."""
 
-def kin_points_to_base(
-    points: _F64, base_from_space: _F64 | None, scale: float, space: str
-) -> _F64:
-    """Points (N, 3) in `space` → (N, 3) in the robot Base frame."""
+def kin_points_to_base(points: _F64, calibration: _Calibration) -> _F64:
+    """Points (N, 3) in the calibration's space → (N, 3) in the robot Base frame."""
 
 def kin_default_calibration() -> tuple[_F64, float, str]:
     """The default calibration: (base_from_space (4, 4), scale, space name)."""
@@ -221,15 +217,12 @@ class _SimConstants(TypedDict):
 class SimEnv:
     """One simulated environment: ``SimEnv(task, seed=0)``."""
 
+    # Read-only attributes.
+    task: Final[str]
+    obs_dim: Final[int]
+    obs_frame_dim: Final[int]
+    act_dim: Final[int]
     def __new__(cls, task: str, seed: int = 0) -> SimEnv: ...
-    @property
-    def task(self) -> str: ...
-    @property
-    def obs_dim(self) -> int: ...
-    @property
-    def obs_frame_dim(self) -> int: ...
-    @property
-    def act_dim(self) -> int: ...
     def reset(self, seed: int | None = None) -> _F32:
         """Start an episode (None: next seed from the env's RNG) → obs (obs_dim,)."""
     def step(self, action: ArrayLike) -> tuple[_F32, float, bool, bool, _StepInfo]:
@@ -260,19 +253,15 @@ class SimVecEnv:
     auto-reset: ``SimVecEnv(task, num_envs, seed=0, num_threads=2)``; env i starts episode
     seed + i, its later episodes tile-sim's ``episode_seed(seed, i, episode)``."""
 
+    # Read-only attributes.
+    task: Final[str]
+    num_envs: Final[int]
+    num_threads: Final[int]
+    obs_dim: Final[int]
+    act_dim: Final[int]
     def __new__(
         cls, task: str, num_envs: int, seed: int = 0, num_threads: int = 2
     ) -> SimVecEnv: ...
-    @property
-    def task(self) -> str: ...
-    @property
-    def num_envs(self) -> int: ...
-    @property
-    def num_threads(self) -> int: ...
-    @property
-    def obs_dim(self) -> int: ...
-    @property
-    def act_dim(self) -> int: ...
     def reset(self, seed: int | None = None) -> _F32:
         """Reset all envs with base seed ``seed`` (episode counts restart) → obs (num_envs,
         obs_dim)."""

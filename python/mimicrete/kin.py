@@ -232,7 +232,7 @@ def _hand_call(
 ) -> Any:
     """Check the three joints (``(3,)`` each, or ``(N, 3)`` each with ``batch``), convert the
     calibration and call the native hand → target entry point."""
-    m, scale, space = _calib(calibration)
+    calib = _calib(calibration)
     if batch:
         w = _shaped(wrist, "wrist", (None, 3), "(N, 3)")
         shape: tuple[int | None, ...] = (w.shape[0], 3)
@@ -245,9 +245,7 @@ def _hand_call(
         _shaped(index_proximal, "index_proximal", shape, text),
         _shaped(middle_proximal, "middle_proximal", shape, text),
         handedness,
-        m,
-        scale,
-        space,
+        calib,
     )
 
 
@@ -300,8 +298,7 @@ def points_to_base(points: Any, calibration: Any = None) -> np.ndarray:
     p = _arr(points, "points")
     single = p.ndim == 1
     p2 = _shaped(p.reshape(1, -1) if single else p, "points", (None, 3), "(3,) or (N, 3)")
-    m, scale, space = _calib(calibration)
-    out = _native.kin_points_to_base(p2, m, scale, space)
+    out = _native.kin_points_to_base(p2, _calib(calibration))
     return out[0] if single else out
 
 

@@ -52,6 +52,7 @@
 //! [`salvage_to`] declares the lost steps so that the result loads. [`read_demo`] /
 //! [`load_dataset`] turn demos into flat arrays.
 
+mod arrays;
 mod handlog;
 mod meta;
 mod reader;
@@ -61,6 +62,7 @@ mod scene;
 pub mod schemas;
 mod writer;
 
+pub use arrays::{HandArrays, NdArray, shape_text};
 pub use handlog::{
     HANDLOG_FORMAT, HANDLOG_VERSION, HandFrame, HandLog, HandLogError, HandLogHeader, ParseMode, ParseReport,
     SkippedLine, frame_json,

@@ -63,6 +63,11 @@ impl Pose {
         }
     }
 
+    /// `[x, y, z, qx, qy, qz, qw]`: the 7 numbers [`Pose::from_numbers`] reads.
+    pub fn to_numbers(&self) -> [f64; 7] {
+        std::array::from_fn(|i| if i < 3 { self.position[i] } else { self.orientation[i - 3] })
+    }
+
     /// [`Pose::from_numbers`] of a JSON array of 7 numbers or of 4 rows of 4.
     ///
     /// # Errors

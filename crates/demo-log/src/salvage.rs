@@ -14,11 +14,13 @@ use crate::scan::{FileMap, MAGIC};
 use crate::schemas;
 use crate::writer::{DEMO_FORMAT, TOPIC_EVENTS, TOPIC_HAND, TOPIC_SCENE, TOPIC_STEP, TOPIC_TF};
 use mcap::records::Record;
+use serde::Serialize;
+use serde::ser::{SerializeMap, Serializer};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// A message recovered from a damaged file.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// A message recovered from a damaged file (serialized with `data` as bytes).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct RecoveredMessage {
     /// Channel topic (`/demo/step`, ...).
     pub topic: String,
@@ -33,11 +35,26 @@ pub struct RecoveredMessage {
     /// Per-channel sequence number.
     pub sequence: u32,
     /// The message bytes.
+    #[serde(serialize_with = "as_bytes")]
     pub data: Vec<u8>,
 }
 
-/// One chunk as [`verify`] (and salvage) found it.
-#[derive(Debug, Clone, PartialEq, Eq)]
+fn as_bytes<S: Serializer>(v: &[u8], s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_bytes(v)
+}
+
+/// `log_times` serialized as two fields, `log_time_start` and `log_time_end` (each null when
+/// unknown).
+fn log_time_fields<S: Serializer>(t: &Option<(u64, u64)>, s: S) -> Result<S::Ok, S::Error> {
+    let mut m = s.serialize_map(Some(2))?;
+    m.serialize_entry("log_time_start", &t.map(|t| t.0))?;
+    m.serialize_entry("log_time_end", &t.map(|t| t.1))?;
+    m.end()
+}
+
+/// One chunk as [`verify`] (and salvage) found it (serialized with `log_times` as the two fields
+/// `log_time_start`, `log_time_end`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct ChunkCheck {
     /// Position among the chunks of the file (0-based, file order).
     pub index: u64,
@@ -48,6 +65,7 @@ pub struct ChunkCheck {
     /// Messages in the chunk (counted when intact, else from its message index records).
     pub messages: Option<u64>,
     /// First and last log time (ns) of its messages, when known.
+    #[serde(flatten, serialize_with = "log_time_fields")]
     pub log_times: Option<(u64, u64)>,
     /// What is wrong with it (`None`: intact).
     pub error: Option<String>,
@@ -57,7 +75,7 @@ pub struct ChunkCheck {
 }
 
 /// What salvage found.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize)]
 pub struct SalvageReport {
     /// Size of the input, bytes.
     pub bytes_total: u64,
@@ -431,7 +449,7 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
 }
 
 /// The integrity of an MCAP file, from [`verify`].
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize)]
 pub struct VerifyReport {
     /// File size, bytes.
     pub bytes: u64,

@@ -29,20 +29,14 @@ pub const TOPIC_SCENE: &str = "/scene";
 pub const TOPIC_EVENTS: &str = "/events";
 
 /// Name of the root frame (the UR controller's Base frame, Z up, metres).
-pub const BASE_FRAME: &str = "base";
-/// Frames of the robot links published on `/tf`, the links of the URDF attached to the file
-/// (`ur3_kin::urdf`, ROS-Industrial `ur_description` layout): each is the child of the one before,
-/// the first is the child of [`BASE_FRAME`].
-pub const LINK_FRAMES: [&str; 8] = [
-    "shoulder_link",
-    "upper_arm_link",
-    "forearm_link",
-    "wrist_1_link",
-    "wrist_2_link",
-    "wrist_3_link",
-    "flange",
-    "tool0",
-];
+pub const BASE_FRAME: &str = urdf::LINKS[0];
+/// Frames of the robot links published on `/tf`: the links of the URDF attached to the file after
+/// its root ([`ur3_kin::urdf::LINKS`], ROS-Industrial `ur_description` layout); each is the child
+/// of the one before, the first is the child of [`BASE_FRAME`].
+pub const LINK_FRAMES: [&str; 8] = match urdf::LINKS.last_chunk::<8>() {
+    Some(l) => *l,
+    None => unreachable!(),
+};
 /// Frame of the tile (child of [`BASE_FRAME`]).
 pub const TILE_FRAME: &str = "tile";
 

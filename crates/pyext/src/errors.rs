@@ -1,93 +1,74 @@
-//! The exception tree every binding raises from, carrying the Rust errors' fields:
-//! `MimicreteError(Exception)` → `IkError` (`reason`, `iters`, `pos_residual_m`,
-//! `rot_residual_rad`), `SimError` (`reason`), `LogFormatError` (`file`, `line`, `reason`).
-//! Fields a failure does not have are None (also the class-level defaults, so an instance raised
-//! from Python code has them too). Misuse (bad shapes, unknown names) raises `ValueError`.
-//! Also the conversion between Python values and JSON values (serde_json) the crates read and
-//! write.
+//! The exception tree, carrying the Rust errors' fields: `MimicreteError` → `IkError` (`reason`,
+//! `iters`, `pos_residual_m`, `rot_residual_rad`), `SimError` (`reason`), `LogFormatError` (`file`,
+//! `line`, `reason`); absent fields are None. Misuse raises `ValueError`. Also the conversions
+//! Python ↔ JSON values / serde records, numpy ↔ `demo_log::NdArray`.
 
-use demo_log::serde_json::{Map, Number, Value};
+use demo_log::NdArray;
+use demo_log::serde_json::{Number, Value};
+use numpy::ndarray::ArrayD;
+use numpy::{Element, IntoPyArray, PyArray1, PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyOSError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyTuple};
 use pyo3::{IntoPyObjectExt, PyTypeInfo};
 
 create_exception!(mimicrete._native, MimicreteError, PyException, "Base class of every mimicrete error.");
 create_exception!(mimicrete._native, IkError, MimicreteError, "Inverse kinematics found no solution.");
 create_exception!(mimicrete._native, SimError, MimicreteError, "The simulator refused an input or state.");
-create_exception!(
-    mimicrete._native,
-    LogFormatError,
-    MimicreteError,
-    "A hand log or demo file is malformed (the message names file, line and reason)."
-);
-
-type Field<'a> = (&'a str, Option<Py<PyAny>>);
+create_exception!(mimicrete._native, LogFormatError, MimicreteError, "A hand log or demo file is malformed.");
 
 /// An exception of type `T` with message `msg` and attributes `fields`.
-fn raise<T: PyTypeInfo>(msg: String, fields: Vec<Field<'_>>) -> PyErr {
+fn raise<T: PyTypeInfo>(py: Python<'_>, msg: String, fields: &[(&str, Option<Py<PyAny>>)]) -> PyErr {
     let e = PyErr::new::<T, _>(msg);
-    Python::attach(|py| {
-        for (k, v) in fields {
-            if let Err(x) = e.value(py).setattr(k, v) {
-                return x;
-            }
-        }
-        e.clone_ref(py)
-    })
+    match fields.iter().try_for_each(|(k, v)| e.value(py).setattr(*k, v)) {
+        Ok(()) => e,
+        Err(x) => x,
+    }
 }
 
 fn obj<'py, T: IntoPyObjectExt<'py>>(py: Python<'py>, v: T) -> Option<Py<PyAny>> {
     v.into_py_any(py).ok()
 }
 
-/// ur3-kin errors: `Unreachable` / `NotConverged` → `IkError` with their fields; the others
-/// (bad names, non-finite or non-rigid input, degenerate hands) → `ValueError`.
+/// ur3-kin errors: `Unreachable` / `NotConverged` → `IkError` with their fields, the rest `ValueError`.
 pub(crate) fn kin_err(e: ur3_kin::KinError) -> PyErr {
     use ur3_kin::KinError as K;
     let msg = e.to_string();
     Python::attach(|py| match e {
-        K::Unreachable { reason } => raise::<IkError>(msg, vec![("reason", obj(py, reason))]),
-        K::NotConverged { iters, pos_residual_m, rot_residual_rad } => raise::<IkError>(
-            msg,
-            vec![
-                ("reason", obj(py, "did not converge")),
-                ("iters", obj(py, iters)),
-                ("pos_residual_m", obj(py, pos_residual_m)),
-                ("rot_residual_rad", obj(py, rot_residual_rad)),
-            ],
-        ),
+        K::Unreachable { reason } => raise::<IkError>(py, msg, &[("reason", obj(py, reason))]),
+        K::NotConverged { iters, pos_residual_m: p, rot_residual_rad: r } => {
+            let (reason, iters) = (obj(py, "did not converge"), obj(py, iters));
+            let f = [
+                ("reason", reason),
+                ("iters", iters),
+                ("pos_residual_m", obj(py, p)),
+                ("rot_residual_rad", obj(py, r)),
+            ];
+            raise::<IkError>(py, msg, &f)
+        }
         _ => PyValueError::new_err(msg),
     })
 }
 
 /// tile-sim errors: stepping a finished episode → `SimError`; the caller's mistakes → `ValueError`.
 pub(crate) fn sim_err(e: tile_sim::SimError) -> PyErr {
+    let msg = e.to_string();
     match e {
         tile_sim::SimError::EpisodeOver => {
-            let msg = e.to_string();
-            Python::attach(|py| raise::<SimError>(msg.clone(), vec![("reason", obj(py, msg))]))
+            Python::attach(|py| raise::<SimError>(py, msg.clone(), &[("reason", obj(py, msg))]))
         }
-        other => PyValueError::new_err(other.to_string()),
+        _ => PyValueError::new_err(msg),
     }
 }
 
 /// `LogFormatError` with `str(e)` = `file:line: reason` (`file: reason` without a line).
 pub(crate) fn log_format(file: &str, line: Option<usize>, reason: &str) -> PyErr {
-    let msg = match line {
-        Some(l) => format!("{file}:{l}: {reason}"),
-        None => format!("{file}: {reason}"),
-    };
+    let msg = line.map_or(format!("{file}: {reason}"), |l| format!("{file}:{l}: {reason}"));
     Python::attach(|py| {
-        raise::<LogFormatError>(
-            msg,
-            vec![
-                ("file", obj(py, file)),
-                ("line", line.and_then(|l| obj(py, l))),
-                ("reason", obj(py, reason)),
-            ],
-        )
+        let f =
+            [("file", obj(py, file)), ("line", line.and_then(|l| obj(py, l))), ("reason", obj(py, reason))];
+        raise::<LogFormatError>(py, msg, &f)
     })
 }
 
@@ -95,8 +76,7 @@ pub(crate) fn handlog_err(e: demo_log::HandLogError) -> PyErr {
     log_format(&e.file, Some(e.line), &e.reason)
 }
 
-/// demo-log errors: malformed files → `LogFormatError` (file, line when known, reason);
-/// unreadable/unwritable files → `OSError`; values the writer cannot record → `ValueError`.
+/// demo-log errors: malformed files → `LogFormatError`, I/O → `OSError`, bad values → `ValueError`.
 pub(crate) fn demo_err(e: demo_log::DemoError) -> PyErr {
     use demo_log::DemoError as D;
     match e {
@@ -110,15 +90,14 @@ pub(crate) fn demo_err(e: demo_log::DemoError) -> PyErr {
     }
 }
 
-/// A `LogFormatError` raised from Python code with the same fields and message rule as the native
-/// ones (`file:line: reason`, or `file: reason` when `line` is None).
+/// A `LogFormatError` for Python code, with the native ones' fields and message.
 #[pyfunction]
 #[pyo3(signature = (file, line, reason))]
-fn log_format_error(file: &str, line: Option<usize>, reason: &str) -> Py<PyAny> {
-    Python::attach(|py| log_format(file, line, reason).into_value(py).into_any())
+fn log_format_error(py: Python<'_>, file: &str, line: Option<usize>, reason: &str) -> Py<PyAny> {
+    log_format(file, line, reason).into_value(py).into_any()
 }
 
-/// A Rust value (serde) as Python data: structs and maps as dicts, sequences as lists.
+/// A serde value as Python data: dicts, lists, tuples, bytes.
 pub(crate) fn to_py<'py, T: serde::Serialize + ?Sized>(
     py: Python<'py>,
     v: &T,
@@ -126,52 +105,59 @@ pub(crate) fn to_py<'py, T: serde::Serialize + ?Sized>(
     pythonize::pythonize(py, v).map_err(PyErr::from)
 }
 
-/// Python data as a JSON value: dicts (str keys), lists, tuples, numpy arrays and scalars
-/// (`tolist()`), path-likes (as str), str, int, finite float, bool, None.
+/// Python data as JSON: dicts, lists, tuples, numpy (`tolist()`), path-likes, str, int, float, bool, None.
 pub(crate) fn from_py(o: &Bound<'_, PyAny>) -> PyResult<Value> {
-    if o.is_none() {
-        return Ok(Value::Null);
-    }
-    if let Ok(b) = o.cast::<pyo3::types::PyBool>() {
-        return Ok(Value::Bool(b.is_true()));
-    }
-    if let Ok(i) = o.cast::<pyo3::types::PyInt>() {
-        return Ok(match i.extract::<i64>() {
-            Ok(v) => Value::from(v),
-            Err(_) => Value::from(i.extract::<u64>()?),
-        });
-    }
-    if let Ok(f) = o.cast::<pyo3::types::PyFloat>() {
+    Ok(if o.is_none() {
+        Value::Null
+    } else if let Ok(b) = o.cast::<PyBool>() {
+        Value::Bool(b.is_true())
+    } else if let Ok(i) = o.cast::<PyInt>() {
+        i.extract::<i64>().map(Value::from).or_else(|_| i.extract::<u64>().map(Value::from))?
+    } else if let Ok(f) = o.cast::<PyFloat>() {
         let x = f.value();
-        return Number::from_f64(x)
-            .map(Value::Number)
-            .ok_or_else(|| PyValueError::new_err(format!("{x} is not a finite number (JSON)")));
-    }
-    if let Ok(s) = o.extract::<String>() {
-        return Ok(Value::String(s));
-    }
-    if let Ok(d) = o.cast::<PyDict>() {
-        let mut m = Map::new();
-        for (k, v) in d.iter() {
-            m.insert(k.extract::<String>()?, from_py(&v)?);
-        }
-        return Ok(Value::Object(m));
-    }
-    if o.is_instance_of::<PyList>() || o.is_instance_of::<PyTuple>() {
-        return o.try_iter()?.map(|x| from_py(&x?)).collect::<PyResult<Vec<_>>>().map(Value::Array);
-    }
-    if o.hasattr("tolist")? {
-        return from_py(&o.call_method0("tolist")?);
-    }
-    if o.hasattr("__fspath__")? {
-        return from_py(&o.call_method0("__fspath__")?);
-    }
-    Err(PyValueError::new_err(format!("{} is not JSON data", o.get_type().name()?)))
+        let e = || PyValueError::new_err(format!("{x} is not a finite number (JSON)"));
+        Value::Number(Number::from_f64(x).ok_or_else(e)?)
+    } else if let Ok(s) = o.extract::<String>() {
+        Value::String(s)
+    } else if let Ok(d) = o.cast::<PyDict>() {
+        Value::Object(d.iter().map(|(k, v)| Ok((k.extract()?, from_py(&v)?))).collect::<PyResult<_>>()?)
+    } else if o.is_instance_of::<PyList>() || o.is_instance_of::<PyTuple>() {
+        Value::Array(o.try_iter()?.map(|x| from_py(&x?)).collect::<PyResult<_>>()?)
+    } else if let Some(m) = ["tolist", "__fspath__"].into_iter().find(|m| o.hasattr(*m).unwrap_or(false)) {
+        from_py(&o.call_method0(m)?)?
+    } else {
+        return Err(PyValueError::new_err(format!("{} is not JSON data", o.get_type().name()?)));
+    })
+}
+
+/// A numpy array of `a`'s shape and elements.
+pub(crate) fn nd_to_py<T: Element>(py: Python<'_>, a: NdArray<T>) -> PyResult<Bound<'_, PyArrayDyn<T>>> {
+    let a = ArrayD::from_shape_vec(a.shape, a.data).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(a.into_pyarray(py))
+}
+
+/// A 1-D numpy array of `v`.
+pub(crate) fn vector<T: Element>(py: Python<'_>, v: Vec<T>) -> Bound<'_, PyArray1<T>> {
+    v.into_pyarray(py)
+}
+
+/// A numpy array `(len / cols, cols)` from row-major `v`.
+pub(crate) fn matrix<T: Element>(
+    py: Python<'_>,
+    v: Vec<T>,
+    cols: usize,
+) -> PyResult<Bound<'_, PyArrayDyn<T>>> {
+    nd_to_py(py, NdArray::matrix(v, cols).map_err(demo_err)?)
+}
+
+/// A numpy array's shape and elements.
+pub(crate) fn nd_from_py<T: Element + Copy>(a: &PyReadonlyArrayDyn<'_, T>) -> NdArray<T> {
+    let a = a.as_array();
+    NdArray { shape: a.shape().to_vec(), data: a.iter().copied().collect() }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
-    let none = || py.None();
     let types = [
         (py.get_type::<MimicreteError>(), &[][..]),
         (py.get_type::<IkError>(), &["reason", "iters", "pos_residual_m", "rot_residual_rad"][..]),
@@ -179,11 +165,9 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         (py.get_type::<LogFormatError>(), &["file", "line", "reason"][..]),
     ];
     for (t, fields) in types {
-        for f in fields {
-            t.setattr(*f, none())?;
-        }
+        fields.iter().try_for_each(|f| t.setattr(*f, py.None()))?;
         m.add(t.name()?, t)?;
     }
-    m.add_function(wrap_pyfunction!(log_format_error, m)?)?;
+    add_functions!(m => log_format_error);
     Ok(())
 }

@@ -1,10 +1,24 @@
-//! `mimicrete._native`: the thin pyo3 layer over the Rust crates. No logic lives here, only
-//! conversion between numpy/Python values and the crates' types, error mapping, and releasing the
-//! interpreter lock around heavy work. One file per wrapped crate:
-//! `kin.rs` (ur3-kin), `sim.rs` (tile-sim and the task scenes), `demo.rs` (demo-log); `errors.rs`
-//! holds the exception tree (with the Rust errors' fields) and the Python ↔ JSON value conversion.
+//! `mimicrete._native`: the thin pyo3 layer over the Rust crates: conversion, error mapping and
+//! releasing the interpreter lock, one file per crate (`kin.rs`, `sim.rs`, `demo.rs`); `errors.rs`
+//! holds the exception tree and the value conversions.
 
 use pyo3::prelude::*;
+
+/// Add each `#[pyfunction]` to module `m`.
+macro_rules! add_functions {
+    ($m:expr => $($f:ident),+ $(,)?) => {
+        $($m.add_function(wrap_pyfunction!($f, $m)?)?;)+
+    };
+}
+
+/// A `PyDict` of `key => value` pairs (`set_item` converts each value); `?` on failure.
+macro_rules! dict {
+    ($py:expr; $($k:literal => $v:expr),+ $(,)?) => {{
+        let d = pyo3::types::PyDict::new($py);
+        $(d.set_item($k, $v)?;)+
+        d
+    }};
+}
 
 mod demo;
 mod errors;

@@ -1,17 +1,13 @@
-//! Bindings for tile-sim: `SimEnv` (one world) and `SimVecEnv` (N worlds stepped across threads
-//! with the interpreter lock released), the scripted expert, the task scenes. Conversion and error
-//! mapping (`errors::sim_err`) only; the final-observation rule is tile-sim's, the scene
-//! demo-log's (`demo_log::episode_scene`, `frame_poses`).
-//!
-//! Shapes (f32 unless noted): single env obs `(obs_dim,)`, action `(act_dim,)`; vector env obs
-//! `(num_envs, obs_dim)`, actions `(num_envs, act_dim)`, per-env scalars `(num_envs,)`.
+//! Bindings for tile-sim: `SimEnv`, `SimVecEnv` (N worlds stepped across threads, interpreter lock
+//! released), the scripted expert, the task scenes (demo-log's `episode_scene`, `frame_poses`).
+//! Shapes (f32): obs `(obs_dim,)` / `(num_envs, obs_dim)`, actions `(act_dim,)` / `(num_envs, act_dim)`.
 
-use crate::errors::{sim_err, to_py};
-use numpy::ndarray::{Array1, Array2};
-use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn, PyReadonlyArrayDyn};
+use crate::errors::{demo_err, matrix, nd_from_py, sim_err, to_py, vector};
+use numpy::ndarray::Array1;
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{IntoPyDict, PyDict, PyList};
 use std::collections::BTreeMap;
 use tile_sim::{Env, StepBuffers, Task, VecEnv, VecEnvState};
 
@@ -26,24 +22,17 @@ fn snapshot_dict<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyAny>>
     Ok(d)
 }
 
-fn shape_text(s: &[usize]) -> String {
-    match s {
-        [a] => format!("({a},)"),
-        _ => format!("({})", s.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(", ")),
-    }
-}
-
 fn flat<T: numpy::Element + Copy>(
     a: &PyArrayLikeDyn<'_, T, AllowTypeChange>,
     shape: &[usize],
     what: &str,
 ) -> PyResult<Vec<T>> {
-    let v = a.as_array();
-    if v.shape() != shape {
-        let msg = format!("{what} must have shape {}, got {}", shape_text(shape), shape_text(v.shape()));
-        return Err(PyValueError::new_err(msg));
-    }
-    Ok(v.iter().copied().collect())
+    nd_from_py(a).into_shape(shape, what).map_err(demo_err)
+}
+
+/// Length of the first axis (0 for a scalar).
+fn rows<T: numpy::Element>(a: &PyArrayLikeDyn<'_, T, AllowTypeChange>) -> usize {
+    a.as_array().shape().first().copied().unwrap_or(0)
 }
 
 /// The Foxglove `SceneEntity` objects a demo of episode `seed` of `task` carries on `/scene`.
@@ -57,10 +46,9 @@ fn entities<'py>(py: Python<'py>, task: Task, seed: u64, model: &str) -> PyResul
 }
 
 /// Pose in Base, `[x, y, z, qx, qy, qz, qw]`, of every frame the scene entities are locked to.
-fn frames(joints: [f64; 6], tile: demo_log::Pose, model: &str) -> PyResult<BTreeMap<&'static str, Vec<f64>>> {
+fn frames(joints: [f64; 6], tile: demo_log::Pose, model: &str) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
     let m = ur3_kin::UrModel::by_name(model).map_err(crate::errors::kin_err)?;
-    let f = demo_log::frame_poses(m, &joints, &tile);
-    Ok(f.into_iter().map(|(k, p)| (k, p.position.iter().chain(&p.orientation).copied().collect())).collect())
+    Ok(demo_log::frame_poses(m, &joints, &tile).into_iter().map(|(k, p)| (k, p.to_numbers())).collect())
 }
 
 /// The Foxglove `SceneEntity` list (JSON-ready dicts) of episode `seed` of `task`.
@@ -77,13 +65,13 @@ fn scene_frames(
     joints: [f64; 6],
     tile_pose: Vec<f64>,
     model: &str,
-) -> PyResult<BTreeMap<&'static str, Vec<f64>>> {
-    let tile = demo_log::Pose::from_numbers(&tile_pose, "tile_pose").map_err(crate::errors::demo_err)?;
+) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
+    let tile = demo_log::Pose::from_numbers(&tile_pose, "tile_pose").map_err(demo_err)?;
     frames(joints, tile, model)
 }
 
 /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
-type StepTuple<'py> = (Bound<'py, PyArray1<f32>>, f32, bool, bool, Bound<'py, PyDict>);
+type StepTuple<'py> = (F32s<'py>, f32, bool, bool, Bound<'py, PyDict>);
 
 /// One simulated environment: `SimEnv(task, seed=0)`, task "TileSuction" | "BlockGrip" | "Screw".
 #[pyclass(module = "mimicrete._native")]
@@ -112,9 +100,9 @@ impl SimEnv {
 
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`.
     #[pyo3(signature = (seed = None))]
-    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray1<f32>>> {
+    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<F32s<'py>> {
         self.env.reset(seed, &mut self.obs).map_err(sim_err)?;
-        Ok(Array1::from(self.obs.clone()).into_pyarray(py))
+        Ok(vector(py, self.obs.clone()))
     }
 
     /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
@@ -125,18 +113,15 @@ impl SimEnv {
     ) -> PyResult<StepTuple<'py>> {
         let a = flat(&action, &[self.env.task().act_dim()], "action")?;
         let out = self.env.step(&a, &mut self.obs).map_err(sim_err)?;
-        let info = PyDict::new(py);
-        for (k, b) in
+        let info =
             [("picked", out.picked), ("held", out.held), ("installed", out.installed), ("fell", out.fell)]
-        {
-            info.set_item(k, b)?;
-        }
+                .into_py_dict(py)?;
         info.set_item("step", self.env.snapshot().step)?;
-        Ok((Array1::from(self.obs.clone()).into_pyarray(py), out.reward, out.terminated, out.truncated, info))
+        Ok((vector(py, self.obs.clone()), out.reward, out.terminated, out.truncated, info))
     }
 
     /// The current stacked observation `(obs_dim,)`.
-    fn observation<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+    fn observation<'py>(&self, py: Python<'py>) -> F32s<'py> {
         Array1::from(self.env.observation().to_vec()).into_pyarray(py)
     }
 
@@ -156,17 +141,14 @@ impl SimEnv {
     }
 
     /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.
-    fn scene_frames(&self) -> PyResult<BTreeMap<&'static str, Vec<f64>>> {
+    fn scene_frames(&self) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
         let s = self.env.snapshot();
         frames(s.q, demo_log::Pose { position: s.object.t, orientation: s.object.q }, "ur3")
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.
     fn set_joints(&mut self, q: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
-        let v = q.as_array();
-        if v.shape() != [6] {
-            return Err(PyValueError::new_err(format!("q must have shape (6,), got {:?}", v.shape())));
-        }
+        let v = nd_from_py(&q).into_shape(&[6], "q").map_err(demo_err)?;
         self.env.set_joints(std::array::from_fn(|i| v[i])).map_err(sim_err)
     }
 
@@ -176,8 +158,7 @@ impl SimEnv {
     }
 }
 
-/// N envs stepped across threads, GIL released, same-step auto-reset; episode seeds from
-/// `tile_sim::episode_seed(seed, i, episode)` (env i starts with `seed + i`).
+/// N envs stepped across threads, same-step auto-reset, seeds `tile_sim::episode_seed(seed, i, episode)`.
 #[pyclass(module = "mimicrete._native")]
 pub struct SimVecEnv {
     venv: VecEnv,
@@ -194,17 +175,12 @@ pub struct SimVecEnv {
     act_dim: usize,
 }
 
-type VecStep<'py> = (
-    Bound<'py, PyArray2<f32>>,
-    Bound<'py, PyArray1<f32>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray2<f32>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray1<bool>>,
-);
+type Obs<'py> = Bound<'py, PyArrayDyn<f32>>;
+type F32s<'py> = Bound<'py, PyArray1<f32>>;
+type Bools<'py> = Bound<'py, PyArray1<bool>>;
+/// `SimVecEnv.step`: obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell.
+type VecStep<'py> =
+    (Obs<'py>, F32s<'py>, Bools<'py>, Bools<'py>, Obs<'py>, Bools<'py>, Bools<'py>, Bools<'py>, Bools<'py>);
 
 #[pymethods]
 impl SimVecEnv {
@@ -228,11 +204,11 @@ impl SimVecEnv {
     /// Reset all envs with base seed `seed` (env i gets `seed + i`, episode counts restart; None:
     /// a base drawn from the VecEnv's RNG) → obs (num_envs, obs_dim).
     #[pyo3(signature = (seed = None))]
-    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Obs<'py>> {
         let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
         let mut obs = vec![0.0; n * od];
         self.venv.reset(seed, &mut obs).map_err(sim_err)?;
-        to2(py, obs, n, od)
+        matrix(py, obs, od)
     }
 
     /// Reset the envs where `mask` (num_envs,) is true → obs (num_envs, obs_dim) of all envs.
@@ -240,15 +216,12 @@ impl SimVecEnv {
         &mut self,
         py: Python<'py>,
         mask: PyArrayLikeDyn<'py, bool, AllowTypeChange>,
-    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    ) -> PyResult<Obs<'py>> {
         let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
-        let m = mask.as_array();
-        if m.shape() != [n] {
-            return Err(PyValueError::new_err(format!("mask must have shape ({n},), got {:?}", m.shape())));
-        }
+        let m = flat(&mask, &[n], "mask")?;
         let mut obs = vec![0.0; n * od];
-        self.venv.reset_mask(&m.iter().copied().collect::<Vec<_>>(), &mut obs).map_err(sim_err)?;
-        to2(py, obs, n, od)
+        self.venv.reset_mask(&m, &mut obs).map_err(sim_err)?;
+        matrix(py, obs, od)
     }
 
     /// How episodes start from the next reset: the object's x range (m) and the target's jitter
@@ -276,13 +249,12 @@ impl SimVecEnv {
         i: usize,
         seed: u64,
         actions: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
-    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+    ) -> PyResult<F32s<'py>> {
         let (ad, od) = (self.venv.task().act_dim(), self.venv.task().obs_dim());
-        let k = actions.as_array().shape().first().copied().unwrap_or(0);
-        let acts = flat(&actions, &[k, ad], "actions")?;
+        let acts = flat(&actions, &[rows(&actions), ad], "actions")?;
         let mut obs = vec![0.0; od];
         self.venv.reset_replay(i, seed, &acts, &mut obs).map_err(sim_err)?;
-        Ok(Array1::from_vec(obs).into_pyarray(py))
+        Ok(vector(py, obs))
     }
 
     /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
@@ -296,13 +268,13 @@ impl SimVecEnv {
         let SimVecEnv { venv, buf, .. } = self;
         py.detach(|| venv.step_buffers(&acts, buf)).map_err(sim_err)?;
         let b = &self.buf;
-        let v = |x: &Vec<bool>| Array1::from(x.clone()).into_pyarray(py);
+        let v = |x: &Vec<bool>| vector(py, x.clone());
         Ok((
-            to2(py, b.obs.clone(), n, od)?,
-            Array1::from(b.reward.clone()).into_pyarray(py),
+            matrix(py, b.obs.clone(), od)?,
+            vector(py, b.reward.clone()),
             v(&b.terminated),
             v(&b.truncated),
-            to2(py, b.final_obs.clone(), n, od)?,
+            matrix(py, b.final_obs.clone(), od)?,
             v(&b.has_final),
             v(&b.picked),
             v(&b.installed),
@@ -315,18 +287,10 @@ impl SimVecEnv {
     /// what `restore` needs to rebuild every env mid-episode (tile-sim's `VecEnvState`).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let st = self.venv.state();
-        let ad = self.act_dim;
-        let d = PyDict::new(py);
-        d.set_item("base_seed", st.base_seed)?;
-        d.set_item("episodes", Array1::from(st.episodes).into_pyarray(py))?;
-        d.set_item("seeds", Array1::from(st.seeds).into_pyarray(py))?;
-        let acts = st
-            .actions
-            .into_iter()
-            .map(|a| to2(py, a.clone(), a.len() / ad, ad))
-            .collect::<PyResult<Vec<_>>>()?;
-        d.set_item("actions", PyList::new(py, acts)?)?;
-        Ok(d)
+        let acts =
+            st.actions.into_iter().map(|a| matrix(py, a, self.act_dim)).collect::<PyResult<Vec<_>>>()?;
+        Ok(dict!(py; "base_seed" => st.base_seed, "episodes" => vector(py, st.episodes),
+            "seeds" => vector(py, st.seeds), "actions" => PyList::new(py, acts)?))
     }
 
     /// Rebuild the envs from a `state()` dict (replaying each running episode) → obs (num_envs,
@@ -338,22 +302,17 @@ impl SimVecEnv {
         episodes: Vec<u64>,
         seeds: Vec<u64>,
         actions: Vec<PyArrayLikeDyn<'py, f32, AllowTypeChange>>,
-    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    ) -> PyResult<Obs<'py>> {
         let (n, od, ad) = (self.venv.num_envs(), self.obs_dim, self.act_dim);
+        let actions = actions.iter().enumerate();
         let actions = actions
-            .iter()
-            .enumerate()
-            .map(|(i, a)| {
-                let v = a.as_array();
-                let rows = if v.ndim() == 2 { v.shape()[0] } else { 0 };
-                flat(a, &[rows, ad], &format!("actions[{i}]"))
-            })
-            .collect::<PyResult<Vec<_>>>()?;
+            .map(|(i, a)| flat(a, &[rows(a), ad], &format!("actions[{i}]")))
+            .collect::<PyResult<_>>()?;
         let st = VecEnvState { base_seed, episodes, seeds, actions };
         let mut obs = vec![0.0; n * od];
         let venv = &mut self.venv;
         py.detach(|| venv.restore(&st, &mut obs)).map_err(sim_err)?;
-        to2(py, obs, n, od)
+        matrix(py, obs, od)
     }
 
     /// Snapshot of env `i` (see `SimEnv.snapshot`).
@@ -363,11 +322,6 @@ impl SimVecEnv {
         })?;
         snapshot_dict(py, env)
     }
-}
-
-fn to2(py: Python<'_>, v: Vec<f32>, n: usize, d: usize) -> PyResult<Bound<'_, PyArray2<f32>>> {
-    let a = Array2::from_shape_vec((n, d), v).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    Ok(a.into_pyarray(py))
 }
 
 /// The simulator's constants and per-task dims (`tile_sim::Constants`).
@@ -392,10 +346,10 @@ impl SimExpert {
         self.ex.reset();
     }
     /// Action `(act_dim,)` f32 for `env`'s current snapshot.
-    fn act<'py>(&mut self, py: Python<'py>, env: &SimEnv) -> Bound<'py, PyArray1<f32>> {
+    fn act<'py>(&mut self, py: Python<'py>, env: &SimEnv) -> F32s<'py> {
         let mut a = vec![0.0; env.env.task().act_dim()];
         self.ex.act(&env.env.snapshot(), &mut a);
-        Array1::from(a).into_pyarray(py)
+        vector(py, a)
     }
 }
 
@@ -403,8 +357,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimEnv>()?;
     m.add_class::<SimVecEnv>()?;
     m.add_class::<SimExpert>()?;
-    m.add_function(wrap_pyfunction!(sim_constants, m)?)?;
-    m.add_function(wrap_pyfunction!(scene_entities, m)?)?;
-    m.add_function(wrap_pyfunction!(scene_frames, m)?)?;
+    add_functions!(m => sim_constants, scene_entities, scene_frames);
     Ok(())
 }

@@ -3,7 +3,8 @@
 //! transform, degenerate hand) is an `Err` in its slot and never stops the other rows.
 
 use crate::{
-    Calibration, Handedness, IkOptions, Joints, KinError, Pose, UrModel, fk, ik_batch, pose_from_matrix,
+    Calibration, HandPoints, Handedness, IkOptions, Joints, KinError, Pose, UrModel, fk, ik_batch,
+    pose_from_matrix,
 };
 use nalgebra::{Matrix4, Vector3};
 
@@ -34,27 +35,19 @@ pub fn ik_batch_matrices(
     Ok(poses.into_iter().zip(solved).map(|(p, s)| p.and(s)).collect())
 }
 
-/// [`crate::hand_to_target`] of every frame `k` (`wrist[k]`, `index_proximal[k]`,
-/// `middle_proximal[k]`); a degenerate or non-finite frame fails its own row.
-///
-/// # Errors
-/// [`KinError::InvalidPose`] when the three slices differ in length.
+/// [`crate::hand_to_target`] of every frame; a degenerate or non-finite frame fails its own row.
 pub fn hand_to_target_batch(
-    wrist: &[Vector3<f64>],
-    index_proximal: &[Vector3<f64>],
-    middle_proximal: &[Vector3<f64>],
+    hands: &[HandPoints],
     handedness: Handedness,
     calib: &Calibration,
-) -> Result<Vec<Result<Pose, KinError>>, KinError> {
-    if wrist.len() != index_proximal.len() || wrist.len() != middle_proximal.len() {
-        return Err(KinError::InvalidPose("wrist, index_proximal and middle_proximal differ in length"));
-    }
-    Ok(wrist
-        .iter()
-        .zip(index_proximal)
-        .zip(middle_proximal)
-        .map(|((w, i), m)| crate::hand_to_target(w, i, m, handedness, calib))
-        .collect())
+) -> Vec<Result<Pose, KinError>> {
+    hands.iter().map(|h| crate::hand_to_target(h, handedness, calib)).collect()
+}
+
+/// A batch's per-row results as the bindings return them: every row's value (`fill` for a
+/// failed row) and whether it succeeded.
+pub fn split_failures<T: Clone>(rows: &[Result<T, KinError>], fill: T) -> (Vec<T>, Vec<bool>) {
+    rows.iter().map(|r| r.as_ref().map_or((fill.clone(), false), |v| (v.clone(), true))).unzip()
 }
 
 impl Calibration {

@@ -50,6 +50,14 @@ pub enum KinError {
         /// Best rotation error reached (angle of the residual rotation), radians.
         rot_residual_rad: f64,
     },
+    /// A setting that must be a positive finite number is not (a tolerance, a scale).
+    #[error("{name} must be a positive finite number, got {value}")]
+    NotPositive {
+        /// The setting's name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
     /// Hand joints that do not span a frame (coincident or collinear joints).
     #[error("degenerate hand: {0}")]
     DegenerateHand(&'static str),

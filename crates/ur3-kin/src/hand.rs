@@ -213,6 +213,21 @@ impl Default for Calibration {
 }
 
 impl Calibration {
+    /// A calibration from its parts: `base_from_space` (`None`: the default's), `scale` and the
+    /// name of the space (as [`Space::from_name`]).
+    ///
+    /// # Errors
+    /// [`KinError::UnknownSpace`] for an unknown space; [`KinError::NotPositive`] when `scale` is
+    /// not a positive finite number.
+    pub fn new(base_from_space: Option<Pose>, scale: f64, space: &str) -> Result<Calibration, KinError> {
+        let space = Space::from_name(space)?;
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(KinError::NotPositive { name: "scale", value: scale });
+        }
+        let base_from_space = base_from_space.unwrap_or(Calibration::default().base_from_space);
+        Ok(Calibration { base_from_space, scale, space })
+    }
+
     /// Identity calibration for positions already in the robot Base frame.
     pub fn identity() -> Self {
         Calibration { base_from_space: Pose::identity(), scale: 1.0, space: Space::RobotBase }
@@ -225,6 +240,43 @@ impl Calibration {
     }
 }
 
+/// The three tracked joints the hand frame is built from, in the calibration's space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HandPoints {
+    /// The wrist joint.
+    pub wrist: Vector3<f64>,
+    /// The index finger's proximal joint (MCP knuckle).
+    pub index_proximal: Vector3<f64>,
+    /// The middle finger's proximal joint (MCP knuckle).
+    pub middle_proximal: Vector3<f64>,
+}
+
+impl HandPoints {
+    /// From the three positions, in this order.
+    pub fn new(wrist: [f64; 3], index_proximal: [f64; 3], middle_proximal: [f64; 3]) -> HandPoints {
+        HandPoints {
+            wrist: wrist.into(),
+            index_proximal: index_proximal.into(),
+            middle_proximal: middle_proximal.into(),
+        }
+    }
+
+    /// The three joints of one frame of a hand log in `layout` (`joints[i]` is joint `i`).
+    ///
+    /// # Errors
+    /// [`KinError::InvalidPose`] when `joints` has fewer entries than the layout needs.
+    pub fn from_layout(joints: &[[f64; 3]], layout: HandLayout) -> Result<HandPoints, KinError> {
+        if joints.len() < layout.joint_count() {
+            return Err(KinError::InvalidPose("hand frame has fewer joints than its layout"));
+        }
+        Ok(HandPoints::new(
+            joints[layout.wrist()],
+            joints[layout.index_proximal()],
+            joints[layout.middle_proximal()],
+        ))
+    }
+}
+
 /// The hand frame of §3.2 in Base (see the module docs): columns x, y, z, origin at the wrist.
 ///
 /// # Errors
@@ -233,13 +285,8 @@ impl Calibration {
 /// [`KinError::DegenerateHand`] when the
 /// wrist and middle knuckle coincide, the knuckles coincide, or the three joints are collinear
 /// (angle between `x'` and `y'` within 1e-3 rad of 0 or π).
-pub fn hand_frame(
-    wrist: &Vector3<f64>,
-    index_proximal: &Vector3<f64>,
-    middle_proximal: &Vector3<f64>,
-    handedness: Handedness,
-    calib: &Calibration,
-) -> Result<Pose, KinError> {
+pub fn hand_frame(hand: &HandPoints, handedness: Handedness, calib: &Calibration) -> Result<Pose, KinError> {
+    let HandPoints { wrist, index_proximal, middle_proximal } = hand;
     let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
     if !(finite(wrist) && finite(index_proximal) && finite(middle_proximal)) {
         return Err(KinError::NonFinite("hand joint positions"));
@@ -319,13 +366,11 @@ pub fn tool_from_hand_rotation() -> UnitQuaternion<f64> {
 /// # Errors
 /// As [`hand_frame`].
 pub fn hand_to_target(
-    wrist: &Vector3<f64>,
-    index_proximal: &Vector3<f64>,
-    middle_proximal: &Vector3<f64>,
+    hand: &HandPoints,
     handedness: Handedness,
     calib: &Calibration,
 ) -> Result<Pose, KinError> {
-    let h = hand_frame(wrist, index_proximal, middle_proximal, handedness, calib)?;
+    let h = hand_frame(hand, handedness, calib)?;
     let f = Frame::from_pose(&h);
     let r = f.r * tool_from_hand_rotation().to_rotation_matrix().into_inner();
     let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
@@ -343,15 +388,5 @@ pub fn hand_to_target_layout(
     handedness: Handedness,
     calib: &Calibration,
 ) -> Result<Pose, KinError> {
-    if joints.len() < layout.joint_count() {
-        return Err(KinError::InvalidPose("hand frame has fewer joints than its layout"));
-    }
-    let v = |i: usize| Vector3::from(joints[i]);
-    hand_to_target(
-        &v(layout.wrist()),
-        &v(layout.index_proximal()),
-        &v(layout.middle_proximal()),
-        handedness,
-        calib,
-    )
+    hand_to_target(&HandPoints::from_layout(joints, layout)?, handedness, calib)
 }

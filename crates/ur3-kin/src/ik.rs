@@ -92,6 +92,24 @@ impl Default for IkOptions {
     }
 }
 
+impl IkOptions {
+    /// The defaults, with both tolerances (position, metres; rotation, radians) set to `tol` when
+    /// it is given.
+    ///
+    /// # Errors
+    /// [`KinError::NotPositive`] when `tol` is not a positive finite number.
+    pub fn with_tol(tol: Option<f64>) -> Result<IkOptions, KinError> {
+        let mut o = IkOptions::default();
+        if let Some(t) = tol {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(KinError::NotPositive { name: "tol", value: t });
+            }
+            (o.tol_pos_m, o.tol_rot_rad) = (t, t);
+        }
+        Ok(o)
+    }
+}
+
 /// Pose error of `current` against `target` in the Base frame:
 /// `[p_target − p_current; rotvec(R_target·R_currentᵀ)]`.
 #[inline]

@@ -24,12 +24,12 @@ mod jacobian;
 mod model;
 pub mod urdf;
 
-pub use batch::{fk_batch, hand_to_target_batch, ik_batch_matrices};
+pub use batch::{fk_batch, hand_to_target_batch, ik_batch_matrices, split_failures};
 pub use error::{IkError, KinError};
 pub use fk::{fk, fk_all, fk_matrix};
 pub use hand::{
-    Calibration, HandLayout, Handedness, Space, hand_frame, hand_to_target, hand_to_target_layout,
-    tool_from_hand_rotation,
+    Calibration, HandLayout, HandPoints, Handedness, Space, hand_frame, hand_to_target,
+    hand_to_target_layout, tool_from_hand_rotation,
 };
 pub use ik::{
     IkOptions, ik, ik_all, ik_all_with_q6, ik_batch, ik_gn, joint_distance, pose_distance, pose_from_matrix,

@@ -2,8 +2,8 @@
 
 use nalgebra::{Matrix4, Vector3};
 use ur3_kin::{
-    Calibration, Handedness, IkOptions, KinError, UR3, fk, fk_batch, hand_to_target, hand_to_target_batch,
-    ik_batch_matrices, urdf,
+    Calibration, HandPoints, Handedness, IkOptions, KinError, Pose, UR3, fk, fk_batch, hand_to_target,
+    hand_to_target_batch, ik_batch_matrices, split_failures, urdf,
 };
 
 #[test]
@@ -44,19 +44,51 @@ fn ik_batch_matrices_fails_bad_rows_only() {
 #[test]
 fn hand_to_target_batch_matches_single_calls_and_flags_degenerate_frames() {
     let cal = Calibration::default();
-    let w = vec![Vector3::new(0.0, -0.4, -0.4), Vector3::new(0.0, 0.0, 0.0)];
-    let i = vec![Vector3::new(0.03, -0.4, -0.5), Vector3::new(0.0, 0.0, 0.1)];
-    let m = vec![Vector3::new(0.0, -0.4, -0.5), Vector3::new(0.0, 0.0, 0.2)]; // row 1 collinear
-    let out = hand_to_target_batch(&w, &i, &m, Handedness::Right, &cal).unwrap();
-    assert_eq!(
-        out[0].as_ref().unwrap(),
-        &hand_to_target(&w[0], &i[0], &m[0], Handedness::Right, &cal).unwrap()
-    );
+    let hands = [
+        HandPoints::new([0.0, -0.4, -0.4], [0.03, -0.4, -0.5], [0.0, -0.4, -0.5]),
+        HandPoints::new([0.0, 0.0, 0.0], [0.0, 0.0, 0.1], [0.0, 0.0, 0.2]), // collinear
+    ];
+    let out = hand_to_target_batch(&hands, Handedness::Right, &cal);
+    assert_eq!(out.len(), 2);
+    assert_eq!(out[0].as_ref().unwrap(), &hand_to_target(&hands[0], Handedness::Right, &cal).unwrap());
     assert!(matches!(out[1], Err(KinError::DegenerateHand(_))));
-    assert!(hand_to_target_batch(&w, &i[..1], &m, Handedness::Right, &cal).is_err());
+    let (ts, ok) = split_failures(&out, Pose::identity());
+    assert_eq!(ok, [true, false]);
+    assert_eq!((ts[0], ts[1]), (*out[0].as_ref().unwrap(), Pose::identity()));
+    // The wrist (0, -0.4, -0.4) in OpenXR is 0.4 m ahead and below the head: (0.3, 0, 0.2) in Base.
+    assert!((ts[0].translation.vector - Vector3::new(0.3, 0.0, 0.2)).norm() < 1e-12);
+    let w = [hands[0].wrist, hands[1].wrist];
     let pts = cal.points_to_base(&w);
     assert!((pts[0] - cal.point_to_base(&w[0])).norm() == 0.0);
     assert!((pts[1] - Vector3::new(-0.1, 0.0, 0.6)).norm() < 1e-12);
+}
+
+#[test]
+fn split_failures_fills_failed_rows_and_keeps_order() {
+    let rows: Vec<Result<[f64; 6], KinError>> =
+        vec![Ok([1.0; 6]), Err(KinError::Unreachable { reason: "far" }), Ok([2.0; 6])];
+    let (q, ok) = split_failures(&rows, [f64::NAN; 6]);
+    assert_eq!(ok, [true, false, true]);
+    assert_eq!((q[0], q[2]), ([1.0; 6], [2.0; 6]));
+    assert!(q[1].iter().all(|x| x.is_nan()));
+    let (none, ok): (Vec<f64>, _) = split_failures(&[], 0.0);
+    assert!(none.is_empty() && ok.is_empty());
+}
+
+#[test]
+fn ik_options_with_tol_sets_both_tolerances_or_refuses() {
+    assert_eq!(IkOptions::with_tol(None).unwrap(), IkOptions::default());
+    let o = IkOptions::with_tol(Some(1e-6)).unwrap();
+    assert_eq!((o.tol_pos_m, o.tol_rot_rad), (1e-6, 1e-6));
+    assert_eq!(o.max_iters, IkOptions::default().max_iters);
+    for bad in [0.0, -1e-6, f64::NAN, f64::INFINITY] {
+        let e = IkOptions::with_tol(Some(bad)).unwrap_err();
+        assert!(matches!(e, KinError::NotPositive { name: "tol", .. }), "{e:?}");
+    }
+    assert_eq!(
+        IkOptions::with_tol(Some(-2.0)).unwrap_err().to_string(),
+        "tol must be a positive finite number, got -2"
+    );
 }
 
 #[test]

@@ -3,7 +3,7 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 use ur3_kin::{
-    Calibration, HandLayout, Handedness, KinError, Pose, Space, hand_frame, hand_to_target,
+    Calibration, HandLayout, HandPoints, Handedness, KinError, Pose, Space, hand_frame, hand_to_target,
     hand_to_target_layout, pose_distance,
 };
 
@@ -17,6 +17,10 @@ const INDEX_LEFT: [f64; 3] = [0.022, 0.085, 0.0];
 
 fn place(frame: &Pose, p: [f64; 3]) -> Vector3<f64> {
     frame.transform_point(&Vector3::from(p).into()).coords
+}
+
+fn hp(wrist: &Vector3<f64>, index_proximal: &Vector3<f64>, middle_proximal: &Vector3<f64>) -> HandPoints {
+    HandPoints { wrist: *wrist, index_proximal: *index_proximal, middle_proximal: *middle_proximal }
 }
 
 fn base_calib() -> Calibration {
@@ -35,11 +39,11 @@ proptest! {
     fn known_frame_recovered(rot in rot_strategy(), t in prop::array::uniform3(-1.0..1.0f64)) {
         let h = Isometry3::from_parts(Translation3::new(t[0], t[1], t[2]), rot);
         for (hd, idx) in [(Handedness::Right, INDEX_RIGHT), (Handedness::Left, INDEX_LEFT)] {
-            let f = hand_frame(&place(&h, WRIST), &place(&h, idx), &place(&h, MIDDLE), hd, &base_calib()).unwrap();
+            let f = hand_frame(&hp(&place(&h, WRIST), &place(&h, idx), &place(&h, MIDDLE)), hd, &base_calib()).unwrap();
             let (dp, da) = pose_distance(&f, &h);
             prop_assert!(dp < 1e-12 && da < 1e-9, "{hd:?}: {dp} {da}");
             // tool0: x along the fingers, z out of the palm, origin at the wrist.
-            let tt = hand_to_target(&place(&h, WRIST), &place(&h, idx), &place(&h, MIDDLE), hd, &base_calib()).unwrap();
+            let tt = hand_to_target(&hp(&place(&h, WRIST), &place(&h, idx), &place(&h, MIDDLE)), hd, &base_calib()).unwrap();
             prop_assert!((tt.rotation * Vector3::x() - h.rotation * Vector3::y()).norm() < 1e-9);
             prop_assert!((tt.rotation * Vector3::z() + h.rotation * Vector3::z()).norm() < 1e-9);
             prop_assert!((tt.translation.vector - h.translation.vector).norm() < 1e-12);
@@ -55,7 +59,7 @@ proptest! {
         left in any::<bool>(),
     ) {
         let hd = if left { Handedness::Left } else { Handedness::Right };
-        match hand_to_target(&Vector3::from(w), &Vector3::from(i), &Vector3::from(m), hd, &Calibration::default()) {
+        match hand_to_target(&hp(&Vector3::from(w), &Vector3::from(i), &Vector3::from(m)), hd, &Calibration::default()) {
             Ok(p) => {
                 let r = p.rotation.to_rotation_matrix().into_inner();
                 prop_assert!((r.transpose() * r - nalgebra::Matrix3::identity()).abs().max() < 1e-9);
@@ -76,14 +80,14 @@ fn palm_down_forward_gives_tool_pointing_down() {
     let m = w + Vector3::new(0.09, 0.0, 0.0);
     for (hd, side) in [(Handedness::Right, 1.0), (Handedness::Left, -1.0)] {
         let i = w + Vector3::new(0.085, 0.022 * side, 0.0);
-        let t = hand_to_target(&w, &i, &m, hd, &base_calib()).unwrap();
+        let t = hand_to_target(&hp(&w, &i, &m), hd, &base_calib()).unwrap();
         assert!((t.rotation * Vector3::z() - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12, "{hd:?}");
         assert!((t.rotation * Vector3::x() - Vector3::new(1.0, 0.0, 0.0)).norm() < 1e-12, "{hd:?}");
         assert!((t.translation.vector - w).norm() < 1e-15);
     }
     // Wrong handedness label on the same hand flips the approach axis up: handedness matters.
     let i = w + Vector3::new(0.085, 0.022, 0.0);
-    let t = hand_to_target(&w, &i, &m, Handedness::Left, &base_calib()).unwrap();
+    let t = hand_to_target(&hp(&w, &i, &m), Handedness::Left, &base_calib()).unwrap();
     assert!((t.rotation * Vector3::z() - Vector3::z()).norm() < 1e-12);
 }
 
@@ -94,13 +98,13 @@ fn openxr_and_unity_spaces_map_to_base() {
     let xr = |p: [f64; 3]| Vector3::new(p[0], p[1], p[2]);
     let (w, m, i) = (xr([0.0, -0.4, -0.4]), xr([0.0, -0.4, -0.49]), xr([-0.022, -0.4, -0.485]));
     let cal = Calibration::default();
-    let t = hand_to_target(&w, &i, &m, Handedness::Right, &cal).unwrap();
+    let t = hand_to_target(&hp(&w, &i, &m), Handedness::Right, &cal).unwrap();
     assert!((t.translation.vector - Vector3::new(0.3, 0.0, 0.2)).norm() < 1e-12, "{}", t.translation.vector);
     assert!((t.rotation * Vector3::z() + Vector3::z()).norm() < 1e-12);
     assert!((t.rotation * Vector3::x() - Vector3::x()).norm() < 1e-12);
     let unity = |p: Vector3<f64>| Vector3::new(p.x, p.y, -p.z);
     let cal_u = Calibration { space: Space::Unity, ..Calibration::default() };
-    let tu = hand_to_target(&unity(w), &unity(i), &unity(m), Handedness::Right, &cal_u).unwrap();
+    let tu = hand_to_target(&hp(&unity(w), &unity(i), &unity(m)), Handedness::Right, &cal_u).unwrap();
     let (dp, da) = pose_distance(&t, &tu);
     assert!(dp < 1e-12 && da < 1e-12);
     // point_to_base and scale.
@@ -116,7 +120,7 @@ fn openxr_and_unity_spaces_map_to_base() {
         scale: 1.0,
         space: Space::OpenXr,
     };
-    let tt = hand_to_target(&w, &i, &m, Handedness::Right, &turned).unwrap();
+    let tt = hand_to_target(&hp(&w, &i, &m), Handedness::Right, &turned).unwrap();
     assert!((tt.rotation * Vector3::x() - Vector3::y()).norm() < 1e-12);
     assert!((tt.translation.vector - Vector3::new(0.0, 0.4, -0.4)).norm() < 1e-12);
 }
@@ -135,16 +139,17 @@ fn degenerate_hands_are_errors() {
     for (a, b, cc) in cases {
         for hd in [Handedness::Left, Handedness::Right] {
             assert!(
-                matches!(hand_to_target(&a, &b, &cc, hd, &c), Err(KinError::DegenerateHand(_))),
+                matches!(hand_to_target(&hp(&a, &b, &cc), hd, &c), Err(KinError::DegenerateHand(_))),
                 "{a} {b} {cc}"
             );
         }
     }
     let nan = Vector3::new(f64::NAN, 0.0, 0.0);
-    assert!(matches!(hand_to_target(&nan, &w, &m, Handedness::Right, &c), Err(KinError::NonFinite(_))));
+    assert!(matches!(hand_to_target(&hp(&nan, &w, &m), Handedness::Right, &c), Err(KinError::NonFinite(_))));
     let bad_scale = Calibration { scale: 0.0, ..c };
     assert!(
-        hand_to_target(&w, &(w + Vector3::new(0.02, 0.08, 0.0)), &m, Handedness::Right, &bad_scale).is_err()
+        hand_to_target(&hp(&w, &(w + Vector3::new(0.02, 0.08, 0.0)), &m), Handedness::Right, &bad_scale)
+            .is_err()
     );
 }
 
@@ -195,14 +200,14 @@ fn huge_coordinates_keep_an_orthonormal_frame() {
     let i = Vector3::new(0.0, -0.7651881055772308, 0.0);
     let m = Vector3::new(-0.7059428416528244, 0.711898621697605, 0.0);
     for cal in [Calibration::default(), base_calib()] {
-        let p = hand_to_target(&w, &i, &m, Handedness::Right, &cal).unwrap();
+        let p = hand_to_target(&hp(&w, &i, &m), Handedness::Right, &cal).unwrap();
         let r = p.rotation.to_rotation_matrix().into_inner();
         assert!((r.transpose() * r - nalgebra::Matrix3::identity()).abs().max() < 1e-12);
     }
     // Differences that overflow f64 are a typed error.
     let far = Vector3::new(f64::MAX, 0.0, 0.0);
     let m_far = Vector3::new(-f64::MAX, 0.5, 0.0);
-    let r = hand_to_target(&far, &Vector3::new(0.0, 0.3, 0.0), &m_far, Handedness::Right, &base_calib());
+    let r = hand_to_target(&hp(&far, &Vector3::new(0.0, 0.3, 0.0), &m_far), Handedness::Right, &base_calib());
     assert!(matches!(r, Err(KinError::Overflow(m)) if m.starts_with("middle_proximal − wrist")), "{r:?}");
     // Finite coordinates that overflow once scaled and moved into Base name the joint; they
     // used to give a target holding an infinity.
@@ -215,11 +220,46 @@ fn huge_coordinates_keep_an_orthonormal_frame() {
             let mut j =
                 [Vector3::new(0.0, 0.0, 0.0), Vector3::new(0.1, 0.2, 0.0), Vector3::new(0.0, 0.3, 0.01)];
             j[k] = Vector3::new(1e308, 1e308, 1e308);
-            let r = hand_to_target(&j[0], &j[1], &j[2], Handedness::Right, &cal);
+            let r = hand_to_target(&hp(&j[0], &j[1], &j[2]), Handedness::Right, &cal);
             match r {
                 Err(KinError::Overflow(m)) => assert!(m.starts_with(name), "{m}"),
                 other => panic!("{name}: {other:?}"),
             }
         }
+    }
+}
+
+#[test]
+fn calibration_from_parts_checks_scale_and_space() {
+    let c = Calibration::new(None, 2.0, "webxr").unwrap();
+    assert_eq!(c.base_from_space, Calibration::default().base_from_space);
+    assert_eq!((c.scale, c.space), (2.0, Space::OpenXr));
+    // p_base = base_from_space · (scale · flu(p)): OpenXR (0, -0.4, -0.4) → FLU (0.4, 0, -0.4).
+    let p = c.point_to_base(&Vector3::new(0.0, -0.4, -0.4));
+    assert!((p - Vector3::new(0.7, 0.0, -0.2)).norm() < 1e-12, "{p}");
+    let b = Pose::translation(1.0, 2.0, 3.0);
+    let c = Calibration::new(Some(b), 1.0, "robot_base").unwrap();
+    assert!((c.point_to_base(&Vector3::new(0.5, 0.0, 0.0)) - Vector3::new(1.5, 2.0, 3.0)).norm() < 1e-12);
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let e = Calibration::new(None, bad, "unity").unwrap_err();
+        assert!(matches!(e, KinError::NotPositive { name: "scale", .. }), "{e:?}");
+        assert!(e.to_string().starts_with("scale must be a positive finite number, got"), "{e}");
+    }
+    assert!(matches!(Calibration::new(None, 1.0, "ros"), Err(KinError::UnknownSpace(_))));
+}
+
+#[test]
+fn hand_points_from_layout_pick_the_layouts_joints() {
+    for layout in HandLayout::ALL {
+        let joints: Vec<[f64; 3]> =
+            (0..layout.joint_count()).map(|k| [k as f64, 0.5 * k as f64, 1.0]).collect();
+        let h = HandPoints::from_layout(&joints, layout).unwrap();
+        assert_eq!(h.wrist, Vector3::from(joints[layout.wrist()]));
+        assert_eq!(h.index_proximal, Vector3::from(joints[layout.index_proximal()]));
+        assert_eq!(h.middle_proximal, Vector3::from(joints[layout.middle_proximal()]));
+        assert!(matches!(
+            HandPoints::from_layout(&joints[..joints.len() - 1], layout),
+            Err(KinError::InvalidPose(_))
+        ));
     }
 }

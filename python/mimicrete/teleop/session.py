@@ -215,8 +215,7 @@ class Session:
         self.smoother = gest.GestureSmoother(n=7, k=5)
         self.filter = OneEuro(min_cutoff=1.0, beta=2.0)
         self.frame_idx = FRAME_JOINTS[self.layout]
-        mat, scale, space = kin._calib(calibration)
-        self._calib = (mat, scale, space)
+        self._calib = kin._calib(calibration)
         self.env = _native.SimEnv(self.task.sim)
         self.obs = self.env.reset(self.seed)
         fd = self.task.obs_frame_dim
@@ -337,10 +336,9 @@ class Session:
         c.gestures[raw] = c.gestures.get(raw, 0) + 1
         w, i, m = self.frame_idx
         pts = self.filter(np.concatenate([joints[w], joints[i], joints[m]]), t)
-        mat, scale, space = self._calib
         try:
             target = _native.kin_hand_to_target(
-                pts[:3], pts[3:6], pts[6:9], self.handedness, mat, scale, space
+                pts[:3], pts[3:6], pts[6:9], self.handedness, self._calib
             )
         except (ValueError, MimicreteError):  # degenerate hand (collinear frame joints)
             c.degenerate += 1

@@ -31,40 +31,32 @@ pub fn hand_frame(i: usize, layout: HandLayout) -> HandFrame {
     }
 }
 
+/// A scene entity at `position` (no rotation) in `frame_id`.
+fn entity(
+    id: &str,
+    frame_id: &str,
+    kind: Shape,
+    size: [f64; 3],
+    position: [f64; 3],
+    color: [f32; 4],
+) -> SceneEntity {
+    let pose = Pose { position, orientation: [0.0, 0.0, 0.0, 1.0] };
+    SceneEntity { id: id.into(), frame_id: frame_id.into(), kind, size, pose, color }
+}
+
 pub fn scene() -> Vec<SceneEntity> {
     vec![
-        SceneEntity {
-            id: "table".into(),
-            frame_id: "base".into(),
-            kind: Shape::Cube,
-            size: [0.8, 0.6, 0.02],
-            pose: Pose { position: [-0.3, 0.0, -0.01], orientation: [0.0, 0.0, 0.0, 1.0] },
-            color: [0.6, 0.5, 0.4, 1.0],
-        },
-        SceneEntity {
-            id: "tile".into(),
-            frame_id: "tile".into(),
-            kind: Shape::Cube,
-            size: [0.1, 0.1, 0.01],
-            pose: Pose::IDENTITY,
-            color: [0.9, 0.9, 0.85, 1.0],
-        },
-        SceneEntity {
-            id: "target".into(),
-            frame_id: "base".into(),
-            kind: Shape::Cube,
-            size: [0.1, 0.1, 0.001],
-            pose: Pose { position: [-0.3, 0.2, 0.0], orientation: [0.0, 0.0, 0.0, 1.0] },
-            color: [0.2, 0.8, 0.2, 0.5],
-        },
-        SceneEntity {
-            id: "cup0".into(),
-            frame_id: "tool0".into(),
-            kind: Shape::Cylinder,
-            size: [0.02, 0.02, 0.01],
-            pose: Pose { position: [0.02, 0.02, 0.005], orientation: [0.0, 0.0, 0.0, 1.0] },
-            color: [0.1, 0.1, 0.1, 1.0],
-        },
+        entity("table", "base", Shape::Cube, [0.8, 0.6, 0.02], [-0.3, 0.0, -0.01], [0.6, 0.5, 0.4, 1.0]),
+        entity("tile", "tile", Shape::Cube, [0.1, 0.1, 0.01], [0.0; 3], [0.9, 0.9, 0.85, 1.0]),
+        entity("target", "base", Shape::Cube, [0.1, 0.1, 0.001], [-0.3, 0.2, 0.0], [0.2, 0.8, 0.2, 0.5]),
+        entity(
+            "cup0",
+            "tool0",
+            Shape::Cylinder,
+            [0.02, 0.02, 0.01],
+            [0.02, 0.02, 0.005],
+            [0.1, 0.1, 0.1, 1.0],
+        ),
     ]
 }
 
