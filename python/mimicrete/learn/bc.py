@@ -59,8 +59,10 @@ def branch_class_weights(actions: np.ndarray, n_cont: int, balance: float) -> to
     """(n_branches, 3) cross-entropy weights: each command branch (the action columns after
     ``n_cont``) weighted by its own commands' shares in the demos (:func:`ee_class_weights`), or
     None for ``balance`` 0."""
+    if balance <= 0:
+        return None
     ws = [ee_class_weights(actions, c, balance) for c in range(n_cont, actions.shape[1])]
-    return None if any(w is None for w in ws) else torch.stack(ws)  # type: ignore[arg-type]
+    return torch.stack([w for w in ws if w is not None])
 
 
 def bc_loss(
