@@ -3,10 +3,11 @@
     python examples/onnx_policy.py runs/group3-seed0/policy.onnx --episodes 5 --seed 10000
 
 ``policy.onnx`` (written by ``mimicrete train``) maps ``obs`` (B, obs_dim) float32 to ``actions``
-(B, 7) float32: six joint motions in [-1, 1] and the suction command in {-1, 0, 1}, the
-deterministic policy ``mimicrete eval`` runs. The observation normaliser is inside the graph, so
-the env's observation goes in as it is. Needs numpy, gymnasium, onnxruntime and mimicrete's
-simulator (``mimicrete.envs``); torch is not imported.
+(B, 7) float32: six joint motions in [-1, 1] and the suction command in {-1, 0, 1} (Screw-v0:
+(B, 8), the gripper and the spin command), the deterministic policy ``mimicrete eval`` runs.
+The observation normaliser is inside the graph, so the env's observation goes in as it is.
+Needs numpy, gymnasium, onnxruntime and mimicrete's simulator (``mimicrete.envs``); torch is not
+imported.
 """
 
 from __future__ import annotations

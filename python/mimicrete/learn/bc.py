@@ -8,7 +8,9 @@ previous round computed and then sets the rate for the next one from the current
 first round runs at the initial rate, and BC stops once the rate it holds has reached 1e-10 (with
 ``steps`` 100,000 and 10,240 steps per update: 10 rounds, at 1.0, 0.90, ..., 0.08 x).
 Loss: MSE between the policy's *sampled* (reparameterised) continuous action and the demo's, plus
-cross-entropy of the end-effector branch. The observation normaliser is not touched by BC.
+the command branches' cross-entropy: ML-Agents' ``_behavioral_cloning_loss`` takes the mean over
+branches of each branch's one-hot cross-entropy, averaged over the batch (one branch: the end
+effector; Screw: the gripper and the spin). The observation normaliser is not touched by BC.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .networks import Actor, ee_value_to_index
+from .networks import N_EE, Actor, ee_value_to_index
 
 MIN_LR = 1e-10
 
@@ -30,9 +32,10 @@ def bc_learning_rate(initial: float, steps: int, step: int) -> float:
 
 
 def ee_class_weights(actions: np.ndarray, n_cont: int, balance: float) -> torch.Tensor | None:
-    """Cross-entropy weights of the end-effector commands (drop, fixed, on), each
-    ``(share of that command in the demos) ** -balance``, scaled so the demo steps' mean weight
-    is 1; an absent command gets weight 1. ``balance`` 0 (ML-Agents): None, the plain mean.
+    """Cross-entropy weights (3,) of the end-effector commands (drop, fixed, on) in the action
+    column ``n_cont``, each ``(share of that command in the demos) ** -balance``, scaled so the
+    demo steps' mean weight is 1; an absent command gets weight 1. ``balance`` 0 (ML-Agents):
+    None, the plain mean. :func:`branch_class_weights` does this for every command branch.
 
     Why (``behavioral_cloning.ee_class_balance``, an extension): a demonstrator switches the
     suction on once per episode, so "on" is about 1 demo step in 230. Its argmax never wins, and
@@ -52,18 +55,34 @@ def ee_class_weights(actions: np.ndarray, n_cont: int, balance: float) -> torch.
     return w.float()
 
 
+def branch_class_weights(actions: np.ndarray, n_cont: int, balance: float) -> torch.Tensor | None:
+    """(n_branches, 3) cross-entropy weights: each command branch (the action columns after
+    ``n_cont``) weighted by its own commands' shares in the demos (:func:`ee_class_weights`), or
+    None for ``balance`` 0."""
+    if balance <= 0:
+        return None
+    ws = [ee_class_weights(actions, c, balance) for c in range(n_cont, actions.shape[1])]
+    return torch.stack([w for w in ws if w is not None])
+
+
 def bc_loss(
     actor: Actor, obs: torch.Tensor, actions: torch.Tensor, ee_weight: torch.Tensor | None = None
 ) -> torch.Tensor:
+    """MSE of the sampled joint motions + the branches' cross-entropy, the mean over branches and
+    the batch; ``ee_weight`` (n_branches, 3) (or (3,) for one branch) weights each branch's
+    commands."""
     n = actor.n_cont
     mu, log_std, logits = actor(obs)
     sampled = mu + log_std.exp() * torch.randn_like(mu)
     mse = (sampled - actions[:, :n]).pow(2).mean()
-    k = ee_value_to_index(actions[:, n])
+    k = ee_value_to_index(actions[:, n:]).reshape(-1)  # (B * n_branches,), branch-minor
+    flat = logits.reshape(-1, N_EE)
     if ee_weight is None:
-        ce = torch.nn.functional.cross_entropy(logits, k)
+        ce = torch.nn.functional.cross_entropy(flat, k)
     else:  # weighted sum over the batch / batch size (not / sum of weights: no batch reweighting)
-        ce = (torch.nn.functional.cross_entropy(logits, k, reduction="none") * ee_weight[k]).mean()
+        w = ee_weight.reshape(-1, N_EE)  # (n_branches, 3)
+        branch = torch.arange(len(k)) % w.shape[0]
+        ce = (torch.nn.functional.cross_entropy(flat, k, reduction="none") * w[branch, k]).mean()
     return mse + ce
 
 
@@ -88,7 +107,7 @@ class BehavioralCloning:
         self.batch_size = batch_size
         self.num_epoch = num_epoch
         self.samples_per_update = samples_per_update
-        self.ee_weight = ee_class_weights(actions, actor.n_cont, ee_class_balance)
+        self.ee_weight = branch_class_weights(actions, actor.n_cont, ee_class_balance)
         self.opt = torch.optim.Adam(actor.parameters(), lr=initial_lr)
         self.current_lr = initial_lr  # the rate of the next round (in the checkpoint)
 

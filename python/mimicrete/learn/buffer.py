@@ -60,15 +60,16 @@ def horizon_cuts(T: int, N: int, time_horizon: int) -> np.ndarray:
 
 
 class Rollout:
-    """One rollout of T steps x N envs (numpy, preallocated)."""
+    """One rollout of T steps x N envs (numpy, preallocated); ``n_branches`` command branches
+    (``networks.Actor``)."""
 
-    def __init__(self, T: int, N: int, obs_dim: int, n_cont: int):
+    def __init__(self, T: int, N: int, obs_dim: int, n_cont: int, n_branches: int = 1):
         self.T, self.N = T, N
         self.obs = np.zeros((T, N, obs_dim), np.float32)
         self.u = np.zeros((T, N, n_cont), np.float32)
-        self.k = np.zeros((T, N), np.int64)
-        self.logp = np.zeros((T, N, n_cont + 1), np.float32)
-        self.env_actions = np.zeros((T, N, n_cont + 1), np.float32)
+        self.k = np.zeros((T, N, n_branches), np.int64)
+        self.logp = np.zeros((T, N, n_cont + n_branches), np.float32)
+        self.env_actions = np.zeros((T, N, n_cont + n_branches), np.float32)
         self.rewards = np.zeros((T, N), np.float32)
         self.terminated = np.zeros((T, N), bool)
         self.truncated = np.zeros((T, N), bool)
@@ -123,8 +124,8 @@ class UpdateBuffer:
 
     obs: np.ndarray
     u: np.ndarray
-    k: np.ndarray
-    logp: np.ndarray
+    k: np.ndarray  # (T * N, n_branches)
+    logp: np.ndarray  # (T * N, n_cont + n_branches)
     env_actions: np.ndarray
     adv: np.ndarray
     values: np.ndarray  # (T * N, n_signals), at collection time

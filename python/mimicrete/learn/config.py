@@ -97,7 +97,7 @@ class BehavioralCloningSettings:
     samples_per_update: int = 0
     pretrain_steps: int = 0  # extension: offline BC gradient steps before the first rollout
     pretrain_passes: float = 0.0  # extension: the same in passes over the demo steps
-    ee_class_balance: float = 0.0  # extension: end-effector CE weights (share ** -balance)
+    ee_class_balance: float = 0.0  # extension: command CE weights (share ** -balance), per branch
 
 
 @dataclass

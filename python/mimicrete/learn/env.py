@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-#: continuous action components (six joint motions); the action's last entry is the end-effector
-#: command (suction / grip), a categorical choice in {-1, 0, 1}
+#: continuous action components (six joint motions); every entry after them is a command branch,
+#: a categorical choice in {-1, 0, 1}: the end effector (suction / grip), and for Screw the spin
 N_CONT = 6
 TOY_PREFIX = "Toy"
 
@@ -28,6 +28,14 @@ def make_env(env_id: str, num_envs: int, seed: int) -> Any:
     from mimicrete import envs
 
     return envs.make_vec(env_id, num_envs=num_envs, seed=seed)
+
+
+def command_branches(env: Any) -> int:
+    """The number of command branches of a vector env's action (act_dim - :data:`N_CONT`)."""
+    act_dim = int(env.single_action_space.shape[0])
+    if act_dim <= N_CONT:
+        raise ValueError(f"action of {act_dim} dims: expected {N_CONT} joint motions + commands")
+    return act_dim - N_CONT
 
 
 def final_obs_of(infos: dict, ended: np.ndarray) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 - One Adam over actor + critic; loss = policy_loss + 0.5 * value_loss - beta * entropy.
 - Clipped surrogate with the ratio taken *per action component* (ML-Agents flattens the hybrid
-  action's log-probs and clips each against the same advantage), averaged.
+  action's log-probs, one per Gaussian dim and one per command branch, and clips each against the
+  same advantage), averaged.
 - Clipped value loss per reward signal head, averaged over heads.
 - Linear schedules over ``max_steps``: lr -> 1e-10, epsilon -> 0.1, beta -> 1e-5.
 - Per-signal GAE with the signal's own gamma; combined advantage = mean over signals, then
@@ -41,12 +42,12 @@ def scheduled(
 @dataclass
 class PPOBatch:
     """One minibatch of the update buffer, as PPO's loss reads it. Shapes: obs (B, D),
-    u (B, n_cont), k (B,), old_logp (B, n_cont + 1), adv (B,), old_values / returns
-    (B, n_signals)."""
+    u (B, n_cont), k (B, n_branches), old_logp (B, n_cont + n_branches), adv (B,), old_values /
+    returns (B, n_signals)."""
 
     obs: torch.Tensor
     u: torch.Tensor  # the Gaussian sample (pre-clip) of the joint motions
-    k: torch.Tensor  # the end-effector command's index
+    k: torch.Tensor  # each command branch's index (end effector; spin)
     old_logp: torch.Tensor  # per action component, at collection time
     adv: torch.Tensor  # combined, z-normalised advantage
     old_values: torch.Tensor  # per value head, at collection time

@@ -281,7 +281,7 @@ def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
 
     from . import config as config_mod
     from .env import N_CONT
-    from .networks import Actor
+    from .networks import Actor, n_branches_of
 
     path = Path(run_dir) / "policy.pt"
     if not Path(run_dir).is_dir():
@@ -292,7 +292,8 @@ def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
         s = torch.load(path, weights_only=False)
         cfg = config_mod.from_dict(s["config"])
         ns = cfg.behavior.network_settings
-        actor = Actor(int(s["obs_dim"]), N_CONT, ns.hidden_units, ns.num_layers, ns.normalize)
+        nb = n_branches_of(s["actor"])  # 1 (end effector), Screw 2 (+ spin)
+        actor = Actor(int(s["obs_dim"]), N_CONT, ns.hidden_units, ns.num_layers, ns.normalize, nb)
         actor.load_state_dict(s["actor"])
     except (pickle.UnpicklingError, RuntimeError, EOFError, KeyError, TypeError, ValueError) as e:
         why = str(e).split(". ")[0][:160]
@@ -320,7 +321,8 @@ def require_onnx_exporter() -> None:
 
 def export_onnx(actor: Actor, obs_dim: int, path: Path) -> None:
     """The deterministic policy as ONNX: input ``obs`` (B, obs_dim) float32 -> ``actions``
-    (B, 7) float32 (6 joint motions in [-1, 1], EE command in {-1, 0, 1}), any batch size B.
+    (B, 6 + n_branches) float32 (6 joint motions in [-1, 1], then each command in {-1, 0, 1}:
+    the end effector; for Screw also the spin), any batch size B.
 
     Exported by torch's current exporter (``torch.onnx.export(..., dynamo=True)``: torch.export
     then onnxscript), opset :data:`ONNX_OPSET`; the observation normaliser's statistics are folded

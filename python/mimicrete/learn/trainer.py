@@ -52,7 +52,7 @@ from .bc import BehavioralCloning
 from .buffer import Rollout, Signal, UpdateBuffer, gae, horizon_cuts
 from .curriculum import ReverseCurriculum, demo_tracks
 from .demo_data import drop_idle_steps, read_demos
-from .env import N_CONT, final_obs_of, make_env
+from .env import N_CONT, command_branches, final_obs_of, make_env
 from .episodes import Episode, EpisodeStats, EpisodeTracker
 from .gail import Gail, signal_terminated
 from .networks import Actor, Critic, env_action
@@ -101,13 +101,16 @@ class Trainer:
         self.T = self.h.buffer_size // self.N
         self.env = make_env(cfg.env_settings.env_id, self.N, self.seed)
         self.obs_dim = int(self.env.single_observation_space.shape[0])
+        self.n_branches = command_branches(self.env)  # 1 (end effector), Screw 2 (+ spin)
 
         rs = self.b.reward_signals
         self.signals: list[str] = [
             name for name, s in (("extrinsic", rs.extrinsic), ("gail", rs.gail)) if s is not None
         ]
         ns = self.b.network_settings
-        self.actor = Actor(self.obs_dim, N_CONT, ns.hidden_units, ns.num_layers, ns.normalize)
+        self.actor = Actor(
+            self.obs_dim, N_CONT, ns.hidden_units, ns.num_layers, ns.normalize, self.n_branches
+        )
         self.critic = Critic(
             self.obs_dim, len(self.signals), ns.hidden_units, ns.num_layers, ns.normalize
         )
@@ -126,6 +129,12 @@ class Trainer:
             self.demo_files_skipped = loaded.skipped
             self.demo_steps_loaded = len(loaded.arrays["actions"])
             self.demos = drop_idle_steps(loaded.arrays, self.b.demo_drop_idle)
+            act_dim = self.demos["actions"].shape[1]
+            if act_dim != N_CONT + self.n_branches:
+                raise config_mod.ConfigError(
+                    f"{path}: demo actions of {act_dim} dims, {cfg.env_settings.env_id} takes "
+                    f"{N_CONT + self.n_branches} (demos of another task?)"
+                )
         self.gail: Gail | None = None
         if rs.gail is not None:
             assert self.demos is not None
@@ -173,7 +182,7 @@ class Trainer:
         self.update_idx = 0
         self.converged_streak = 0  # summaries in a row that met stop_on_convergence
         self.last_summary_step = 0
-        self.rollout = Rollout(self.T, self.N, self.obs_dim, N_CONT)
+        self.rollout = Rollout(self.T, self.N, self.obs_dim, N_CONT, self.n_branches)
         self.obs: np.ndarray | None = None
         self.episodes = EpisodeTracker(self.N)
         self._window: list[Episode] = []  # episodes finished since the last summary
@@ -352,9 +361,9 @@ class Trainer:
         return UpdateBuffer(
             obs=ro.obs.reshape(T * N, D),
             u=ro.u.reshape(T * N, N_CONT),
-            k=ro.k.reshape(T * N),
-            logp=ro.logp.reshape(T * N, N_CONT + 1),
-            env_actions=ro.env_actions.reshape(T * N, N_CONT + 1),
+            k=ro.k.reshape(T * N, -1),
+            logp=ro.logp.reshape(T * N, -1),
+            env_actions=ro.env_actions.reshape(T * N, -1),
             adv=adv.reshape(T * N).astype(np.float32),
             values=values.reshape(T * N, -1).astype(np.float32),
             returns=np.stack(rets, -1).reshape(T * N, -1).astype(np.float32),
