@@ -174,9 +174,10 @@ def ensure_demos(
     task: str = "suction",
     hand_dir: Path | None = None,
     seed: int = 0,
+    at_least: int = 60,
     log: Any = print,
 ) -> Path:
-    """Make ``max(episodes, 60)`` demos in ``demo_dir`` when it holds fewer than ``episodes``:
+    """Make ``max(episodes, at_least)`` demos in ``demo_dir`` when it holds fewer than ``episodes``:
     a scripted person's hand logs (``synth-hands``), turned into MCAP demos through the real
     teleoperation path (``convert``), exactly what ``make demos`` runs. Says so through ``log``."""
     demo_dir = Path(demo_dir)
@@ -184,7 +185,7 @@ def ensure_demos(
     if demo_dir.suffix == ".npz" or have >= episodes:
         return demo_dir
     hand_dir = Path(hand_dir) if hand_dir is not None else default_hand_dir(demo_dir)
-    n = max(episodes, 60)
+    n = max(episodes, at_least)
     log(
         f"demos: {demo_dir} has {have} episodes, making {n} (synth-hands into {hand_dir}, then "
         f"convert into {demo_dir}, as `make demos`)"

@@ -1,0 +1,244 @@
+"""``python -m mimicrete.experiments.demos_needed``: how many demonstrations our learner
+(``configs/fewdemo.yaml``) needs, measured as issue 16 asks.
+
+For each demo count (60, 20, 10, 5 by default) it makes that many demos of the task with a
+scripted person's hands and the real teleoperation path (``synth-hands`` + ``convert``, seeds
+other than ``make demos``' 60), trains the learner on them for each seed, and evaluates every run
+the way the paper's groups are evaluated (100 deterministic episodes from the env's own starts),
+plus a sampled evaluation, the robust starts (``mimicrete eval --robust``) and every checkpoint,
+to find the first one that installs >= 97 % and the training's wall clock there. Runs already
+evaluated are not run again (delete a run dir to redo it). Writes ``OUT/summary.json``, a Markdown
+table ``OUT/summary.md`` and the figure ``OUT/installed_vs_demos.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from mimicrete import tasks
+
+DEFAULT_COUNTS = (60, 20, 10, 5)
+DEFAULT_SEEDS = (0, 1, 2)
+#: synth-hands seed of each demo count (``make demos`` uses 0): fixed, so the demos are the same
+HAND_SEEDS = {60: 400, 20: 300, 10: 100, 5: 200}
+TARGET = 0.97
+
+
+def hand_seed(count: int) -> int:
+    return HAND_SEEDS.get(count, 1000 + count)
+
+
+def make_demos(task: str, count: int, out: Path) -> Path:
+    """``count`` demos of ``task`` in ``out/demos/<task>-<count>`` (made once)."""
+    from mimicrete.learn.demo_data import ensure_demos
+
+    d = out / "demos" / f"{task}-{count}"
+    hands = out / "hands" / f"{task}-{count}"
+    return ensure_demos(d, count, task=task, hand_dir=hands, seed=hand_seed(count), at_least=count)
+
+
+def checkpoint_evals(run_dir: Path, episodes: int = 100) -> list[dict[str, Any]]:
+    """The deterministic evaluation (the run's eval seed) of every checkpoint, with the training's
+    elapsed seconds at its step; written to ``checkpoint_evals.json``."""
+    import torch
+
+    from mimicrete.learn.evaluate import run_episodes
+    from mimicrete.learn.run_files import load_checkpoint, load_policy
+
+    actor, cfg = load_policy(run_dir)
+    with open(run_dir / "scalars.csv") as f:
+        elapsed = {
+            int(float(r["step"])): float(r.get("Environment/Elapsed Seconds") or "nan")
+            for r in csv.DictReader(f)
+        }
+    out = []
+    for ck in sorted((run_dir / "checkpoints").glob("step_*.pt")):
+        state = load_checkpoint(ck)
+        actor.load_state_dict(state["actor"])
+        with torch.no_grad():
+            res = run_episodes(
+                actor, cfg.env_settings.env_id, episodes, cfg.env_settings.seed + 10_000
+            )
+        step = int(state["step"])
+        out.append({"step": step, "elapsed_s": elapsed.get(step, float("nan")), **res})
+    (run_dir / "checkpoint_evals.json").write_text(json.dumps(out, indent=1))
+    return out
+
+
+def run_one(
+    task: str, count: int, seed: int, args: argparse.Namespace, demos: Path
+) -> dict[str, Any]:
+    """Train (unless already done) and evaluate one (demo count, seed); its summary row."""
+    from mimicrete import learn
+    from mimicrete.learn import config
+    from mimicrete.learn.evaluate import evaluate_run
+
+    run_dir = Path(args.out) / f"{task}-d{count}-s{seed}"
+    summary = run_dir / "demos_needed.json"
+    if summary.exists():
+        return json.loads(summary.read_text())
+    t = tasks.get(task)
+    cfg, _ = config.resolve(
+        args.config,
+        overrides=[f"env_settings.env_id={t.env_id}", *args.set],
+        seed=seed,
+        max_steps=args.max_steps,
+    )
+    t0 = time.perf_counter()
+    learn.train(cfg, run_dir, demos=str(demos), force=True, progress=not args.no_progress)
+    train_s = time.perf_counter() - t0
+    det = evaluate_run(run_dir, args.episodes)
+    sto = evaluate_run(run_dir, args.episodes, stochastic=True)
+    rob = evaluate_run(run_dir, args.episodes, robust=True) if task != "screw" else None
+    cks = checkpoint_evals(run_dir, args.episodes)
+    first = next((c for c in cks if c["installed_rate"] >= TARGET), None)
+    row = {
+        "task": task,
+        "demos": count,
+        "seed": seed,
+        "max_steps": cfg.behavior.max_steps,
+        "success": t.success,
+        "installed": det["installed_rate"],
+        "picked": det["picked_rate"],
+        "mean_length": det["mean_episode_length"],
+        "installed_stochastic": sto["installed_rate"],
+        "installed_robust": None if rob is None else rob["installed_rate"],
+        "first_97_step": None if first is None else first["step"],
+        "first_97_elapsed_s": None if first is None else first["elapsed_s"],
+        "train_wall_clock_s": train_s,
+    }
+    summary.write_text(json.dumps(row, indent=1))
+    return row
+
+
+def _secs(x: float) -> str:
+    return f"{x:.0f} s"
+
+
+def _pct(x: float | None) -> str:
+    return "–" if x is None else f"{x:.0%}"
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """The Markdown table of the rows, one line per (task, demo count)."""
+    head = (
+        "| task | demos | steps | success per seed | sampled | robust starts | "
+        "first ≥ 97 % (steps, training s) | training wall clock |\n"
+        "|---|---|---|---|---|---|---|---|\n"
+    )
+    groups: dict[tuple[str, int], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["task"], r["demos"]), []).append(r)
+    lines = []
+    for (task, n), rs in groups.items():
+        rs.sort(key=lambda r: r["seed"])
+        first = [
+            "never" if r["first_97_step"] is None
+            else f"{r['first_97_step'] / 1000:.0f}k, {r['first_97_elapsed_s']:.0f} s"
+            for r in rs
+        ]  # fmt: skip
+        lines.append(
+            f"| {task} | {n} | {rs[0]['max_steps'] / 1000:.0f}k | "
+            f"{' / '.join(_pct(r['installed']) for r in rs)} | "
+            f"{' / '.join(_pct(r['installed_stochastic']) for r in rs)} | "
+            f"{' / '.join(_pct(r['installed_robust']) for r in rs)} | "
+            f"{' / '.join(first)} | "
+            f"{' / '.join(_secs(r['train_wall_clock_s']) for r in rs)} |"
+        )
+    return head + "\n".join(lines) + "\n"
+
+
+def figure(rows: list[dict[str, Any]], path: Path) -> Path:
+    """Success rate (deterministic, 100 episodes) against the demo count: every seed a dot, the
+    mean a line, per task; the paper's group 4 / 8 / 9 results beside ours for TileSuction."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
+    for task in sorted({r["task"] for r in rows}):
+        rs = [r for r in rows if r["task"] == task]
+        counts = sorted({r["demos"] for r in rs})
+        means = [sum(r["installed"] for r in rs if r["demos"] == n) /
+                 sum(1 for r in rs if r["demos"] == n) for n in counts]  # fmt: skip
+        line = ax.plot(counts, [100 * m for m in means], marker="o", label=f"ours ({task})")[0]
+        ax.scatter([r["demos"] for r in rs], [100 * r["installed"] for r in rs],
+                   color=line.get_color(), alpha=0.35, s=18)  # fmt: skip
+    ax.plot([10, 20, 60], [82, 0, 97], "s--", color="grey", label="paper (groups 9, 8, 4)")
+    ax.set_xscale("log")
+    ax.set_xticks([5, 10, 20, 60], ["5", "10", "20", "60"])
+    ax.set_xlabel("demonstrations")
+    ax.set_ylabel("success, % of 100 episodes")
+    ax.set_ylim(-5, 105)
+    ax.axhline(97, color="k", lw=0.6, ls=":")
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title("Success against the number of demonstrations", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m mimicrete.experiments.demos_needed",
+        description="Our learner (configs/fewdemo.yaml) against the number of demonstrations: "
+        "make demos, train every (count, seed), evaluate, table and figure.",
+    )
+    p.add_argument("--task", choices=list(tasks.TABLE), default="suction", help="task (suction)")
+    p.add_argument("--counts", type=int, nargs="+", default=list(DEFAULT_COUNTS),
+                   help="demo counts (60 20 10 5)")  # fmt: skip
+    p.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS),
+                   help="training seeds (0 1 2)")  # fmt: skip
+    p.add_argument("--config", default="configs/fewdemo.yaml", help="learner config")
+    p.add_argument("--max-steps", type=int, default=300_000, help="env steps per run (300000)")
+    p.add_argument("--episodes", type=int, default=100, help="evaluation episodes (100)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="config override for every run (repeatable)")  # fmt: skip
+    p.add_argument("--out", default="runs/demos_needed", help="output dir (runs/demos_needed)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    bad = [n for n in args.counts if n < 1]
+    if bad or args.max_steps < 1 or args.episodes < 1:
+        print("demos_needed: error: counts, --max-steps and --episodes must be positive",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for n in args.counts:
+        demos = make_demos(args.task, n, out)
+        for seed in args.seeds:
+            row = run_one(args.task, n, seed, args, demos)
+            print(
+                f"{args.task} {n} demos seed {seed}: {row['success']} {_pct(row['installed'])} "
+                f"(sampled {_pct(row['installed_stochastic'])}, robust "
+                f"{_pct(row['installed_robust'])}), first >= 97 %: {row['first_97_step']}",
+                flush=True,
+            )
+            rows.append(row)
+    prev = out / "summary.json"
+    done = {(r["task"], r["demos"], r["seed"]) for r in rows}
+    old = json.loads(prev.read_text()) if prev.exists() else []
+    keep = [r for r in old if (r["task"], r["demos"], r["seed"]) not in done]
+    rows = sorted(keep + rows, key=lambda r: (r["task"], -r["demos"], r["seed"]))
+    prev.write_text(json.dumps(rows, indent=1))
+    (out / "summary.md").write_text(table(rows))
+    print(table(rows))
+    print(f"wrote {prev}, {out / 'summary.md'}, {figure(rows, out / 'installed_vs_demos.png')}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""The "demos needed" experiment end to end on a tiny budget: demos made through synth-hands +
+convert, a fewdemo run, its evaluations (deterministic, sampled, robust, every checkpoint), the
+table and the figure; a second call reuses the finished run."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from mimicrete.experiments import demos_needed as dn
+
+
+def _need_sim():
+    native = pytest.importorskip("mimicrete._native")
+    if not hasattr(native, "SimVecEnv"):
+        pytest.skip("mimicrete._native was built without the simulator")
+
+
+TINY = [
+    "behavior.hyperparameters.buffer_size=1024",
+    "behavior.hyperparameters.batch_size=256",
+    "behavior.network_settings.hidden_units=32",
+    "behavior.network_settings.num_layers=2",
+    "behavior.behavioral_cloning.pretrain_steps=5",
+    "behavior.checkpoint_interval=1024",
+    "behavior.summary_freq=1024",
+    "env_settings.num_envs=8",
+]
+
+
+def test_demos_needed_tiny_run(tmp_path, capsys):
+    _need_sim()
+    out = tmp_path / "dn"
+    sets = [a for s in TINY for a in ("--set", s)]
+    argv = ["--counts", "2", "--seeds", "0", "--max-steps", "2048", "--episodes", "8",
+            "--out", str(out), "--no-progress", *sets]  # fmt: skip
+    assert dn.main(argv) == 0
+    run = out / "suction-d2-s0"
+    for f in ("eval.json", "eval_stochastic.json", "eval_robust.json", "checkpoint_evals.json"):
+        assert (run / f).exists(), f
+    cks = json.loads((run / "checkpoint_evals.json").read_text())
+    assert [c["step"] for c in cks] == [1024, 2048] and all(c["episodes"] == 8 for c in cks)
+    assert all(c["elapsed_s"] > 0 for c in cks)
+    rows = json.loads((out / "summary.json").read_text())
+    assert len(rows) == 1 and rows[0]["demos"] == 2 and rows[0]["max_steps"] == 2048
+    row = rows[0]
+    det = json.loads((run / "eval.json").read_text())
+    assert row["installed"] == det["installed_rate"]
+    if row["first_97_step"] is None:
+        assert all(c["installed_rate"] < dn.TARGET for c in cks)
+    md = (out / "summary.md").read_text()
+    assert md.count("\n") == 3 and "| suction | 2 | 2k |" in md
+    assert (out / "installed_vs_demos.png").stat().st_size > 5000
+    assert len(list((out / "demos" / "suction-2").glob("*.mcap"))) == 2
+    # the finished run is reused, not trained again
+    mtime = (run / "policy.pt").stat().st_mtime
+    capsys.readouterr()
+    assert dn.main(argv) == 0
+    assert (run / "policy.pt").stat().st_mtime == mtime
+    assert "suction 2 demos seed 0" in capsys.readouterr().out
+
+
+def test_table_groups_seeds_per_count():
+    rows = [
+        {"task": "suction", "demos": 10, "seed": s, "max_steps": 300_000, "installed": 1.0,
+         "installed_stochastic": 0.9, "installed_robust": 0.3, "first_97_step": 153_600,
+         "first_97_elapsed_s": 30.0 + s, "train_wall_clock_s": 60.0}
+        for s in (1, 0)
+    ]  # fmt: skip
+    md = dn.table(rows)
+    assert (
+        "| suction | 10 | 300k | 100% / 100% | 90% / 90% | 30% / 30% | 154k, 30 s / 154k, 31 s |"
+        in md
+    )
+
+
+def test_bad_arguments_exit_2(tmp_path, capsys):
+    assert dn.main(["--counts", "0", "--out", str(tmp_path)]) == 2
+    assert "must be positive" in capsys.readouterr().err
