@@ -36,9 +36,20 @@ def test_pauses_leave_motion_and_commands_stay():
     assert np.array_equal(kept["actions"], a[~idle])
 
 
-def test_screw_spin_counts_as_a_command():
-    a = _acts([[0, 0, 0, 0, 0, 0, 1, 0], [0, 0, 0, 0, 0, 0, 1, 1], [0, 0, 0, 0, 0, 0, 1, 1]])
-    assert idle_steps(a, np.zeros(3, int), 0.1).tolist() == [False, False, True]
+def test_screw_spin_is_work_while_it_turns():
+    """The end-effector command is a latch (a repeat changes nothing), the spin turns the nut
+    every step it is not 0: a still hand that keeps tightening is screwing, not pausing."""
+    a = _acts(
+        [
+            [0, 0, 0, 0, 0, 0, 1, 0],  # grip closes (first step) -> kept
+            [0, 0, 0, 0, 0, 0, 1, 1],  # still, tightening -> kept
+            [0, 0, 0, 0, 0, 0, 1, 1],  # still, still tightening -> kept
+            [0, 0, 0, 0, 0, 0, 1, -1],  # still, loosening -> kept
+            [0, 0, 0, 0, 0, 0, 1, 0],  # still, grip held, spin stopped -> idle
+            [0, 0, 0, 0, 0, 0, -1, 0],  # the grip opens -> kept
+        ]
+    )
+    assert idle_steps(a, np.zeros(6, int), 0.1).tolist() == [False] * 4 + [True, False]
 
 
 @settings(max_examples=200, deadline=None)
