@@ -64,8 +64,8 @@ def test_demos_needed_tiny_run(tmp_path, capsys):
 def test_table_groups_seeds_per_count():
     rows = [
         {"task": "suction", "demos": 10, "seed": s, "max_steps": 300_000, "installed": 1.0,
-         "installed_stochastic": 0.9, "installed_robust": 0.3, "first_97_step": 153_600,
-         "first_97_elapsed_s": 30.0 + s, "train_wall_clock_s": 60.0}
+         "picked": 0.9, "installed_stochastic": 0.9, "installed_robust": 0.3,
+         "first_97_step": 153_600, "first_97_elapsed_s": 30.0 + s, "train_wall_clock_s": 60.0}
         for s in (1, 0)
     ]  # fmt: skip
     md = dn.table(rows)

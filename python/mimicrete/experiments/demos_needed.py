@@ -128,9 +128,9 @@ def _pct(x: float | None) -> str:
 def table(rows: list[dict[str, Any]]) -> str:
     """The Markdown table of the rows, one line per (task, demo count)."""
     head = (
-        "| task | demos | steps | success per seed | sampled | robust starts | "
+        "| task | demos | steps | success per seed | picked | sampled | robust starts | "
         "first ≥ 97 % (steps, training s) | training wall clock |\n"
-        "|---|---|---|---|---|---|---|---|\n"
+        "|---|---|---|---|---|---|---|---|---|\n"
     )
     groups: dict[tuple[str, int], list[dict[str, Any]]] = {}
     for r in rows:
@@ -146,6 +146,7 @@ def table(rows: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {task} | {n} | {rs[0]['max_steps'] / 1000:.0f}k | "
             f"{' / '.join(_pct(r['installed']) for r in rs)} | "
+            f"{' / '.join(_pct(r['picked']) for r in rs)} | "
             f"{' / '.join(_pct(r['installed_stochastic']) for r in rs)} | "
             f"{' / '.join(_pct(r['installed_robust']) for r in rs)} | "
             f"{' / '.join(first)} | "

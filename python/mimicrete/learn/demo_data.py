@@ -117,15 +117,16 @@ def demo_arrays(loaded: Any) -> dict[str, np.ndarray]:
 
 
 def idle_steps(actions: np.ndarray, episode: np.ndarray, threshold: float) -> np.ndarray:
-    """Mask of the demo steps in which the demonstrator was idle: every joint motion
-    ``|a[0:6]|`` below ``threshold`` (a fraction of the env's joint step), the end-effector
-    command either 0 ("fixed") or the same as the previous step's in the episode, so it changes
-    nothing, and any further command (Screw's spin) 0: a spin held at "tighten" turns the nut
-    every step, so the steps of a screwing hand that holds still are work, not a pause (leaving
-    them out left BC without the screwing phase: 0 % screwed on 3 seeds). A human pauses: after the pick, before the place, while
-    deciding. Those steps teach a policy that standing still is what the expert does in a state it
-    cannot tell from the moment before moving on, and a five-frame observation cannot tell how
-    long a pause has lasted; the policy then freezes there. ``threshold <= 0`` marks nothing."""
+    """Mask of the demo steps in which the demonstrator was idle: every joint motion ``|a[0:6]|``
+    below ``threshold`` (a fraction of the env's joint step), the end-effector command either 0
+    ("fixed") or the same as the previous step's in the episode, so it changes nothing, and any
+    further command (Screw's spin) 0: a spin held at "tighten" turns the nut every step, so the
+    steps of a screwing hand that holds still are work, not a pause (leaving them out left BC
+    without the screwing phase: 0 % screwed on 3 seeds). A human pauses: after the pick, before the
+    place, while deciding. Those steps teach a policy that standing still is what the expert does
+    in a state it cannot tell from the moment before moving on, and a five-frame observation cannot
+    tell how long a pause has lasted; the policy then freezes there. ``threshold <= 0`` marks
+    nothing."""
     a = np.asarray(actions)
     idle = np.zeros(len(a), bool)
     if threshold <= 0 or len(a) == 0:
