@@ -73,7 +73,7 @@ pub use salvage::{
     ChunkCheck, RecoveredMessage, SalvageReport, Salvaged, VerifyReport, salvage, salvage_bytes, salvage_to,
     verify, verify_bytes,
 };
-pub use scene::{episode_scene, frame_poses, task_scene};
+pub use scene::{episode_scene, episode_scene_json, frame_numbers, frame_poses, task_scene};
 /// tile-sim's task names (the scene of a demo is the task's).
 pub use tile_sim::Task;
 /// The URDF links' parent-to-child transforms (ur3-kin's; `/tf` publishes them).

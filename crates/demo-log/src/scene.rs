@@ -4,7 +4,10 @@
 //! first step of every demo; the bindings hand the same entities, as Foxglove `SceneEntity` JSON,
 //! to anything else that draws the scene (the live server).
 
-use crate::writer::{BASE_FRAME, Pose, SceneEntity, Shape, TILE_FRAME, robot_link_entities};
+use crate::DemoError;
+use crate::writer::{BASE_FRAME, Pose, SceneEntity, Shape, TILE_FRAME, foxglove_entity, robot_link_entities};
+use serde_json::Value;
+use std::collections::BTreeMap;
 use tile_sim::{SceneFrame, Task};
 use ur3_kin::UrModel;
 
@@ -69,4 +72,31 @@ pub fn frame_poses(model: &UrModel, joints: &[f64; 6], tile_pose: &Pose) -> Vec<
         .collect();
     v.push((TILE_FRAME, *tile_pose));
     v
+}
+
+/// The robot model named `name` (`ur3_kin::UrModel::by_name`).
+fn model(name: &str) -> Result<&'static UrModel, DemoError> {
+    UrModel::by_name(name).map_err(|e| DemoError::Invalid(e.to_string()))
+}
+
+/// [`episode_scene`] of the model named `model_name`, each entity as the Foxglove `SceneEntity`
+/// JSON object `/scene` carries (stamped 0): what the live page draws.
+///
+/// # Errors
+/// [`DemoError::Invalid`] for an unknown model.
+pub fn episode_scene_json(model_name: &str, task: Task, seed: u64) -> Result<Vec<Value>, DemoError> {
+    Ok(episode_scene(model(model_name)?, task, seed).iter().map(|e| foxglove_entity(e, 0)).collect())
+}
+
+/// [`frame_poses`] of the model named `model_name` as `{frame: [x, y, z, qx, qy, qz, qw]}`.
+///
+/// # Errors
+/// [`DemoError::Invalid`] for an unknown model.
+pub fn frame_numbers(
+    model_name: &str,
+    joints: &[f64; 6],
+    tile_pose: &Pose,
+) -> Result<BTreeMap<&'static str, [f64; 7]>, DemoError> {
+    let poses = frame_poses(model(model_name)?, joints, tile_pose);
+    Ok(poses.into_iter().map(|(k, p)| (k, p.to_numbers())).collect())
 }

@@ -144,3 +144,31 @@ fn episode_meta_from_json() {
     sheared[1] = 0.4;
     assert!(Pose::from_numbers(&sheared, "T").is_err());
 }
+
+#[test]
+fn entity_lists_from_json() {
+    let v = json!([{"id": "a", "kind": "cube", "size": [1, 2, 3]}, {"id": "b", "kind": "sphere", "size": [1, 1, 1]}]);
+    let ents = SceneEntity::list_from_json(&v, "scene").unwrap();
+    assert_eq!(ents.iter().map(|e| e.id.as_str()).collect::<Vec<_>>(), ["a", "b"]);
+    let e = SceneEntity::list_from_json(&json!({"id": "a"}), "scene").unwrap_err().to_string();
+    assert!(e.contains("scene must be a list"), "{e}");
+    assert!(SceneEntity::list_from_json(&json!([{"id": "a"}]), "scene").is_err());
+}
+
+#[test]
+fn scene_json_and_frame_numbers_by_model_name() {
+    let ents = episode_scene_json("UR3", Task::Screw, 4).unwrap();
+    let want = episode_scene(&ur3_kin::UR3, Task::Screw, 4);
+    assert_eq!(ents, want.iter().map(|e| foxglove_entity(e, 0)).collect::<Vec<_>>());
+    assert!(
+        episode_scene_json("ur4", Task::Screw, 4).unwrap_err().to_string().contains("unknown robot model")
+    );
+    let q = [0.1, -1.0, 1.2, -0.4, 0.3, 0.9];
+    let tile = Pose { position: [0.1, 0.2, 0.3], orientation: [0.0, 0.0, 0.0, 1.0] };
+    let f = frame_numbers("ur3", &q, &tile).unwrap();
+    for (name, p) in frame_poses(&ur3_kin::UR3, &q, &tile) {
+        assert_eq!(f[name], p.to_numbers());
+    }
+    assert_eq!(f.len(), 9);
+    assert!(frame_numbers("nope", &q, &tile).is_err());
+}
