@@ -114,7 +114,7 @@ impl SceneEntity {
             Some(f) if !f.is_null() => typed(f, &format!("scene entity {id:?} frame_id"))?,
             _ => BASE_FRAME.to_string(),
         };
-        Ok(SceneEntity { id, frame_id, kind, size, pose, color })
+        Ok(SceneEntity { id, frame_id, kind, size, pose, color, extra: Vec::new() })
     }
 
     /// A list of entities ([`SceneEntity::from_json`] each); `what` names the list in errors.
