@@ -311,7 +311,8 @@ def sim_constants() -> _SimConstants:
 
 def scene_entities(task: str, seed: int = 0, model: str = "ur3") -> list[dict[str, Any]]:
     """The Foxglove ``SceneEntity`` objects (JSON-ready dicts) a demo of episode ``seed`` of
-    ``task`` carries on ``/scene``: the robot (locked to the URDF links), table, pad, target, end
+    ``task`` carries on ``/scene``: the robot (the UR3 as the simulator's capsules, a cylinder and
+    two spheres per entity; locked to the URDF links), table, pad, target, end
     effector (locked to ``tool0``) and object (locked to ``tile``)."""
 
 def scene_frames(

@@ -67,6 +67,17 @@ impl<T> NdArray<T> {
     }
 }
 
+impl<T> NdArray<T> {
+    /// The elements of an `(n, cols)` array, any `n` (the first axis' length is taken as `n`).
+    ///
+    /// # Errors
+    /// As [`NdArray::into_shape`].
+    pub fn into_matrix(self, cols: usize, what: &str) -> Result<Vec<T>, DemoError> {
+        let rows = self.shape.first().copied().unwrap_or(0);
+        self.into_shape(&[rows, cols], what)
+    }
+}
+
 impl<T: Copy> NdArray<T> {
     /// The rows of an `(n, K)` array as `[T; K]`; `None` for any other shape.
     pub fn rows<const K: usize>(&self) -> Option<Vec<[T; K]>> {

@@ -66,6 +66,16 @@ impl ParseMode {
             _ => None,
         }
     }
+
+    /// [`ParseMode::from_name`], or [`DemoError::Invalid`] naming the two modes.
+    ///
+    /// # Errors
+    /// Any other name.
+    pub fn parse(name: &str) -> Result<ParseMode, crate::DemoError> {
+        ParseMode::from_name(name).ok_or_else(|| {
+            crate::DemoError::Invalid(format!("mode must be 'strict' or 'lenient', got {name:?}"))
+        })
+    }
 }
 
 /// A line the lenient parser dropped.

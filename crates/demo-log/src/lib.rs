@@ -37,7 +37,7 @@
 //! | `/demo/step` | `mimicrete.DemoStep.v1` | episode, step, t, obs (f32), action (f32), reward, terminated, truncated, gesture, joints (6, rad), ee_pose, tile_pose |
 //! | `/hand/joints` | `mimicrete.HandFrame.v1` | the raw hand frame (its own `t`, tracked, joints, orientations); channel metadata: layout, space, handedness |
 //! | `/tf` | `foxglove.FrameTransforms` | `base` → URDF links (`shoulder_link` … `wrist_3_link`, `flange`, `tool0`) from the step's joints, and `base` → `tile` |
-//! | `/scene` | `foxglove.SceneUpdate` | on the first step: robot stick figure (cylinders locked to the link frames), the task's scene from tile-sim's geometry ([`task_scene`]: table, pad, target, end effector locked to `tool0`, object locked to `tile`), the caller's static scene (replacing entities of the same id); later: per-step entity updates |
+//! | `/scene` | `foxglove.SceneUpdate` | on the first step: the robot ([`robot_entities`]: the UR3 as tile-sim's arm capsules, a cylinder and two end spheres per entity, locked to the URDF links; other models as cylinders between the links' origins), the task's scene from tile-sim's geometry ([`task_scene`]: table, pad, target, end effector locked to `tool0`, object locked to `tile`), the caller's static scene (replacing entities of the same id); later: per-step entity updates |
 //! | `/events` | `foxglove.Event` | `gesture_change`, caller events (`pick`, `install`, `fall`), and `success`/`failure` at the end |
 //!
 //! Metadata records: `episode_start` (written first: format, format_version, episode, task, seed,
@@ -73,15 +73,18 @@ pub use salvage::{
     ChunkCheck, RecoveredMessage, SalvageReport, Salvaged, VerifyReport, salvage, salvage_bytes, salvage_to,
     verify, verify_bytes,
 };
-pub use scene::{episode_scene, frame_poses, task_scene};
+pub use scene::{
+    arm_capsule_entities, episode_scene, episode_scene_json, frame_numbers, frame_poses, robot_entities,
+    task_scene,
+};
 /// tile-sim's task names (the scene of a demo is the task's).
 pub use tile_sim::Task;
 /// The URDF links' parent-to-child transforms (ur3-kin's; `/tf` publishes them).
 pub use ur3_kin::urdf::link_transforms;
 pub use writer::{
     BASE_FRAME, DEMO_FORMAT, DEMO_FORMAT_VERSION, DemoWriter, EpisodeMeta, EpisodeSummary, LINK_FRAMES, Pose,
-    SceneEntity, Shape, StepRecord, TILE_FRAME, TOPIC_EVENTS, TOPIC_HAND, TOPIC_SCENE, TOPIC_STEP, TOPIC_TF,
-    WriteStats, WriterOptions, foxglove_entity, log_time_ns, robot_link_entities, sha256_hex,
+    Primitive, SceneEntity, Shape, StepRecord, TILE_FRAME, TOPIC_EVENTS, TOPIC_HAND, TOPIC_SCENE, TOPIC_STEP,
+    TOPIC_TF, WriteStats, WriterOptions, foxglove_entity, log_time_ns, robot_link_entities, sha256_hex,
 };
 
 /// Re-exported so that bindings can build the `extra` objects of hand-log headers.

@@ -114,7 +114,16 @@ impl SceneEntity {
             Some(f) if !f.is_null() => typed(f, &format!("scene entity {id:?} frame_id"))?,
             _ => BASE_FRAME.to_string(),
         };
-        Ok(SceneEntity { id, frame_id, kind, size, pose, color })
+        Ok(SceneEntity { id, frame_id, kind, size, pose, color, extra: Vec::new() })
+    }
+
+    /// A list of entities ([`SceneEntity::from_json`] each); `what` names the list in errors.
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] when `v` is not a list or an entity is invalid.
+    pub fn list_from_json(v: &Value, what: &str) -> Result<Vec<SceneEntity>, DemoError> {
+        let items = v.as_array().ok_or_else(|| invalid(format!("{what} must be a list")))?;
+        items.iter().map(SceneEntity::from_json).collect()
     }
 }
 
@@ -173,10 +182,7 @@ impl EpisodeMeta {
                 "gesture_model" => meta.gesture_model = typed(v, &what)?,
                 "control_dt" => meta.control_dt = typed(v, &what)?,
                 "hand" => meta.hand = Some(HandLogHeader::from_fields(v)?),
-                "scene" => {
-                    let items = v.as_array().ok_or_else(|| invalid(format!("{what} must be a list")))?;
-                    meta.scene = items.iter().map(SceneEntity::from_json).collect::<Result<_, _>>()?;
-                }
+                "scene" => meta.scene = SceneEntity::list_from_json(v, &what)?,
                 "extra" => {
                     meta.extra = object(v, &what)?.iter().map(|(k, x)| (k.clone(), value_text(x))).collect();
                 }

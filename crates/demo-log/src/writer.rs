@@ -112,6 +112,30 @@ pub struct SceneEntity {
     pub pose: Pose,
     /// Colour, RGBA in 0..1.
     pub color: [f32; 4],
+    /// Further primitives drawn as part of this entity (a capsule: its cylinder, then the
+    /// spheres capping it), in `frame_id`.
+    pub extra: Vec<Primitive>,
+}
+
+/// One more primitive of a [`SceneEntity`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Primitive {
+    /// Shape.
+    pub kind: Shape,
+    /// Size in metres (see [`Shape`]).
+    pub size: [f64; 3],
+    /// Pose of the primitive's centre in the entity's frame.
+    pub pose: Pose,
+    /// Colour, RGBA in 0..1.
+    pub color: [f32; 4],
+}
+
+impl SceneEntity {
+    /// The entity's primitives: its own, then [`SceneEntity::extra`].
+    pub fn primitives(&self) -> impl Iterator<Item = Primitive> + '_ {
+        let first = Primitive { kind: self.kind, size: self.size, pose: self.pose, color: self.color };
+        std::iter::once(first).chain(self.extra.iter().copied())
+    }
 }
 
 /// Facts about an episode, known when recording starts.
@@ -401,14 +425,16 @@ pub fn foxglove_entity(e: &SceneEntity, t_ns: u64) -> serde_json::Value {
 }
 
 fn entity_msg<'a>(e: &'a SceneEntity, stamp: Time) -> Entity<'a> {
-    let size = V3 { x: e.size[0], y: e.size[1], z: e.size[2] };
-    let pose = PoseMsg::from(&e.pose);
     let (mut cubes, mut spheres, mut cylinders) = (Vec::new(), Vec::new(), Vec::new());
-    match e.kind {
-        Shape::Cube => cubes.push(Prim { pose, size, color: rgba(e.color) }),
-        Shape::Sphere => spheres.push(Prim { pose, size, color: rgba(e.color) }),
-        Shape::Cylinder => {
-            cylinders.push(CylPrim { pose, size, bottom_scale: 1.0, top_scale: 1.0, color: rgba(e.color) })
+    for p in e.primitives() {
+        let size = V3 { x: p.size[0], y: p.size[1], z: p.size[2] };
+        let (pose, color) = (PoseMsg::from(&p.pose), rgba(p.color));
+        match p.kind {
+            Shape::Cube => cubes.push(Prim { pose, size, color }),
+            Shape::Sphere => spheres.push(Prim { pose, size, color }),
+            Shape::Cylinder => {
+                cylinders.push(CylPrim { pose, size, bottom_scale: 1.0, top_scale: 1.0, color })
+            }
         }
     }
     Entity {
@@ -452,6 +478,7 @@ pub fn robot_link_entities(model: &UrModel) -> Vec<SceneEntity> {
             size: [2.0 * radius, 2.0 * radius, len],
             pose: Pose { position: [mid.x, mid.y, mid.z], orientation: [q.i, q.j, q.k, q.w] },
             color: [0.55, 0.62, 0.70, 1.0],
+            extra: Vec::new(),
         });
     }
     out
@@ -965,7 +992,7 @@ fn metadata_map(
 fn first_scene(model: &UrModel, meta: &EpisodeMeta) -> Vec<SceneEntity> {
     let mut v = match tile_sim::Task::from_name(&meta.task) {
         Ok(task) => crate::scene::episode_scene(model, task, meta.seed),
-        Err(_) => robot_link_entities(model),
+        Err(_) => crate::scene::robot_entities(model),
     };
     for e in &meta.scene {
         match v.iter_mut().find(|x| x.id == e.id) {
@@ -977,10 +1004,11 @@ fn first_scene(model: &UrModel, meta: &EpisodeMeta) -> Vec<SceneEntity> {
 }
 
 fn check_entity(e: &SceneEntity) -> Result<(), DemoError> {
-    if !e.pose.is_finite()
-        || e.size.iter().any(|x| !x.is_finite() || *x < 0.0)
-        || e.color.iter().any(|c| !c.is_finite())
-    {
+    if e.primitives().any(|p| {
+        !p.pose.is_finite()
+            || p.size.iter().any(|x| !x.is_finite() || *x < 0.0)
+            || p.color.iter().any(|c| !c.is_finite())
+    }) {
         return Err(DemoError::Invalid(format!(
             "scene entity \"{}\": non-finite or negative pose/size/colour",
             e.id

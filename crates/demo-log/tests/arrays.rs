@@ -150,3 +150,21 @@ fn reports_serialize_with_the_bindings_keys() {
     let r = SalvageReport { step_gaps: vec![(3, 5)], ..Default::default() };
     assert_eq!(serde_json::to_value(&r).unwrap()["step_gaps"], json!([[3, 5]]));
 }
+
+#[test]
+fn into_matrix_takes_any_row_count() {
+    let a = NdArray::new(vec![2, 3], vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]).unwrap();
+    assert_eq!(a.clone().into_matrix(3, "x").unwrap(), vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+    let e = a.into_matrix(2, "x").unwrap_err().to_string();
+    assert!(e.contains("x must have shape (2, 2), got (2, 3)"), "{e}");
+    let e = NdArray::vector(vec![1.0, 2.0]).into_matrix(2, "y").unwrap_err().to_string();
+    assert!(e.contains("y must have shape (2, 2), got (2,)"), "{e}");
+}
+
+#[test]
+fn parse_mode_names() {
+    assert_eq!(ParseMode::parse("Lenient").unwrap(), ParseMode::Lenient);
+    assert_eq!(ParseMode::parse("strict").unwrap(), ParseMode::Strict);
+    let e = ParseMode::parse("loose").unwrap_err().to_string();
+    assert!(e.contains("mode must be 'strict' or 'lenient', got \"loose\""), "{e}");
+}

@@ -1,14 +1,13 @@
-//! Bindings for demo-log: hand logs ↔ numpy, the MCAP `DemoWriter`, demo reading and salvage.
-//! Keys, defaults, shapes and checks are demo-log's (`EpisodeMeta::from_json`,
-//! `HandLogHeader::from_fields`, `HandLog::{to_arrays, from_arrays}`, `Pose::from_json`).
+//! Bindings for demo-log (hand logs ↔ numpy, the MCAP `DemoWriter`, reading, salvage); keys,
+//! defaults, shapes and checks are demo-log's.
 
 use crate::errors::{demo_err, from_py, handlog_err, matrix, nd_from_py, nd_to_py, to_py, vector};
 use demo_log::{
     DemoWriter as RsWriter, EpisodeMeta, EpisodeSummary, HandArrays, HandFrame, HandLog, HandLogHeader,
-    ParseMode, ParseReport, Pose, StepRecord, WriterOptions,
+    ParseMode, ParseReport, Pose, SceneEntity, StepRecord, WriterOptions,
 };
 use numpy::{PyReadonlyArray1, PyReadonlyArrayDyn};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
@@ -17,11 +16,6 @@ use std::path::{Path, PathBuf};
 type FDyn<'py> = PyReadonlyArrayDyn<'py, f64>;
 type Dict<'py> = Bound<'py, PyDict>;
 type Obj = Py<PyAny>;
-
-fn mode(name: &str) -> PyResult<ParseMode> {
-    ParseMode::from_name(name)
-        .ok_or_else(|| PyValueError::new_err(format!("mode must be 'strict' or 'lenient', got {name:?}")))
-}
 
 fn handlog_to_py<'py>(py: Python<'py>, log: &HandLog, rep: &ParseReport) -> PyResult<Dict<'py>> {
     let (a, header) = (log.to_arrays(), to_py(py, &log.header_fields())?);
@@ -34,7 +28,7 @@ fn handlog_to_py<'py>(py: Python<'py>, log: &HandLog, rep: &ParseReport) -> PyRe
 #[pyfunction]
 #[pyo3(signature = (path, mode = "strict"))]
 fn demo_parse_handlog<'py>(py: Python<'py>, path: PathBuf, mode: &str) -> PyResult<Dict<'py>> {
-    let m = self::mode(mode)?;
+    let m = ParseMode::parse(mode).map_err(demo_err)?;
     let (log, rep) = py.detach(|| HandLog::from_path(&path, m)).map_err(handlog_err)?;
     handlog_to_py(py, &log, &rep)
 }
@@ -43,7 +37,8 @@ fn demo_parse_handlog<'py>(py: Python<'py>, path: PathBuf, mode: &str) -> PyResu
 #[pyfunction]
 #[pyo3(signature = (text, name = "<string>", mode = "strict"))]
 fn demo_parse_handlog_str<'py>(py: Python<'py>, text: &str, name: &str, mode: &str) -> PyResult<Dict<'py>> {
-    let (log, rep) = HandLog::parse_str(text, name, self::mode(mode)?).map_err(handlog_err)?;
+    let (log, rep) =
+        HandLog::parse_str(text, name, ParseMode::parse(mode).map_err(demo_err)?).map_err(handlog_err)?;
     handlog_to_py(py, &log, &rep)
 }
 
@@ -82,11 +77,19 @@ fn str_map(d: Option<&Dict<'_>>) -> PyResult<BTreeMap<String, String>> {
 #[pyclass(module = "mimicrete._native", name = "DemoWriter")]
 pub struct PyDemoWriter {
     inner: Option<RsWriter>,
+    /// The final path.
+    #[pyo3(get)]
     path: PathBuf,
 }
 
 fn closed(path: &Path) -> PyErr {
     PyRuntimeError::new_err(format!("{}: the writer is closed", path.display()))
+}
+
+impl PyDemoWriter {
+    fn open(&mut self) -> PyResult<&mut RsWriter> {
+        self.inner.as_mut().ok_or_else(|| closed(&self.path))
+    }
 }
 
 #[pymethods]
@@ -119,9 +122,7 @@ impl PyDemoWriter {
         events: Option<Vec<String>>,
         scene: Option<&Bound<'_, PyList>>,
     ) -> PyResult<()> {
-        let scene = scene.map_or(Ok(Vec::new()), |s| {
-            s.iter().map(|e| demo_log::SceneEntity::from_json(&from_py(&e)?).map_err(demo_err)).collect()
-        })?;
+        let scene = scene.map(|s| SceneEntity::list_from_json(&from_py(s)?, "scene").map_err(demo_err));
         let rec = StepRecord {
             step,
             t,
@@ -135,9 +136,9 @@ impl PyDemoWriter {
             ee_pose: pose_from(ee_pose, "ee_pose")?,
             tile_pose: pose_from(tile_pose, "tile_pose")?,
             events: events.unwrap_or_default(),
-            scene,
+            scene: scene.transpose()?.unwrap_or_default(),
         };
-        self.inner.as_mut().ok_or_else(|| closed(&self.path))?.write_step(&rec).map_err(demo_err)
+        self.open()?.write_step(&rec).map_err(demo_err)
     }
 
     /// Record a raw hand frame (J, 3) at episode time `t` (`hand_t`: the frame's own time).
@@ -152,30 +153,20 @@ impl PyDemoWriter {
     ) -> PyResult<()> {
         let o = orientations.as_ref().map(nd_from_py);
         let f = HandFrame::from_arrays(hand_t.unwrap_or(t), tracked, &nd_from_py(&joints), o.as_ref());
-        self.inner
-            .as_mut()
-            .ok_or_else(|| closed(&self.path))?
-            .write_hand_frame(&f.map_err(demo_err)?, t)
-            .map_err(demo_err)
+        self.open()?.write_hand_frame(&f.map_err(demo_err)?, t).map_err(demo_err)
     }
 
     /// Record an event (`"pick"`, `"install"`, `"fall"`, ...) at episode time `t`.
     #[pyo3(signature = (t, name, properties = None))]
     fn write_event(&mut self, t: f64, name: &str, properties: Option<&Dict<'_>>) -> PyResult<()> {
         let p = str_map(properties)?;
-        self.inner.as_mut().ok_or_else(|| closed(&self.path))?.write_event(t, name, &p).map_err(demo_err)
+        self.open()?.write_event(t, name, &p).map_err(demo_err)
     }
 
     /// Steps written so far.
     #[getter]
     fn steps(&self) -> u64 {
         self.inner.as_ref().map_or(0, RsWriter::steps)
-    }
-
-    /// The final path.
-    #[getter]
-    fn path(&self) -> PathBuf {
-        self.path.clone()
     }
 
     /// End the episode and rename the file into place → dict path, steps, messages, chunks, bytes.

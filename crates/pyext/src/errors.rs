@@ -1,63 +1,50 @@
-//! The exception tree, carrying the Rust errors' fields: `MimicreteError` → `IkError` (`reason`,
-//! `iters`, `pos_residual_m`, `rot_residual_rad`), `SimError` (`reason`), `LogFormatError` (`file`,
-//! `line`, `reason`); absent fields are None. Misuse raises `ValueError`. Also the conversions
-//! Python ↔ JSON values / serde records, numpy ↔ `demo_log::NdArray`.
+//! The exception tree (`MimicreteError` → `IkError`, `SimError`, `LogFormatError`, with the Rust
+//! errors' fields; misuse raises `ValueError`) and the conversions Python ↔ JSON / serde / numpy.
 
 use demo_log::NdArray;
-use demo_log::serde_json::{Number, Value};
+use demo_log::serde_json::{Value, json};
 use numpy::ndarray::ArrayD;
 use numpy::{Element, IntoPyArray, PyArray1, PyArrayDyn, PyReadonlyArrayDyn};
+use pyo3::PyTypeInfo;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyOSError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyTuple};
-use pyo3::{IntoPyObjectExt, PyTypeInfo};
+use pyo3::types::{PyDict, PyList, PyTuple};
 
 create_exception!(mimicrete._native, MimicreteError, PyException, "Base class of every mimicrete error.");
 create_exception!(mimicrete._native, IkError, MimicreteError, "Inverse kinematics found no solution.");
 create_exception!(mimicrete._native, SimError, MimicreteError, "The simulator refused an input or state.");
 create_exception!(mimicrete._native, LogFormatError, MimicreteError, "A hand log or demo file is malformed.");
 
-/// An exception of type `T` with message `msg` and attributes `fields`.
-fn raise<T: PyTypeInfo>(py: Python<'_>, msg: String, fields: &[(&str, Option<Py<PyAny>>)]) -> PyErr {
+/// An exception of type `T` with message `msg` and the attributes of the JSON object `fields`.
+fn raise<T: PyTypeInfo>(msg: String, fields: Value) -> PyErr {
     let e = PyErr::new::<T, _>(msg);
-    match fields.iter().try_for_each(|(k, v)| e.value(py).setattr(*k, v)) {
-        Ok(()) => e,
-        Err(x) => x,
-    }
-}
-
-fn obj<'py, T: IntoPyObjectExt<'py>>(py: Python<'py>, v: T) -> Option<Py<PyAny>> {
-    v.into_py_any(py).ok()
+    let fields = fields.as_object().into_iter().flatten();
+    let set =
+        Python::attach(|py| fields.into_iter().try_for_each(|(k, v)| e.value(py).setattr(k, to_py(py, v)?)));
+    set.err().unwrap_or(e)
 }
 
 /// ur3-kin errors: `Unreachable` / `NotConverged` → `IkError` with their fields, the rest `ValueError`.
 pub(crate) fn kin_err(e: ur3_kin::KinError) -> PyErr {
     use ur3_kin::KinError as K;
     let msg = e.to_string();
-    Python::attach(|py| match e {
-        K::Unreachable { reason } => raise::<IkError>(py, msg, &[("reason", obj(py, reason))]),
+    match e {
+        K::Unreachable { reason } => raise::<IkError>(msg, json!({ "reason": reason })),
         K::NotConverged { iters, pos_residual_m: p, rot_residual_rad: r } => {
-            let (reason, iters) = (obj(py, "did not converge"), obj(py, iters));
-            let f = [
-                ("reason", reason),
-                ("iters", iters),
-                ("pos_residual_m", obj(py, p)),
-                ("rot_residual_rad", obj(py, r)),
-            ];
-            raise::<IkError>(py, msg, &f)
+            let f = json!({"reason": "did not converge", "iters": iters,
+                "pos_residual_m": p, "rot_residual_rad": r});
+            raise::<IkError>(msg, f)
         }
         _ => PyValueError::new_err(msg),
-    })
+    }
 }
 
 /// tile-sim errors: stepping a finished episode → `SimError`; the caller's mistakes → `ValueError`.
 pub(crate) fn sim_err(e: tile_sim::SimError) -> PyErr {
     let msg = e.to_string();
     match e {
-        tile_sim::SimError::EpisodeOver => {
-            Python::attach(|py| raise::<SimError>(py, msg.clone(), &[("reason", obj(py, msg))]))
-        }
+        tile_sim::SimError::EpisodeOver => raise::<SimError>(msg.clone(), json!({ "reason": msg })),
         _ => PyValueError::new_err(msg),
     }
 }
@@ -65,11 +52,7 @@ pub(crate) fn sim_err(e: tile_sim::SimError) -> PyErr {
 /// `LogFormatError` with `str(e)` = `file:line: reason` (`file: reason` without a line).
 pub(crate) fn log_format(file: &str, line: Option<usize>, reason: &str) -> PyErr {
     let msg = line.map_or(format!("{file}: {reason}"), |l| format!("{file}:{l}: {reason}"));
-    Python::attach(|py| {
-        let f =
-            [("file", obj(py, file)), ("line", line.and_then(|l| obj(py, l))), ("reason", obj(py, reason))];
-        raise::<LogFormatError>(py, msg, &f)
-    })
+    raise::<LogFormatError>(msg, json!({"file": file, "line": line, "reason": reason}))
 }
 
 pub(crate) fn handlog_err(e: demo_log::HandLogError) -> PyErr {
@@ -106,28 +89,26 @@ pub(crate) fn to_py<'py, T: serde::Serialize + ?Sized>(
 }
 
 /// Python data as JSON: dicts, lists, tuples, numpy (`tolist()`), path-likes, str, int, float, bool, None.
+/// Containers are walked here (numpy values inside them too); the leaves are pythonize's.
 pub(crate) fn from_py(o: &Bound<'_, PyAny>) -> PyResult<Value> {
-    Ok(if o.is_none() {
-        Value::Null
-    } else if let Ok(b) = o.cast::<PyBool>() {
-        Value::Bool(b.is_true())
-    } else if let Ok(i) = o.cast::<PyInt>() {
-        i.extract::<i64>().map(Value::from).or_else(|_| i.extract::<u64>().map(Value::from))?
-    } else if let Ok(f) = o.cast::<PyFloat>() {
-        let x = f.value();
-        let e = || PyValueError::new_err(format!("{x} is not a finite number (JSON)"));
-        Value::Number(Number::from_f64(x).ok_or_else(e)?)
-    } else if let Ok(s) = o.extract::<String>() {
-        Value::String(s)
-    } else if let Ok(d) = o.cast::<PyDict>() {
-        Value::Object(d.iter().map(|(k, v)| Ok((k.extract()?, from_py(&v)?))).collect::<PyResult<_>>()?)
+    if let Ok(d) = o.cast::<PyDict>() {
+        return d
+            .iter()
+            .map(|(k, v)| Ok((k.extract()?, from_py(&v)?)))
+            .collect::<PyResult<_>>()
+            .map(Value::Object);
     } else if o.is_instance_of::<PyList>() || o.is_instance_of::<PyTuple>() {
-        Value::Array(o.try_iter()?.map(|x| from_py(&x?)).collect::<PyResult<_>>()?)
+        return o.try_iter()?.map(|x| from_py(&x?)).collect::<PyResult<_>>().map(Value::Array);
     } else if let Some(m) = ["tolist", "__fspath__"].into_iter().find(|m| o.hasattr(*m).unwrap_or(false)) {
-        from_py(&o.call_method0(m)?)?
-    } else {
-        return Err(PyValueError::new_err(format!("{} is not JSON data", o.get_type().name()?)));
-    })
+        return from_py(&o.call_method0(m)?);
+    }
+    match pythonize::depythonize::<Value>(o) {
+        Ok(Value::Null) if !o.is_none() => {
+            Err(PyValueError::new_err(format!("{o} is not a finite number (JSON)")))
+        }
+        Ok(v) => Ok(v),
+        Err(_) => Err(PyValueError::new_err(format!("{} is not JSON data", o.get_type().name()?))),
+    }
 }
 
 /// A numpy array of `a`'s shape and elements.

@@ -1,6 +1,5 @@
-//! Bindings for ur3-kin: numpy ↔ the crate's types, the interpreter lock released around batches.
-//! Batch loops, per-row failures and setting checks are ur3-kin's (`ik_batch_matrices`,
-//! `hand_to_target_batch`, `split_failures`, `IkOptions::with_tol`, `Calibration::new`).
+//! Bindings for ur3-kin: numpy ↔ the crate's types (batches, failures and checks are ur3-kin's),
+//! the interpreter lock released around batches.
 
 use crate::errors::kin_err;
 use numpy::ndarray::{Array1, Array2, Array3, ArrayView1, ArrayView2};
@@ -28,18 +27,14 @@ fn shape_err(what: &str, expected: &str, got: &[usize]) -> PyErr {
 }
 
 fn finite<'a>(it: impl IntoIterator<Item = &'a f64>, what: &str) -> PyResult<()> {
-    match it.into_iter().all(|x| x.is_finite()) {
-        true => Ok(()),
-        false => Err(PyValueError::new_err(format!("{what} holds a NaN or an infinity"))),
-    }
+    let bad = || PyValueError::new_err(format!("{what} holds a NaN or an infinity"));
+    it.into_iter().all(|x| x.is_finite()).then_some(()).ok_or_else(bad)
 }
 
 /// A `(K,)` array as `[f64; K]`.
 fn vector<const K: usize>(v: ArrayView1<'_, f64>, what: &str) -> PyResult<[f64; K]> {
-    match v.len() == K {
-        true => Ok(std::array::from_fn(|i| v[i])),
-        false => Err(shape_err(what, &format!("({K},)"), v.shape())),
-    }
+    let a = (v.len() == K).then(|| std::array::from_fn(|i| v[i]));
+    a.ok_or_else(|| shape_err(what, &format!("({K},)"), v.shape()))
 }
 
 fn joints(v: &F1<'_>, what: &str) -> PyResult<Joints> {
@@ -103,9 +98,7 @@ fn kin_models() -> Vec<&'static str> {
 /// DH parameters of a model: dict d1, a2, a3, d4, d5, d6 (metres) and reach.
 #[pyfunction]
 fn kin_dh(model_name: &str) -> PyResult<std::collections::BTreeMap<&'static str, f64>> {
-    let m = model(model_name)?;
-    let kv = [("d1", m.d1), ("a2", m.a2), ("a3", m.a3), ("d4", m.d4), ("d5", m.d5), ("d6", m.d6)];
-    Ok(kv.into_iter().chain([("reach", m.reach())]).collect())
+    Ok(model(model_name)?.dh_table())
 }
 
 /// FK: q (6,) → tool0 in Base (4, 4).
@@ -163,8 +156,7 @@ fn kin_ik_gn<'py>(
     max_iters: usize,
 ) -> PyResult<Arr1<'py>> {
     let (m, target, seed) = (model(model_name)?, pose_from(&t, "T")?, joints(&seed, "seed")?);
-    let o = IkOptions::with_tol(tol).map_err(kin_err)?;
-    let opts = IkOptions { max_iters, use_analytic: false, max_step_rad: f64::INFINITY, ..o };
+    let opts = IkOptions::gauss_newton(tol, max_iters).map_err(kin_err)?;
     Ok(Array1::from(ur3_kin::ik_gn(m, &target, &seed, &opts).map_err(kin_err)?.to_vec()).into_pyarray(py))
 }
 

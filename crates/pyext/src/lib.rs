@@ -1,6 +1,5 @@
-//! `mimicrete._native`: the thin pyo3 layer over the Rust crates: conversion, error mapping and
-//! releasing the interpreter lock, one file per crate (`kin.rs`, `sim.rs`, `demo.rs`); `errors.rs`
-//! holds the exception tree and the value conversions.
+//! `mimicrete._native`: the pyo3 layer over the crates (conversion, errors, the interpreter lock),
+//! one file per crate (`kin.rs`, `sim.rs`, `demo.rs`); `errors.rs`: exceptions and conversions.
 
 use pyo3::prelude::*;
 

@@ -1,61 +1,33 @@
-//! Bindings for tile-sim: `SimEnv`, `SimVecEnv` (N worlds stepped across threads, interpreter lock
-//! released), the scripted expert, the task scenes (demo-log's `episode_scene`, `frame_poses`).
-//! Shapes (f32): obs `(obs_dim,)` / `(num_envs, obs_dim)`, actions `(act_dim,)` / `(num_envs, act_dim)`.
+//! Bindings for tile-sim (`SimEnv`, `SimVecEnv` stepped without the interpreter lock, the expert)
+//! and the task scenes (demo-log's `episode_scene_json`, `frame_numbers`).
 
 use crate::errors::{demo_err, matrix, nd_from_py, sim_err, to_py, vector};
-use numpy::ndarray::Array1;
-use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
+use numpy::{AllowTypeChange, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{IntoPyDict, PyDict, PyList};
+use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
 use tile_sim::{Env, StepBuffers, Task, VecEnv, VecEnvState};
+
+type Any<'py> = Bound<'py, PyAny>;
 
 fn parse_task(name: &str) -> PyResult<Task> {
     Task::from_name(name).map_err(sim_err)
 }
 
-/// tile-sim's `Snapshot` as a dict (poses `{"t": [x, y, z], "q": [x, y, z, w]}`) plus `links`.
-fn snapshot_dict<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyAny>> {
-    let d = to_py(py, &env.snapshot())?;
-    d.set_item("links", to_py(py, &env.link_poses())?)?;
-    Ok(d)
-}
+type Like<'py, T> = PyArrayLikeDyn<'py, T, AllowTypeChange>;
+type Actions<'py> = Like<'py, f32>;
 
-fn flat<T: numpy::Element + Copy>(
-    a: &PyArrayLikeDyn<'_, T, AllowTypeChange>,
-    shape: &[usize],
-    what: &str,
-) -> PyResult<Vec<T>> {
-    nd_from_py(a).into_shape(shape, what).map_err(demo_err)
-}
-
-/// Length of the first axis (0 for a scalar).
-fn rows<T: numpy::Element>(a: &PyArrayLikeDyn<'_, T, AllowTypeChange>) -> usize {
-    a.as_array().shape().first().copied().unwrap_or(0)
-}
-
-/// The Foxglove `SceneEntity` objects a demo of episode `seed` of `task` carries on `/scene`.
-fn entities<'py>(py: Python<'py>, task: Task, seed: u64, model: &str) -> PyResult<Bound<'py, PyList>> {
-    let m = ur3_kin::UrModel::by_name(model).map_err(crate::errors::kin_err)?;
-    let ents = demo_log::episode_scene(m, task, seed);
-    PyList::new(
-        py,
-        ents.iter().map(|e| to_py(py, &demo_log::foxglove_entity(e, 0))).collect::<PyResult<Vec<_>>>()?,
-    )
-}
-
-/// Pose in Base, `[x, y, z, qx, qy, qz, qw]`, of every frame the scene entities are locked to.
-fn frames(joints: [f64; 6], tile: demo_log::Pose, model: &str) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
-    let m = ur3_kin::UrModel::by_name(model).map_err(crate::errors::kin_err)?;
-    Ok(demo_log::frame_poses(m, &joints, &tile).into_iter().map(|(k, p)| (k, p.to_numbers())).collect())
+/// The rows of an `(n, cols)` array.
+fn flat<T: numpy::Element + Copy>(a: &Like<'_, T>, cols: usize, what: &str) -> PyResult<Vec<T>> {
+    nd_from_py(a).into_matrix(cols, what).map_err(demo_err)
 }
 
 /// The Foxglove `SceneEntity` list (JSON-ready dicts) of episode `seed` of `task`.
 #[pyfunction]
 #[pyo3(signature = (task, seed = 0, model = "ur3"))]
-fn scene_entities<'py>(py: Python<'py>, task: &str, seed: u64, model: &str) -> PyResult<Bound<'py, PyList>> {
-    entities(py, parse_task(task)?, seed, model)
+fn scene_entities<'py>(py: Python<'py>, task: &str, seed: u64, model: &str) -> PyResult<Any<'py>> {
+    to_py(py, &demo_log::episode_scene_json(model, parse_task(task)?, seed).map_err(demo_err)?)
 }
 
 /// `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base: URDF links at `joints`, `tile` at `tile_pose`.
@@ -67,7 +39,7 @@ fn scene_frames(
     model: &str,
 ) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
     let tile = demo_log::Pose::from_numbers(&tile_pose, "tile_pose").map_err(demo_err)?;
-    frames(joints, tile, model)
+    demo_log::frame_numbers(model, &joints, &tile).map_err(demo_err)
 }
 
 /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
@@ -77,7 +49,6 @@ type StepTuple<'py> = (F32s<'py>, f32, bool, bool, Bound<'py, PyDict>);
 #[pyclass(module = "mimicrete._native")]
 pub struct SimEnv {
     env: Env,
-    obs: Vec<f32>,
     #[pyo3(get)]
     task: &'static str,
     #[pyo3(get)]
@@ -95,55 +66,47 @@ impl SimEnv {
     fn new(task: &str, seed: u64) -> PyResult<Self> {
         let t = parse_task(task)?;
         let (task, obs_dim, obs_frame_dim, act_dim) = (t.name(), t.obs_dim(), t.obs_frame_dim(), t.act_dim());
-        Ok(SimEnv { env: Env::new(t, seed), obs: vec![0.0; obs_dim], task, obs_dim, obs_frame_dim, act_dim })
+        Ok(SimEnv { env: Env::new(t, seed), task, obs_dim, obs_frame_dim, act_dim })
     }
 
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`.
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<F32s<'py>> {
-        self.env.reset(seed, &mut self.obs).map_err(sim_err)?;
-        Ok(vector(py, self.obs.clone()))
+        Ok(vector(py, self.env.reset_owned(seed).map_err(sim_err)?))
     }
 
     /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
-    fn step<'py>(
-        &mut self,
-        py: Python<'py>,
-        action: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
-    ) -> PyResult<StepTuple<'py>> {
-        let a = flat(&action, &[self.env.task().act_dim()], "action")?;
-        let out = self.env.step(&a, &mut self.obs).map_err(sim_err)?;
-        let info =
-            [("picked", out.picked), ("held", out.held), ("installed", out.installed), ("fell", out.fell)]
-                .into_py_dict(py)?;
-        info.set_item("step", self.env.snapshot().step)?;
-        Ok((vector(py, self.obs.clone()), out.reward, out.terminated, out.truncated, info))
+    fn step<'py>(&mut self, py: Python<'py>, action: Actions<'py>) -> PyResult<StepTuple<'py>> {
+        let a = nd_from_py(&action).into_shape(&[self.act_dim], "action").map_err(demo_err)?;
+        let (obs, out, info) = self.env.step_owned(&a).map_err(sim_err)?;
+        Ok((vector(py, obs), out.reward, out.terminated, out.truncated, to_py(py, &info)?.cast_into()?))
     }
 
     /// The current stacked observation `(obs_dim,)`.
     fn observation<'py>(&self, py: Python<'py>) -> F32s<'py> {
-        Array1::from(self.env.observation().to_vec()).into_pyarray(py)
+        vector(py, self.env.observation().to_vec())
     }
 
     /// State for demo recording (poses: `t` metres, `q` quaternion `[x, y, z, w]`, Base frame).
-    fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        snapshot_dict(py, &self.env)
+    fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        to_py(py, &self.env.record_state())
     }
 
     /// tile-sim's scene items as dicts (name, frame, kind, sizes, translation, rotation, rgba).
-    fn scene<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    fn scene<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
         to_py(py, &self.env.scene().items)
     }
 
     /// `scene_entities(task, episode_seed)` of the current episode.
-    fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        entities(py, self.env.task(), self.env.snapshot().episode_seed, "ur3")
+    fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        scene_entities(py, self.task, self.env.snapshot().episode_seed, "ur3")
     }
 
     /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.
     fn scene_frames(&self) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
         let s = self.env.snapshot();
-        frames(s.q, demo_log::Pose { position: s.object.t, orientation: s.object.q }, "ur3")
+        let tile = demo_log::Pose { position: s.object.t, orientation: s.object.q };
+        demo_log::frame_numbers("ur3", &s.q, &tile).map_err(demo_err)
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.
@@ -190,42 +153,23 @@ impl SimVecEnv {
         let t = parse_task(task)?;
         let venv = VecEnv::new(t, num_envs, seed, num_threads).map_err(sim_err)?;
         let (task, num_threads, obs_dim, act_dim) = (t.name(), venv.num_threads(), t.obs_dim(), t.act_dim());
-        Ok(SimVecEnv {
-            venv,
-            buf: StepBuffers::new(t, num_envs),
-            task,
-            num_envs,
-            num_threads,
-            obs_dim,
-            act_dim,
-        })
+        let buf = StepBuffers::new(t, num_envs);
+        Ok(SimVecEnv { venv, buf, task, num_envs, num_threads, obs_dim, act_dim })
     }
 
-    /// Reset all envs with base seed `seed` (env i gets `seed + i`, episode counts restart; None:
-    /// a base drawn from the VecEnv's RNG) → obs (num_envs, obs_dim).
+    /// Reset all envs, env i with seed `seed + i` (None: a base from the VecEnv's RNG) → obs.
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Obs<'py>> {
-        let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
-        let mut obs = vec![0.0; n * od];
-        self.venv.reset(seed, &mut obs).map_err(sim_err)?;
-        matrix(py, obs, od)
+        matrix(py, self.venv.reset_owned(seed).map_err(sim_err)?, self.obs_dim)
     }
 
     /// Reset the envs where `mask` (num_envs,) is true → obs (num_envs, obs_dim) of all envs.
-    fn reset_mask<'py>(
-        &mut self,
-        py: Python<'py>,
-        mask: PyArrayLikeDyn<'py, bool, AllowTypeChange>,
-    ) -> PyResult<Obs<'py>> {
-        let (n, od) = (self.venv.num_envs(), self.venv.task().obs_dim());
-        let m = flat(&mask, &[n], "mask")?;
-        let mut obs = vec![0.0; n * od];
-        self.venv.reset_mask(&m, &mut obs).map_err(sim_err)?;
-        matrix(py, obs, od)
+    fn reset_mask<'py>(&mut self, py: Python<'py>, mask: Like<'py, bool>) -> PyResult<Obs<'py>> {
+        let m = nd_from_py(&mask).into_shape(&[self.num_envs], "mask").map_err(demo_err)?;
+        matrix(py, self.venv.reset_mask_owned(&m).map_err(sim_err)?, self.obs_dim)
     }
 
-    /// How episodes start from the next reset: the object's x range (m) and the target's jitter
-    /// (m); `robust=True` gives tile-sim's robustness evaluation (`Variation::robust`).
+    /// How episodes start from the next reset (tile-sim's `Variation`; `robust`: `Variation::robust`).
     #[pyo3(signature = (object_x = None, target_jitter = 0.0, robust = false))]
     fn set_variation(
         &mut self,
@@ -233,58 +177,36 @@ impl SimVecEnv {
         target_jitter: f32,
         robust: bool,
     ) -> PyResult<()> {
-        let v = match (robust, object_x) {
-            (true, _) => tile_sim::Variation::robust(),
-            (false, Some(x)) => tile_sim::Variation { object_x: x, target_jitter },
-            (false, None) => tile_sim::Variation { target_jitter, ..Default::default() },
-        };
+        let v = tile_sim::Variation::from_options(object_x, target_jitter, robust);
         self.venv.set_variation(v).map_err(sim_err)
     }
 
-    /// Reset env `i` to episode `seed` and replay `actions` (k, act_dim) in it (a recorded
-    /// episode's first k steps); the other envs do not move → env `i`'s observation (obs_dim,).
+    /// Reset env `i` to episode `seed` and replay `actions` (k, act_dim) in it → its obs.
     fn reset_replay<'py>(
         &mut self,
         py: Python<'py>,
         i: usize,
         seed: u64,
-        actions: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+        actions: Actions<'py>,
     ) -> PyResult<F32s<'py>> {
-        let (ad, od) = (self.venv.task().act_dim(), self.venv.task().obs_dim());
-        let acts = flat(&actions, &[rows(&actions), ad], "actions")?;
-        let mut obs = vec![0.0; od];
-        self.venv.reset_replay(i, seed, &acts, &mut obs).map_err(sim_err)?;
-        Ok(vector(py, obs))
+        let acts = flat(&actions, self.act_dim, "actions")?;
+        Ok(vector(py, self.venv.reset_replay_owned(i, seed, &acts).map_err(sim_err)?))
     }
 
     /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
-    fn step<'py>(
-        &mut self,
-        py: Python<'py>,
-        actions: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
-    ) -> PyResult<VecStep<'py>> {
-        let (n, ad, od) = (self.venv.num_envs(), self.venv.task().act_dim(), self.venv.task().obs_dim());
-        let acts = flat(&actions, &[n, ad], "actions")?;
+    fn step<'py>(&mut self, py: Python<'py>, actions: Actions<'py>) -> PyResult<VecStep<'py>> {
+        let (n, ad, od) = (self.num_envs, self.act_dim, self.obs_dim);
+        let acts = nd_from_py(&actions).into_shape(&[n, ad], "actions").map_err(demo_err)?;
         let SimVecEnv { venv, buf, .. } = self;
         py.detach(|| venv.step_buffers(&acts, buf)).map_err(sim_err)?;
         let b = &self.buf;
-        let v = |x: &Vec<bool>| vector(py, x.clone());
-        Ok((
-            matrix(py, b.obs.clone(), od)?,
-            vector(py, b.reward.clone()),
-            v(&b.terminated),
-            v(&b.truncated),
-            matrix(py, b.final_obs.clone(), od)?,
-            v(&b.has_final),
-            v(&b.picked),
-            v(&b.installed),
-            v(&b.fell),
-        ))
+        let flags = [&b.terminated, &b.truncated, &b.has_final, &b.picked, &b.installed, &b.fell];
+        let [term, trunc, has_final, picked, installed, fell] = flags.map(|x| vector(py, x.clone()));
+        let (obs, final_obs) = (matrix(py, b.obs.clone(), od)?, matrix(py, b.final_obs.clone(), od)?);
+        Ok((obs, vector(py, b.reward.clone()), term, trunc, final_obs, has_final, picked, installed, fell))
     }
 
-    /// `{"base_seed": int, "episodes": uint64 (num_envs,), "seeds": uint64 (num_envs,),
-    /// "actions": [float32 (k_i, act_dim)]}`:
-    /// what `restore` needs to rebuild every env mid-episode (tile-sim's `VecEnvState`).
+    /// tile-sim's `VecEnvState` as a dict: base_seed, episodes, seeds, actions (see the stub).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let st = self.venv.state();
         let acts =
@@ -293,40 +215,37 @@ impl SimVecEnv {
             "seeds" => vector(py, st.seeds), "actions" => PyList::new(py, acts)?))
     }
 
-    /// Rebuild the envs from a `state()` dict (replaying each running episode) → obs (num_envs,
-    /// obs_dim), equal to the observations when the state was taken.
+    /// Rebuild the envs from a `state()` dict's values (replaying each running episode) → obs.
     fn restore<'py>(
         &mut self,
         py: Python<'py>,
         base_seed: u64,
         episodes: Vec<u64>,
         seeds: Vec<u64>,
-        actions: Vec<PyArrayLikeDyn<'py, f32, AllowTypeChange>>,
+        actions: Vec<Actions<'py>>,
     ) -> PyResult<Obs<'py>> {
-        let (n, od, ad) = (self.venv.num_envs(), self.obs_dim, self.act_dim);
         let actions = actions.iter().enumerate();
-        let actions = actions
-            .map(|(i, a)| flat(a, &[rows(a), ad], &format!("actions[{i}]")))
-            .collect::<PyResult<_>>()?;
+        let actions =
+            actions.map(|(i, a)| flat(a, self.act_dim, &format!("actions[{i}]"))).collect::<PyResult<_>>()?;
         let st = VecEnvState { base_seed, episodes, seeds, actions };
-        let mut obs = vec![0.0; n * od];
         let venv = &mut self.venv;
-        py.detach(|| venv.restore(&st, &mut obs)).map_err(sim_err)?;
-        matrix(py, obs, od)
+        matrix(py, py.detach(|| venv.restore_owned(&st)).map_err(sim_err)?, self.obs_dim)
     }
 
     /// Snapshot of env `i` (see `SimEnv.snapshot`).
-    fn snapshot<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyAny>> {
-        let env = self.venv.env(i).ok_or_else(|| {
-            PyValueError::new_err(format!("env index {i} out of range 0..{}", self.venv.num_envs()))
-        })?;
-        snapshot_dict(py, env)
+    fn snapshot<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Any<'py>> {
+        let n = self.num_envs;
+        let env = self
+            .venv
+            .env(i)
+            .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))?;
+        to_py(py, &env.record_state())
     }
 }
 
 /// The simulator's constants and per-task dims (`tile_sim::Constants`).
 #[pyfunction]
-fn sim_constants(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+fn sim_constants(py: Python<'_>) -> PyResult<Any<'_>> {
     to_py(py, &tile_sim::Constants::get())
 }
 

@@ -63,6 +63,7 @@
 
 mod env;
 pub mod expert;
+mod owned;
 mod pool;
 mod vecenv;
 pub mod world;
@@ -71,6 +72,7 @@ pub use env::{
     Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
     Variation, episode_scene, object_start,
 };
+pub use owned::{RecordState, StepInfo};
 pub use vecenv::{StepBuffers, StepOut, VecEnv, VecEnvState, episode_seed};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
 

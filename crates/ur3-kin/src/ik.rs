@@ -108,6 +108,16 @@ impl IkOptions {
         }
         Ok(o)
     }
+
+    /// [`IkOptions::with_tol`] for the paper's Gauss-Newton alone ([`crate::ik_gn`]): no
+    /// closed-form start, no step limit, at most `max_iters` iterations.
+    ///
+    /// # Errors
+    /// As [`IkOptions::with_tol`].
+    pub fn gauss_newton(tol: Option<f64>, max_iters: usize) -> Result<IkOptions, KinError> {
+        let o = IkOptions::with_tol(tol)?;
+        Ok(IkOptions { max_iters, use_analytic: false, max_step_rad: f64::INFINITY, ..o })
+    }
 }
 
 /// Pose error of `current` against `target` in the Base frame:

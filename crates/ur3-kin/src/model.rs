@@ -74,4 +74,10 @@ impl UrModel {
     pub fn reach(&self) -> f64 {
         self.a2.abs() + self.a3.abs() + (self.d4.powi(2) + self.d5.powi(2)).sqrt() + self.d6
     }
+
+    /// The DH lengths by name (`d1`, `a2`, `a3`, `d4`, `d5`, `d6`, metres) and the [`reach`](Self::reach).
+    pub fn dh_table(&self) -> std::collections::BTreeMap<&'static str, f64> {
+        let kv = [("d1", self.d1), ("a2", self.a2), ("a3", self.a3), ("d4", self.d4), ("d5", self.d5)];
+        kv.into_iter().chain([("d6", self.d6), ("reach", self.reach())]).collect()
+    }
 }

@@ -119,6 +119,29 @@ pub fn link_poses(model: &UrModel, q: &Joints) -> Vec<(&'static str, Pose)> {
         .collect()
 }
 
+/// The URDF link each DH frame 1..=6 ([`crate::fk_all`]) is fixed to: the child of revolute
+/// joint i, and `tool0` for frame 6 (the DH tool frame is `tool0`).
+pub const DH_FRAME_LINKS: [&str; 6] =
+    ["shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "tool0"];
+
+/// For each DH frame 1..=6: its URDF link ([`DH_FRAME_LINKS`]) and the frame's constant pose in
+/// that link, so that `link_pose · offset` = the DH frame at every `q`. Derived from the two
+/// models at `q = 0` (DH [`crate::fk_all`] against [`link_poses`]); components within 1e-12 of 0
+/// are set to 0 (the rotations are quarter turns, whose sines and cosines leave 6e-17 behind).
+pub fn dh_frames_in_links(model: &UrModel) -> [(&'static str, Pose); 6] {
+    let q = [0.0; 6];
+    let (dh, links) = (crate::fk_all(model, &q), link_poses(model, &q));
+    let link = |name: &str| links.iter().find(|(n, _)| *n == name).map_or(Pose::identity(), |(_, p)| *p);
+    let clean = |x: f64| if x.abs() < 1e-12 { 0.0 } else { x };
+    std::array::from_fn(|i| {
+        let name = DH_FRAME_LINKS[i];
+        let off = link(name).inverse() * dh[i + 1];
+        let (t, r) = (off.translation.vector.map(clean), off.rotation.into_inner().coords.map(clean));
+        let r = UnitQuaternion::new_normalize(nalgebra::Quaternion::new(r.w, r.x, r.y, r.z));
+        (name, Pose::from_parts(Translation3::from(t), r))
+    })
+}
+
 fn v3(v: &[f64; 3]) -> String {
     // 17 significant digits: the file round-trips the f64 values exactly.
     format!("{:.17e} {:.17e} {:.17e}", v[0], v[1], v[2])

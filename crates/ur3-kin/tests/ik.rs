@@ -437,3 +437,18 @@ fn singular_poses_are_solved() {
         }
     }
 }
+
+#[test]
+fn dh_table_and_gauss_newton_options() {
+    for m in MODELS {
+        let t = m.dh_table();
+        let want = [("d1", m.d1), ("a2", m.a2), ("a3", m.a3), ("d4", m.d4), ("d5", m.d5), ("d6", m.d6)];
+        assert_eq!(t.len(), 7);
+        want.iter().for_each(|(k, v)| assert_eq!(t[k], *v));
+        assert_eq!(t["reach"], m.reach());
+    }
+    let o = IkOptions::gauss_newton(Some(1e-7), 17).unwrap();
+    assert_eq!((o.max_iters, o.use_analytic, o.tol_pos_m, o.tol_rot_rad), (17, false, 1e-7, 1e-7));
+    assert!(o.max_step_rad.is_infinite());
+    assert!(matches!(IkOptions::gauss_newton(Some(0.0), 5), Err(KinError::NotPositive { .. })));
+}

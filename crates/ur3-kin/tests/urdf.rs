@@ -78,3 +78,38 @@ proptest! {
         }
     }
 }
+
+proptest::proptest! {
+    /// The DH frames sit at a constant pose in their URDF links: link pose · offset = fk_all.
+    #[test]
+    fn dh_frames_ride_their_urdf_links(q in proptest::array::uniform6(-3.1f64..3.1)) {
+        for m in &ur3_kin::MODELS {
+            let dh = ur3_kin::fk_all(m, &q);
+            let links = ur3_kin::urdf::link_poses(m, &q);
+            for (i, (name, off)) in ur3_kin::urdf::dh_frames_in_links(m).into_iter().enumerate() {
+                let link = links.iter().find(|(n, _)| *n == name).unwrap().1;
+                let got = link * off;
+                let want = dh[i + 1];
+                proptest::prop_assert!((got.translation.vector - want.translation.vector).norm() < 1e-9);
+                proptest::prop_assert!(got.rotation.angle_to(&want.rotation) < 1e-9, "{} {}", m.name, name);
+            }
+        }
+    }
+}
+
+#[test]
+fn dh_frame_offsets_are_quarter_turns_and_arm_lengths() {
+    let offs = ur3_kin::urdf::dh_frames_in_links(&ur3_kin::UR3);
+    // tool0 is the DH tool frame exactly
+    assert_eq!(offs[5], ("tool0", ur3_kin::Pose::identity()));
+    // the upper arm's DH frame (at the elbow) is a2 along the URDF upper arm's x
+    let (name, p) = offs[1];
+    assert_eq!(name, "upper_arm_link");
+    assert!((p.translation.vector.x - ur3_kin::UR3.a2).abs() < 1e-12);
+    for (_, p) in offs {
+        let a = p.rotation.angle();
+        assert!(
+            [0.0, std::f64::consts::FRAC_PI_2, std::f64::consts::PI].iter().any(|r| (a - r).abs() < 1e-12)
+        );
+    }
+}

@@ -41,7 +41,7 @@ fn entity(
     color: [f32; 4],
 ) -> SceneEntity {
     let pose = Pose { position, orientation: [0.0, 0.0, 0.0, 1.0] };
-    SceneEntity { id: id.into(), frame_id: frame_id.into(), kind, size, pose, color }
+    SceneEntity { id: id.into(), frame_id: frame_id.into(), kind, size, pose, color, extra: Vec::new() }
 }
 
 pub fn scene() -> Vec<SceneEntity> {

@@ -1,0 +1,89 @@
+//! The stepping calls with owned outputs, for callers that hand each result away (the Python
+//! binding): the observation comes back as a new `Vec` instead of filling a caller's buffer,
+//! and a step's facts and the recorder's state come as serializable records.
+
+use crate::{Env, PoseRec, SimError, Snapshot, StepOutcome, VecEnv, VecEnvState};
+
+/// A step's facts as `SimEnv.step` reports them (its `info`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct StepInfo {
+    pub picked: bool,
+    pub held: bool,
+    pub installed: bool,
+    pub fell: bool,
+    /// Steps taken in this episode, this one included.
+    pub step: u32,
+}
+
+/// What a demo recorder reads after a step: the [`Snapshot`] and the arm's DH frames 0..=6
+/// ([`Env::link_poses`]), serialized as one flat record (the snapshot's keys, then `links`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct RecordState {
+    #[serde(flatten)]
+    pub snapshot: Snapshot,
+    pub links: [PoseRec; 7],
+}
+
+impl Env {
+    /// [`Env::reset`] → the first observation (`obs_dim`).
+    pub fn reset_owned(&mut self, seed: Option<u64>) -> Result<Vec<f32>, SimError> {
+        let mut obs = vec![0.0; self.task().obs_dim()];
+        self.reset(seed, &mut obs).map(|()| obs)
+    }
+
+    /// [`Env::step`] → (observation, outcome, [`StepInfo`]).
+    pub fn step_owned(&mut self, action: &[f32]) -> Result<(Vec<f32>, StepOutcome, StepInfo), SimError> {
+        let mut obs = vec![0.0; self.task().obs_dim()];
+        let o = self.step(action, &mut obs)?;
+        let step = self.snapshot().step;
+        Ok((obs, o, StepInfo { picked: o.picked, held: o.held, installed: o.installed, fell: o.fell, step }))
+    }
+
+    /// The snapshot and the arm's frames now.
+    pub fn record_state(&self) -> RecordState {
+        RecordState { snapshot: self.snapshot(), links: self.link_poses() }
+    }
+}
+
+impl VecEnv {
+    fn obs_buffer(&self, envs: usize) -> Vec<f32> {
+        vec![0.0; envs * self.task().obs_dim()]
+    }
+
+    /// [`VecEnv::reset`] → the observations (`num_envs × obs_dim`, row-major).
+    pub fn reset_owned(&mut self, seed: Option<u64>) -> Result<Vec<f32>, SimError> {
+        let mut obs = self.obs_buffer(self.num_envs());
+        self.reset(seed, &mut obs).map(|()| obs)
+    }
+
+    /// [`VecEnv::reset_mask`] → the observations of all envs.
+    pub fn reset_mask_owned(&mut self, mask: &[bool]) -> Result<Vec<f32>, SimError> {
+        let mut obs = self.obs_buffer(self.num_envs());
+        self.reset_mask(mask, &mut obs).map(|()| obs)
+    }
+
+    /// [`VecEnv::reset_replay`] → env `i`'s observation (`obs_dim`).
+    pub fn reset_replay_owned(&mut self, i: usize, seed: u64, actions: &[f32]) -> Result<Vec<f32>, SimError> {
+        let mut obs = self.obs_buffer(1);
+        self.reset_replay(i, seed, actions, &mut obs).map(|_| obs)
+    }
+
+    /// [`VecEnv::restore`] → the observations of all envs.
+    pub fn restore_owned(&mut self, state: &VecEnvState) -> Result<Vec<f32>, SimError> {
+        let mut obs = self.obs_buffer(self.num_envs());
+        self.restore(state, &mut obs).map(|()| obs)
+    }
+}
+
+impl crate::Variation {
+    /// The variation a caller names by options: [`Variation::robust`](crate::Variation::robust)
+    /// when `robust`, else the object's x range `object_x` (default: the paper's) and the
+    /// target's jitter (m).
+    pub fn from_options(object_x: Option<[f32; 2]>, target_jitter: f32, robust: bool) -> crate::Variation {
+        match (robust, object_x) {
+            (true, _) => crate::Variation::robust(),
+            (false, Some(x)) => crate::Variation { object_x: x, target_jitter },
+            (false, None) => crate::Variation { target_jitter, ..Default::default() },
+        }
+    }
+}
