@@ -6,9 +6,9 @@ Between recordings a preview session (nothing recorded) lets the user see the ro
 recording starts a fresh session on the next episode's seed (a new tile position) and ends by
 itself on install, fall or the step limit, or when the user stops or discards it.
 
-Episode control without controllers: a left-hand pinch (thumb tip to index tip under 2 cm) held
-for :data:`PINCH_HOLD_S` starts a recording, or stops the one running; a left fist held for
-:data:`FIST_HOLD_S` discards the one running.
+Episode control without controllers (:mod:`.left_hand`): a left-hand pinch (thumb tip to index
+tip under 2 cm) held for 1 s starts a recording, or stops the one running; a left fist held for
+1.5 s discards the one running.
 
 The gesture mode (:mod:`.gesturemode`, no recording meanwhile) turns the right hand's frames into
 labelled samples of the task's gesture classes and trains the user's own SVM on them; the left
@@ -45,6 +45,7 @@ from .gesturemode import (
     task_classes,
     user_model_path,
 )
+from .left_hand import LeftHandControl
 from .protocol import HandFrame
 from .record import DemoSink, episode_meta
 from .session import Session, Step
@@ -56,14 +57,6 @@ from .view import (
     view_from_base,
 )
 
-PINCH_M = 0.02  # thumb tip to index tip, left hand
-PINCH_HOLD_S = 1.0
-THUMB_TIP, INDEX_TIP = 4, 9  # WebXR joint indices
-FINGERTIPS, WRIST, MIDDLE_PROXIMAL = (9, 14, 19, 24), 0, 11
-#: a left fist: the four fingertips' mean distance to the wrist under this share of the
-#: wrist → middle-knuckle length (an open hand is about 1.9, a fist about 0.7)
-FIST_RATIO = 0.85
-FIST_HOLD_S = 1.5
 LAYOUT = "webxr"
 
 
@@ -134,9 +127,7 @@ class Live:
         #: the scene the clients were sent (a new session whose scene differs sends it again)
         self.scene: list[dict[str, Any]] | None = None
         self.preview = self._session(self.seed + self.next_index, None)
-        self.pinch_since: float | None = None
-        self.fist_since: float | None = None
-        self.pinch_fired = False
+        self.left_hand = LeftHandControl()
         self.last_right: np.ndarray | None = None
         #: the newest control step and the session it belongs to (:attr:`last_step`)
         self._last_step: tuple[Session, Step] | None = None
@@ -198,39 +189,16 @@ class Live:
         return steps
 
     def _left_hand_control(self, f: HandFrame) -> None:
-        if self._left_fist(f):
-            if self.fist_since is None:
-                self.fist_since = f.t
-            if self.recording and f.t - self.fist_since >= FIST_HOLD_S:
-                self.discard()
-            self.pinch_since, self.pinch_fired = None, False
-            return
-        self.fist_since = None
-        pinched = f.left_tracked and (
-            np.linalg.norm(f.left[THUMB_TIP] - f.left[INDEX_TIP]) < PINCH_M
-        )
-        if not pinched:
-            self.pinch_since, self.pinch_fired = None, False
-            return
-        if self.pinch_since is None:
-            self.pinch_since = f.t
-        if not self.pinch_fired and f.t - self.pinch_since >= PINCH_HOLD_S:
-            self.pinch_fired = True
+        event = self.left_hand.update(f)
+        if event == "fist" and self.recording:
+            self.discard()
+        elif event == "pinch":
             if self.gesture_mode:
                 self._gesture_pinch()
             elif self.recording:
                 self.stop()
             else:
                 self.start()
-
-    @staticmethod
-    def _left_fist(f: HandFrame) -> bool:
-        if not f.left_tracked:
-            return False
-        j = f.left
-        size = float(np.linalg.norm(j[MIDDLE_PROXIMAL] - j[WRIST]))
-        reach = float(np.mean(np.linalg.norm(j[list(FINGERTIPS)] - j[WRIST], axis=1)))
-        return size > 1e-3 and reach < FIST_RATIO * size
 
     # ------------------------------------------------------------------ episodes
 
