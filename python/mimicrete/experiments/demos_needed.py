@@ -174,6 +174,7 @@ def figure(rows: list[dict[str, Any]], path: Path) -> Path:
                    color=line.get_color(), alpha=0.35, s=18)  # fmt: skip
     ax.plot([10, 20, 60], [82, 0, 97], "s--", color="grey", label="paper (groups 9, 8, 4)")
     ax.set_xscale("log")
+    ax.minorticks_off()
     ax.set_xticks([5, 10, 20, 60], ["5", "10", "20", "60"])
     ax.set_xlabel("demonstrations")
     ax.set_ylabel("success, % of 100 episodes")
