@@ -208,11 +208,18 @@ class ReverseCurriculum:
         return row
 
     def state_dict(self) -> dict[str, Any]:
+        """The stages, the judging windows, the random stream and which demo start each env's
+        running episode came from (the envs themselves are in the vector env's ``state()``)."""
         return {
             "stage": list(self.stage),
             "results": [list(r) for r in self.results],
             "replayed_steps": self.replayed_steps,
             "rng": self.rng.bit_generator.state,
+            "env_demo": self.env_demo.copy(),
+            "env_steps": self.env_steps.copy(),
+            "env_horizon": self.env_horizon.copy(),
+            "env_frontier": self.env_frontier.copy(),
+            "episodes_done": list(self.episodes_done),
         }
 
     def load_state_dict(self, s: dict[str, Any]) -> None:
@@ -222,4 +229,11 @@ class ReverseCurriculum:
             r.extend(bool(x) for x in saved)
         self.replayed_steps = int(s["replayed_steps"])
         self.rng.bit_generator.state = s["rng"]
-        self.forget_envs()
+        if "env_demo" not in s:  # an older checkpoint: its envs restart from their own starts
+            self.forget_envs()
+            return
+        self.env_demo[:] = s["env_demo"]
+        self.env_steps[:] = s["env_steps"]
+        self.env_horizon[:] = s["env_horizon"]
+        self.env_frontier[:] = s["env_frontier"]
+        self.episodes_done = [bool(x) for x in s["episodes_done"]]
