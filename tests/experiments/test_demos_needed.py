@@ -76,3 +76,12 @@ def test_table_groups_seeds_per_count():
 def test_bad_arguments_exit_2(tmp_path, capsys):
     assert dn.main(["--counts", "0", "--out", str(tmp_path)]) == 2
     assert "must be positive" in capsys.readouterr().err
+
+
+def test_a_bad_config_is_one_line_before_any_demo_is_made(tmp_path, capsys):
+    assert dn.main(["--config", str(tmp_path / "nope.yaml"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"demos_needed: error: config {tmp_path / 'nope.yaml'} does not exist"
+    assert not (tmp_path / "o" / "demos").exists()
+    assert dn.main(["--set", "behavior.max_steps=-3", "--out", str(tmp_path / "o")]) == 2
+    assert "max_steps: -3 is out of range" in capsys.readouterr().err

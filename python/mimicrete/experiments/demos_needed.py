@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from mimicrete import tasks
+from mimicrete.learn.run_files import atomic_write
 
 DEFAULT_COUNTS = (60, 20, 10, 5)
 DEFAULT_SEEDS = (0, 1, 2)
@@ -67,7 +68,7 @@ def checkpoint_evals(run_dir: Path, episodes: int = 100) -> list[dict[str, Any]]
             )
         step = int(state["step"])
         out.append({"step": step, "elapsed_s": elapsed.get(step, float("nan")), **res})
-    (run_dir / "checkpoint_evals.json").write_text(json.dumps(out, indent=1))
+    atomic_write(run_dir / "checkpoint_evals.json", json.dumps(out, indent=1))
     return out
 
 
@@ -113,7 +114,7 @@ def run_one(
         "first_97_elapsed_s": None if first is None else first["elapsed_s"],
         "train_wall_clock_s": train_s,
     }
-    summary.write_text(json.dumps(row, indent=1))
+    atomic_write(summary, json.dumps(row, indent=1))
     return row
 
 
@@ -210,12 +211,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Exit 0; 2 with one line on bad input (arguments, config, demos, run dir); 130 on Ctrl-C
+    (finished runs and their files stay whole: every file is written atomically, and a run
+    interrupted mid-training is trained again from the start next time)."""
     args = build_parser().parse_args(argv)
-    bad = [n for n in args.counts if n < 1]
-    if bad or args.max_steps < 1 or args.episodes < 1:
-        print("demos_needed: error: counts, --max-steps and --episodes must be positive",
-              file=sys.stderr)  # fmt: skip
+    from mimicrete import learn
+    from mimicrete.learn import config
+
+    def error(msg: str) -> int:
+        print(f"demos_needed: error: {msg}", file=sys.stderr)
         return 2
+
+    if any(n < 1 for n in args.counts) or args.max_steps < 1 or args.episodes < 1:
+        return error("counts, --max-steps and --episodes must be positive")
+    try:  # the config is checked before any demo is made
+        config.resolve(args.config, overrides=[f"env_settings.env_id={tasks.get(args.task).env_id}",
+                                               *args.set])  # fmt: skip
+        return _run(args)
+    except (learn.ConfigError, learn.DemoError, learn.RunDirError, FileNotFoundError) as e:
+        return error(str(e))
+    except KeyboardInterrupt:
+        print("demos_needed: interrupted; finished runs are kept", file=sys.stderr)
+        return 130
+
+
+def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -235,8 +255,8 @@ def main(argv: list[str] | None = None) -> int:
     old = json.loads(prev.read_text()) if prev.exists() else []
     keep = [r for r in old if (r["task"], r["demos"], r["seed"]) not in done]
     rows = sorted(keep + rows, key=lambda r: (r["task"], -r["demos"], r["seed"]))
-    prev.write_text(json.dumps(rows, indent=1))
-    (out / "summary.md").write_text(table(rows))
+    atomic_write(prev, json.dumps(rows, indent=1))
+    atomic_write(out / "summary.md", table(rows))
     print(table(rows))
     print(f"wrote {prev}, {out / 'summary.md'}, {figure(rows, out / 'installed_vs_demos.png')}")
     return 0

@@ -15,9 +15,6 @@ is strict too). mimicrete's own additions are marked "extension" below:
 - ``behaviors.<name>.stop_on_convergence``: stop before ``max_steps`` once the training
   episodes' installed rate has held a threshold for some summaries (``ConvergenceSettings``);
   ``mimicrete train --stop-on-convergence`` (what ``python train.py`` passes) turns it on.
-- ``behaviors.<name>.normalizer_update``: when the observation normalisers take in a rollout:
-  ``rollout`` (ML-Agents: before the update that learns from it, so the update starts from
-  log-probabilities the changed normaliser no longer gives) or ``after_update`` (after it).
 - ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads).
 
 Every numeric field is range-checked (:data:`RANGES`) and the error names the field, e.g.
@@ -142,7 +139,6 @@ class BehaviorConfig:
     demo_drop_idle: float = 0.0  # extension: no-op filtering of the demos (0 = keep all)
     demo_curriculum: DemoCurriculumSettings | None = None  # extension: reverse curriculum
     stop_on_convergence: ConvergenceSettings | None = None  # extension: early stop
-    normalizer_update: str = "rollout"  # extension: "rollout" (ML-Agents) | "after_update"
 
 
 @dataclass
@@ -361,10 +357,6 @@ def _validate(cfg: TrainerConfig) -> None:
         raise ConfigError(
             "behavioral_cloning.pretrain_passes: give the warm start in steps or in passes, "
             f"not both (pretrain_steps is {bc.pretrain_steps})"
-        )
-    if b.normalizer_update not in ("rollout", "after_update"):
-        raise ConfigError(
-            f"normalizer_update: 'rollout' or 'after_update', got {b.normalizer_update!r}"
         )
     if not 0.0 <= b.demo_drop_idle < 1.0:
         raise ConfigError(f"demo_drop_idle: a fraction in [0, 1), got {b.demo_drop_idle}")

@@ -129,10 +129,10 @@ def read_run_info(run_dir: Path) -> dict[str, Any]:
 
 
 def write_run_info(run_dir: Path, info: dict[str, Any]) -> None:
-    _atomic_write(run_dir / RUN_INFO, json.dumps(info, indent=1))
+    atomic_write(run_dir / RUN_INFO, json.dumps(info, indent=1))
 
 
-def _atomic_write(path: Path, text: str) -> None:
+def atomic_write(path: Path, text: str) -> None:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)

@@ -291,13 +291,13 @@ class Trainer:
     # -- 2. reward signals ------------------------------------------------------------------------
 
     def reward_signals(self) -> list[Signal]:
-        """Update the observation normalisers with the rollout (``normalizer_update: rollout``,
-        ML-Agents' order), then every reward signal on it (strength-scaled); per-episode sums go
-        to ``Policy/<Signal> Reward``."""
+        """Update the observation normalisers with the rollout, then every reward signal on it
+        (strength-scaled); per-episode sums go to ``Policy/<Signal> Reward``."""
         ro = self.rollout
         T, N, D = self.T, self.N, self.obs_dim
-        if self.b.normalizer_update == "rollout":
-            self._update_normalizers()
+        obs_flat = torch.from_numpy(ro.obs.reshape(T * N, D))
+        self.actor.norm.update(obs_flat)
+        self.critic.norm.update(obs_flat)
         rs = self.b.reward_signals
         out = []
         for name in self.signals:
@@ -314,11 +314,6 @@ class Trainer:
             self._episode_signal_sums(sig)
             out.append(sig)
         return out
-
-    def _update_normalizers(self) -> None:
-        obs_flat = torch.from_numpy(self.rollout.obs.reshape(self.T * self.N, self.obs_dim))
-        self.actor.norm.update(obs_flat)
-        self.critic.norm.update(obs_flat)
 
     def _episode_signal_sums(self, sig: Signal) -> None:
         """Per-episode sums of a (strength-scaled) signal, as ML-Agents' Policy/<Signal> Reward."""
@@ -409,8 +404,6 @@ class Trainer:
         self._log("Policy/Approx KL", m["approx_kl"])
         self._log("Policy/Clip Fraction", m["clipfrac"])
         self._bc_round()
-        if self.b.normalizer_update == "after_update":
-            self._update_normalizers()
         self.update_idx += 1
 
     def _ppo_step(
