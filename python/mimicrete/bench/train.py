@@ -19,11 +19,11 @@ NUM_ENVS = 32
 UPDATES = 2
 
 
-def _our_steps_per_s(cfg, tmp: Path) -> tuple[float, float, float]:
+def _our_steps_per_s(cfg, tmp: Path, demos: str | None = None) -> tuple[float, float, float]:
     """(total steps/s, rollout-only steps/s, seconds per update) over UPDATES updates."""
     from mimicrete.learn.trainer import Trainer
 
-    tr = Trainer(cfg, tmp / "run", None, 5_000_000)
+    tr = Trainer(cfg, tmp / "run", demos, 5_000_000)
     t_roll = t_upd = 0.0
     for _ in range(UPDATES):
         t0 = time.perf_counter()
@@ -60,7 +60,7 @@ def _update_breakdown(cfg, tmp: Path) -> None:
         setattr(obj, name, g)
 
     timed(tr, "_ppo_step", "PPO minibatch steps")
-    timed(tr, "_gail_step", "GAIL discriminator steps")
+    timed(tr, "_gail_steps", "GAIL discriminator steps")
     timed(tr.gail, "rewards", "GAIL rewards on the rollout")
     timed(tr, "_bc_round", "BC round")
     timed(tr, "advantages", "GAE (critic pass + GAE)")
@@ -90,7 +90,7 @@ def _update_breakdown(cfg, tmp: Path) -> None:
     )
 
 
-def _toy_cfg(tmp: Path, gail: float, bc: float):
+def _toy_cfg(tmp: Path, gail: float, bc: float, overlap_gail: bool = False):
     from mimicrete.learn import config
     from mimicrete.learn.toyenv import toy_config
 
@@ -98,6 +98,7 @@ def _toy_cfg(tmp: Path, gail: float, bc: float):
     return config.with_overrides(
         c,
         [
+            f"torch_settings.overlap_gail={str(overlap_gail).lower()}",
             "behavior.network_settings.hidden_units=256",
             "behavior.network_settings.num_layers=3",
             "behavior.hyperparameters.num_epoch=3",
@@ -182,7 +183,13 @@ def run() -> None:
         full, roll, upd = _our_steps_per_s(_toy_cfg(tmp, 0.01, 0.5), tmp)
         print(
             f"  toy env, ours (BC+GAIL+PPO):  {full:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
-            f"update {upd:.2f} s)"
+            f"update {upd:.2f} s; GAIL in line: before)"
+        )
+        over, roll, upd2 = _our_steps_per_s(_toy_cfg(tmp, 0.01, 0.5, overlap_gail=True), tmp)
+        print(
+            f"  toy env, ours (BC+GAIL+PPO):  {over:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
+            f"update {upd2:.2f} s; GAIL on its own thread, overlap_gail: after) -> "
+            f"{over / full:.2f}x steps/s, update {upd / upd2:.2f}x"
         )
         _update_breakdown(_toy_cfg(tmp, 0.01, 0.5), tmp)
         try:
@@ -198,4 +205,24 @@ def run() -> None:
         print(
             f"  TileSuction-v0, group1 (PPO): {ours:8.0f} steps/s  (rollout {roll:.0f} steps/s, "
             f"update {upd:.2f} s) -> 1M steps in {1e6 / ours / 60:.1f} min"
+        )
+        root = Path(__file__).resolve().parents[3]
+        if not any((root / "demos" / "suction").glob("*.mcap")):
+            print("  TileSuction-v0, group3: no demos in demos/suction (make demos)")
+            return
+        rates = {}
+        for overlap in (False, True):
+            cfg = config.with_overrides(
+                config.load(root / "configs" / "group3.yaml"),
+                [
+                    f"torch_settings.overlap_gail={str(overlap).lower()}",
+                    "behavior.behavioral_cloning.pretrain_steps=0",
+                ],
+            )
+            rates[overlap] = _our_steps_per_s(cfg, tmp, str(root / "demos" / "suction"))
+        (a, _, ua), (b, _, ub) = rates[False], rates[True]
+        print(
+            f"  TileSuction-v0, group3 (BC+GAIL+PPO): GAIL in line {a:.0f} steps/s (update "
+            f"{ua:.2f} s), on its own thread {b:.0f} steps/s (update {ub:.2f} s) -> {b / a:.2f}x "
+            f"-> 1M steps in {1e6 / b / 60:.1f} min"
         )

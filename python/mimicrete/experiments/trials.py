@@ -77,7 +77,7 @@ def train_one(
             f"{run_dir} was trained with max_steps {meta['max_steps']}, this sweep asks for "
             f"{max_steps}: use another --out"
         )
-    if meta.get("status") == "done" and (eval_episodes <= 0 or (run_dir / "eval.json").exists()):
+    if meta.get("status") == "done" and (eval_episodes <= 0 or _evaluated(run_dir)):
         return _metrics(run_dir, meta)
 
     resume = latest_checkpoint(run_dir) is not None
@@ -136,12 +136,20 @@ def train_one(
         meta["final_step"] = int(tr.step)
         learn.learning_curves(run_dir)
         if eval_episodes > 0:
-            learn.evaluate_run(run_dir, eval_episodes)
+            # deterministic (Table 5's column) and sampled (ML-Agents' default inference)
+            for stochastic in (False, True):
+                learn.evaluate_run(run_dir, eval_episodes, stochastic=stochastic)
     except BaseException as e:  # recorded, then re-raised so Tune marks the trial errored
         _close_segment("error", "".join(traceback.format_exception(e)))
         raise
     _close_segment("done", None)
     return _metrics(run_dir, meta)
+
+
+def _evaluated(run_dir: Path) -> bool:
+    from mimicrete.learn.evaluate import eval_file
+
+    return all((run_dir / eval_file(s, False)).exists() for s in (False, True))
 
 
 def _metrics(run_dir: Path, meta: dict[str, Any]) -> dict[str, Any]:

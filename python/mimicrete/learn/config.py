@@ -15,7 +15,8 @@ is strict too). mimicrete's own additions are marked "extension" below:
 - ``behaviors.<name>.stop_on_convergence``: stop before ``max_steps`` once the training
   episodes' installed rate has held a threshold for some summaries (``ConvergenceSettings``);
   ``mimicrete train --stop-on-convergence`` (what ``python train.py`` passes) turns it on.
-- ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads).
+- ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads,
+  overlap_gail).
 
 Every numeric field is range-checked (:data:`RANGES`) and the error names the field, e.g.
 ``behaviors.X.reward_signals.extrinsic.gamma: 7.0 is not in [0, 1]``; NaN and infinities are
@@ -152,6 +153,9 @@ class EnvSettings:
 class TorchSettings:
     device: str = "cpu"
     num_threads: int = 1
+    # extension: GAIL's discriminator steps on a second thread, beside PPO and BC (the same
+    # numbers bit for bit; faster when a core is free, trainer.py step 5)
+    overlap_gail: bool = True
 
 
 @dataclass

@@ -76,13 +76,18 @@ def gail_reward(d: torch.Tensor) -> torch.Tensor:
 
 
 def discriminator_loss(
-    disc: Discriminator, expert: torch.Tensor, policy: torch.Tensor
+    disc: Discriminator,
+    expert: torch.Tensor,
+    policy: torch.Tensor,
+    alpha: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, dict[str, float]]:
-    """Total loss (BCE + gradient penalty) for one expert and one policy minibatch (B, D_in)."""
+    """Total loss (BCE + gradient penalty) for one expert and one policy minibatch (B, D_in);
+    ``alpha`` (B, 1) are the interpolation weights of the penalty (drawn here when None)."""
     d_e = disc(expert)
     d_p = disc(policy)
     bce = -(torch.log(d_e + EPS) + torch.log(1.0 - d_p + EPS)).mean()
-    alpha = torch.rand(expert.shape[0], 1, dtype=expert.dtype)
+    if alpha is None:
+        alpha = torch.rand(expert.shape[0], 1, dtype=expert.dtype)
     x_hat = (alpha * expert + (1.0 - alpha) * policy).requires_grad_(True)
     d_hat = disc(x_hat)
     (grad,) = torch.autograd.grad(d_hat.sum(), x_hat, create_graph=True)
@@ -118,9 +123,23 @@ class Gail:
         out = [gail_reward(self.disc(inputs[i : i + chunk])) for i in range(0, len(inputs), chunk)]
         return torch.cat(out).numpy()
 
+    def draw(self, n: int, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+        """The randomness of one discriminator step of ``n`` rows: which expert rows (from
+        ``rng``) and the penalty's interpolation weights (from torch's generator). Drawn apart
+        from :meth:`step` so that steps can run on another thread without touching either
+        generator."""
+        idx = torch.as_tensor(rng.integers(0, self.expert.shape[0], n))
+        return idx, torch.rand(n, 1, dtype=self.expert.dtype)
+
     def update(self, policy_inputs: torch.Tensor, rng: np.random.Generator) -> dict[str, float]:
-        idx = torch.as_tensor(rng.integers(0, self.expert.shape[0], policy_inputs.shape[0]))
-        loss, stats = discriminator_loss(self.disc, self.expert[idx], policy_inputs)
+        return self.step(policy_inputs, self.draw(policy_inputs.shape[0], rng))
+
+    def step(
+        self, policy_inputs: torch.Tensor, draw: tuple[torch.Tensor, torch.Tensor]
+    ) -> dict[str, float]:
+        """One discriminator step with the randomness of :meth:`draw`."""
+        idx, alpha = draw
+        loss, stats = discriminator_loss(self.disc, self.expert[idx], policy_inputs, alpha)
         self.opt.zero_grad()
         loss.backward()
         self.opt.step()

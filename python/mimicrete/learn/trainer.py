@@ -9,8 +9,11 @@ order. :meth:`Trainer.iterate` reads top to bottom:
 3. **GAE** (:meth:`~Trainer.advantages`): per signal, with that signal's value head; the advantage
    is the mean over signals, z-normalised; each head regresses its own returns.
 4. **PPO** (:meth:`~Trainer.update`): ``num_epoch`` epochs of minibatches of ``batch_size``;
-5. **GAIL**: one discriminator step after each PPO minibatch, against an expert minibatch of the
-   same size (ML-Agents' schedule, and the same random stream as before this layout);
+5. **GAIL**: one discriminator step per PPO minibatch, against an expert minibatch of the same
+   size (ML-Agents' schedule, and the same random stream as before this layout). The steps read
+   only the rollout and the demos, never the policy, so with ``torch_settings.overlap_gail`` they
+   run on a second thread beside PPO and BC: each epoch's draws are taken on the main thread in
+   the order one step after each PPO step takes them, which keeps every number bit for bit;
 6. **BC**: one round over the demos (while its learning rate is above 1e-10);
 7. **log**: the scalars gathered on the way, averaged per summary (:meth:`~Trainer.summary`).
 
@@ -40,6 +43,7 @@ from __future__ import annotations
 import math
 import random
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -145,6 +149,16 @@ class Trainer:
                 g.network_settings.num_layers,
                 g.learning_rate,
                 normalize=g.network_settings.normalize,
+            )
+        # GAIL's discriminator steps on a thread of their own (see step 5 above); the thread
+        # gets the same torch thread count (OpenMP's is per thread)
+        self._gail_pool: ThreadPoolExecutor | None = None
+        if self.gail is not None and cfg.torch_settings.overlap_gail:
+            self._gail_pool = ThreadPoolExecutor(
+                1,
+                thread_name_prefix="gail",
+                initializer=torch.set_num_threads,
+                initargs=(max(1, cfg.torch_settings.num_threads),),
             )
         self.bc: BehavioralCloning | None = None
         bcs = self.b.behavioral_cloning
@@ -391,12 +405,16 @@ class Trainer:
         t = buf.tensors()
         n, bs = len(buf.adv), h.batch_size
         stats = PPOStats()
+        gail_epochs: list[Future] = []
         for _ in range(h.num_epoch):
             perm = torch.as_tensor(self.rng.permutation(n))
-            for s in range(0, n - bs + 1, bs):
-                idx = perm[s : s + bs]
+            batches = [perm[s : s + bs] for s in range(0, n - bs + 1, bs)]
+            if self.gail is not None:
+                # the draws one GAIL step after each PPO step would take, in that order
+                draws = [self.gail.draw(bs, self.rng) for _ in batches]
+                gail_epochs.append(self._submit_gail(buf, batches, draws))
+            for idx in batches:
                 stats.add(self._ppo_step(t, idx, eps, beta))
-                self._gail_step(buf, idx)
         m = stats.mean()
         self._log("Losses/Policy Loss", abs(m["policy_loss"]))
         self._log("Losses/Value Loss", m["value_loss"])
@@ -404,6 +422,13 @@ class Trainer:
         self._log("Policy/Approx KL", m["approx_kl"])
         self._log("Policy/Clip Fraction", m["clipfrac"])
         self._bc_round()
+        for job in gail_epochs:
+            for gs in job.result():
+                self._check_finite("GAIL", gs["loss"])
+                self._log("Losses/GAIL Loss", gs["loss"])
+                self._log("Policy/GAIL Grad Mag Loss", gs["grad_penalty"])
+                self._log("Policy/GAIL Expert Estimate", gs["expert_estimate"])
+                self._log("Policy/GAIL Policy Estimate", gs["policy_estimate"])
         self.update_idx += 1
 
     def _ppo_step(
@@ -425,17 +450,23 @@ class Trainer:
         self.opt.step()
         return info
 
-    def _gail_step(self, buf: UpdateBuffer, idx: torch.Tensor) -> None:
-        if self.gail is None:
-            return
-        i = idx.numpy()
-        x = self._disc_inputs(buf.obs[i], buf.env_actions[i])
-        gs = self.gail.update(torch.from_numpy(x), self.rng)
-        self._check_finite("GAIL", gs["loss"])
-        self._log("Losses/GAIL Loss", gs["loss"])
-        self._log("Policy/GAIL Grad Mag Loss", gs["grad_penalty"])
-        self._log("Policy/GAIL Expert Estimate", gs["expert_estimate"])
-        self._log("Policy/GAIL Policy Estimate", gs["policy_estimate"])
+    def _submit_gail(self, buf: UpdateBuffer, batches: list, draws: list) -> Future:
+        """One epoch's discriminator steps: on the GAIL thread, or here and now."""
+        if self._gail_pool is not None:
+            return self._gail_pool.submit(self._gail_steps, buf, batches, draws)
+        done: Future = Future()
+        done.set_result(self._gail_steps(buf, batches, draws))
+        return done
+
+    def _gail_steps(self, buf: UpdateBuffer, batches: list, draws: list) -> list[dict]:
+        """Discriminator steps on the rollout's minibatches ``batches`` (touches no generator)."""
+        assert self.gail is not None
+        out = []
+        for idx, draw in zip(batches, draws, strict=True):
+            i = idx.numpy()
+            x = self._disc_inputs(buf.obs[i], buf.env_actions[i])
+            out.append(self.gail.step(torch.from_numpy(x), draw))
+        return out
 
     def _bc_round(self) -> None:
         if self.bc is None:
