@@ -37,6 +37,8 @@ def _write_run(
     max_steps=None,
     error=None,
     extra_rows=(),
+    ev_sampled=None,
+    converged_at=None,
 ):
     from mimicrete.learn.run_files import TAGS
 
@@ -62,16 +64,21 @@ def _write_run(
                 "Losses/GAIL Loss": gl,
             }
             w.writerow([s, *["" if row.get(t) is None else repr(float(row[t])) for t in TAGS]])
-    if ev is not None:
-        (rd / "eval.json").write_text(
-            json.dumps(
-                {
-                    "episodes": 100,
-                    "picked_rate": ev[0],
-                    "installed_rate": ev[1],
-                    "mean_episode_length": ev[2],
-                }
+    for name, e in (("eval.json", ev), ("eval_stochastic.json", ev_sampled)):
+        if e is not None:
+            (rd / name).write_text(
+                json.dumps(
+                    {
+                        "episodes": 100,
+                        "picked_rate": e[0],
+                        "installed_rate": e[1],
+                        "mean_episode_length": e[2],
+                    }
+                )
             )
+    if converged_at is not None:
+        (rd / "run.json").write_text(
+            json.dumps({"convergence": {"installed_rate": 0.99, "converged_at_step": converged_at}})
         )
     (rd / "trial.json").write_text(
         json.dumps(
@@ -112,6 +119,7 @@ def test_report_numbers_on_synthetic_runs(tmp_path):
             np.full(30, 0.2),
             np.full(30, 0.7 + 0.1 * s),
             (0.2, 0.0, 750.0),
+            ev_sampled=(0.1 + 0.1 * s, 0.0, 730.0 + 20 * s),
         )
     _write_run(
         root,
@@ -149,13 +157,17 @@ def test_report_numbers_on_synthetic_runs(tmp_path):
     # Table 5 row of group 3: installed mean 0.95, sd 0.05 -> "95 ± 5 %"; length 90 ± 10
     row3 = next(ln for ln in text.splitlines() if ln.startswith("| 3 | PPO (1.0), GAIL (0.005)"))
     cells = [c.strip() for c in row3.strip("|").split("|")]
-    assert cells[3] == "3"
-    assert cells[4] == "97 ± 3 %" and cells[5] == "97 %"  # picked mean .9733, sd .0252
-    assert cells[6] == "95 ± 5 %" and cells[7] == "97 %"
-    assert cells[8] == "90 ± 10" and cells[9] == "90"
-    # group 2: the crashed seed is not averaged in
+    assert cells[3] == "300k" and cells[4] == "3"
+    # picked mean .9733, sd .0252; no sampled evaluation: "–"
+    assert cells[5] == "97 ± 3 %" and cells[6] == "–" and cells[7] == "97 %"
+    assert cells[8] == "95 ± 5 %" and cells[9] == "–" and cells[10] == "97 %"
+    assert cells[11] == "90 ± 10" and cells[12] == "–" and cells[13] == "90"
+    # group 2: the crashed seed is not averaged in; sampled evaluations of both seeds
     row2 = next(ln for ln in text.splitlines() if ln.startswith("| 2 | GAIL |"))
-    assert [c.strip() for c in row2.strip("|").split("|")][3] == "2"
+    cells2 = [c.strip() for c in row2.strip("|").split("|")]
+    assert cells2[4] == "2"
+    assert cells2[6] == "15 ± 7 %" and cells2[9] == "0 ± 0 %" and cells2[12] == "740 ± 14"
+    assert "Sampled policy: picked 15 %, installed 0 %, episode length 740, which agrees" in text
 
     # GAIL loss over the last 100k steps (summaries at steps > 200k: 210k..300k)
     keep = steps > 200_000
@@ -306,3 +318,41 @@ def test_steps_to_97_needs_enough_episodes():
     assert stats.group_stats(6, [r]).steps_to == [40_000]
     del r.scalars["Environment/Episodes"]  # nothing to judge by: every summary counts
     assert stats.group_stats(6, [r]).steps_to == [20_000]
+
+
+def test_report_of_a_sweep_run_in_parts(tmp_path):
+    """Two run roots with different budgets (groups 8 and 9 at the paper's 5M beside the rest at
+    1M): the budget line names both, Table 5 gives each group's budget and the steps its runs
+    trained when they stopped on convergence, and a later root's run replaces an earlier one's."""
+    steps1 = np.arange(1, 11) * 100_000
+    a, b = tmp_path / "a" / "runs", tmp_path / "b" / "runs"
+    for s in range(2):
+        _write_run(a, 3, s, steps1, np.full(10, 1.0), np.ones(10), None, (1.0, 1.0, 60.0))
+        _write_run(a, 9, s, steps1, np.zeros(10), np.zeros(10), None, (0.0, 0.0, 750.0))
+        stop = 2_000_000 + 500_000 * s
+        steps5 = np.arange(1, stop // 100_000 + 1) * 100_000
+        _write_run(
+            b,
+            9,
+            s,
+            steps5,
+            np.full(len(steps5), 1.0),
+            np.ones(len(steps5)),
+            None,
+            (1.0, 0.98, 40.0),
+            max_steps=5_000_000,
+            converged_at=stop,
+            ev_sampled=(1.0, 0.96, 45.0),
+        )
+    out = tmp_path / "RESULTS.md"
+    report.write_report([a, b], out)
+    text = out.read_text()
+    assert "1,000,000 for group(s) 3; 5,000,000 for group(s) 9" in text
+    row9 = next(ln for ln in text.splitlines() if ln.startswith("| 9 |"))
+    cells = [c.strip() for c in row9.strip("|").split("|")]
+    assert cells[3] == "5.00M (2.25M)" and cells[4] == "2"
+    assert cells[8] == "98 ± 0 %" and cells[9] == "96 ± 0 %"
+    row3 = next(ln for ln in text.splitlines() if ln.startswith("| 3 |"))
+    assert [c.strip() for c in row3.strip("|").split("|")][3] == "1.00M"
+    runs = text.split("## Runs")[1].split("\n## ")[0]
+    assert "| group9-seed1 | done | 2.50M | 2.50M |" in runs

@@ -93,6 +93,57 @@ def _budget(runs: list[Run]) -> int | None:
     return int(max(b)) if b else None
 
 
+def _budget_line(stats: dict[int, GroupStats]) -> str:
+    """The step budget, or the budgets by group when the sweep ran in parts."""
+    by: dict[int, list[int]] = {}
+    for g, st in stats.items():
+        if st.budget:
+            by.setdefault(st.budget, []).append(g)
+    if not by:
+        return "- Step budget: unknown (no `trial.json`/`run.json`)."
+    if len(by) == 1:
+        b = next(iter(by))
+        return (
+            f"- **Step budget per run: {b:,} env steps** (the paper: {PAPER_MAX_STEPS:,}). The "
+            "linear schedules (learning rate, ε, β) decay over our budget"
+            + (", not over 5M." if b != PAPER_MAX_STEPS else ".")
+        )
+    parts = "; ".join(f"{b:,} for group(s) {_list(gs)}" for b, gs in sorted(by.items()))
+    return (
+        f"- **Step budget per run: {parts}** (the paper: {PAPER_MAX_STEPS:,}). The linear "
+        "schedules (learning rate, ε, β) decay over each run's budget."
+    )
+
+
+def _convergence_line(runs: list[Run]) -> str | None:
+    """How many runs had the stop on convergence, and how many stopped on it."""
+    crit = None
+    on = 0
+    for r in runs:
+        beh = next(iter(((r.resolved or {}).get("behaviors") or {}).values()), None) or {}
+        c = beh.get("stop_on_convergence")
+        if c:
+            on += 1
+            crit = c
+    if not on or crit is None:
+        return None
+    stopped = sorted(
+        f"{r.name} at {_steps(r.converged_at)}" for r in runs if r.converged_at is not None
+    )
+    return (
+        f"- Training stops once it has converged, as the paper's did (\"when the training step "
+        f'reaches 5,000,000 or converges to the maximum reward"): installed ≥ '
+        f"{100 * crit.get('installed_rate', 0.99):.0f} % in {crit.get('summaries', 3)} summaries "
+        f"in a row, each over ≥ {crit.get('min_episodes', 20)} training episodes "
+        f"(`stop_on_convergence`; {on} of {len(runs)} runs had it on). "
+        + (
+            f"{len(stopped)} stopped on it: {', '.join(stopped)}."
+            if stopped
+            else "None stopped on it."
+        )
+    )
+
+
 def _departures(runs: list[Run]) -> list[str]:
     """Config facts (from resolved_config.yaml) that differ from ML-Agents / the paper."""
     surv, pre, idle = set(), set(), set()
@@ -139,6 +190,28 @@ def _list(gs) -> str:
     return ", ".join(str(g) for g in sorted(gs))
 
 
+def _sampled_verdict(st: GroupStats, paper: tuple[float, float, float]) -> str:
+    """ " Sampled: ... (agrees / differs on ...)." for a group with sampled evaluations."""
+    if st.installed_sampled[2] == 0:
+        return ""
+    pp, pi, pl = paper
+    off = [
+        label
+        for label, ours, ref, rate in (
+            ("picked", st.picked_sampled, pp, True),
+            ("installed", st.installed_sampled, pi, True),
+            ("episode length", st.length_sampled, pl, False),
+        )
+        if agrees(ours, ref, rate=rate) is False
+    ]
+    vals = (
+        f"picked {100 * st.picked_sampled[0]:.0f} %, installed "
+        f"{100 * st.installed_sampled[0]:.0f} %, episode length {st.length_sampled[0]:.0f}"
+    )
+    verdict = "agrees with the paper" if not off else f"differs on {', '.join(off)}"
+    return f" Sampled policy: {vals}, which {verdict}."
+
+
 def comparison_lines(stats: dict[int, GroupStats], budget: int | None) -> list[str]:
     """Generated sentences: where each group agrees with Table 5 and where it does not."""
     lines = []
@@ -160,14 +233,16 @@ def comparison_lines(stats: dict[int, GroupStats], budget: int | None) -> list[s
             else:
                 txt = f"{label} {ours[0]:.0f} vs {paper:.0f}"
             (parts if ok else diffs).append(txt)
+        sampled = _sampled_verdict(st, (pp, pi, pl))
         if not diffs:
-            lines.append(f"- Group {g} **agrees** with the paper ({'; '.join(parts)}).")
+            lines.append(f"- Group {g} **agrees** with the paper ({'; '.join(parts)}).{sampled}")
             continue
         s = f"- Group {g} **differs** from the paper: {'; '.join(diffs)}"
         if parts:
             s += f" (agrees on {'; '.join(parts)})"
-        s += "."
+        s += "." + sampled
         hints = []
+        budget = st.budget or budget
         if budget and budget < PAPER_MAX_STEPS and st.installed[0] < pi:
             hints.append(
                 f"our budget was {_steps(budget)} steps, {100 * budget / PAPER_MAX_STEPS:.0f} % "
@@ -200,6 +275,7 @@ class ReportInput:
     sweep: dict | None
     budget: int | None
     seeds: list[int]
+    sweeps: list[dict]  # every sweep record the runs came from (one per part)
 
     def rel(self, figure: Path) -> str:
         return os.path.relpath(figure, self.report_path.parent)
@@ -219,11 +295,11 @@ def section_summary(r: ReportInput) -> list[str]:
         f"- Runs: {len(runs)} ({len(r.stats)} groups × seeds {', '.join(map(str, r.seeds))}); "
         f"{sum(x.status == 'done' for x in runs)} finished, {n_err} crashed, "
         f"{sum(x.status not in ('done', 'error') for x in runs)} unfinished.",
-        f"- **Step budget per run: {r.budget:,} env steps** (the paper: {PAPER_MAX_STEPS:,}). The "
-        "linear schedules (learning rate, ε, β) decay over our budget, not over 5M."
-        if r.budget
-        else "- Step budget: unknown (no `trial.json`/`run.json`).",
+        _budget_line(r.stats),
     ]
+    conv = _convergence_line(runs)
+    if conv:
+        lines.append(conv)
     walls = [x.wall_clock_s for x in runs if x.wall_clock_s]
     if walls:
         sweep = r.sweep
@@ -234,7 +310,7 @@ def section_summary(r: ReportInput) -> list[str]:
             + (
                 f"; the whole sweep took {sweep['sweep_wall_clock_s'] / 3600:.2f} h on "
                 f"{sweep.get('num_cpus')} CPU(s), {sweep.get('cpus_per_trial')} per trial."
-                if sweep and sweep.get("sweep_wall_clock_s")
+                if sweep and sweep.get("sweep_wall_clock_s") and len(r.sweeps) < 2
                 else "."
             )
         )
@@ -247,31 +323,44 @@ def section_table5(r: ReportInput) -> list[str]:
     lines = [
         "## Table 5: evaluation of the final policy, ours beside the paper's",
         "",
-        "Ours: `mimicrete eval` (deterministic policy, `eval.json`), mean ± sample standard "
-        "deviation over seeds (n = seeds evaluated). Paper: one run per group, 100 executions.",
+        "Ours, 100 episodes per run, mean ± sample standard deviation over seeds (n = seeds "
+        "evaluated): **det.** is the deterministic policy (`mimicrete eval`, `eval.json`: the "
+        "Gaussian's mean, each command branch's argmax); **sampl.** samples the policy "
+        "(`mimicrete eval --stochastic`, `eval_stochastic.json`), as ML-Agents runs it unless "
+        "`deterministic_inference` is set. The paper does not say which it used. Paper: one run "
+        "per group, 100 executions. Steps: the budget, and the mean of the steps each run "
+        "trained (fewer where it stopped on convergence).",
         "",
     ]
     rows = []
     for g, st in r.stats.items():
         alg, demos = PAPER_TABLE3.get(g, ("?", "?"))
         pp, pi, pl = PAPER_TABLE5.get(g, (math.nan, math.nan, math.nan))
+        steps = _steps(st.budget)
+        if st.final_steps[2] and st.budget and st.final_steps[0] < 0.98 * st.budget:
+            steps += f" ({_steps(st.final_steps[0])})"
         rows.append(
             [
                 g,
                 alg,
                 demos,
+                steps,
                 st.installed[2],
                 _pct(st.picked),
+                _pct(st.picked_sampled),
                 f"{100 * pp:.0f} %",
                 _pct(st.installed),
+                _pct(st.installed_sampled),
                 f"{100 * pi:.0f} %",
                 _num(st.length),
+                _num(st.length_sampled),
                 f"{pl:.0f}",
             ]
         )
-    columns = ["Group", "Algorithms (strength)", "Demos", "n", "Picked (ours)", "Picked (paper)"]
-    columns += ["Installed (ours)", "Installed (paper)"]
-    columns += ["Episode length (ours)", "Episode length (paper)"]
+    columns = ["Group", "Algorithms (strength)", "Demos", "Steps", "n"]
+    columns += ["Picked det.", "Picked sampl.", "Picked (paper)"]
+    columns += ["Installed det.", "Installed sampl.", "Installed (paper)"]
+    columns += ["Length det.", "Length sampl.", "Length (paper)"]
     return [*lines, *_table(columns, rows), ""]
 
 
@@ -382,21 +471,26 @@ def section_runs(r: ReportInput) -> list[str]:
             if run.wall_clock_s and run.final_step and run.status == "done"
             else "–"
         )
-        e = run.eval or {}
+        e, s = run.eval or {}, run.eval_sampled or {}
         rows.append(
             [
                 run.name,
                 run.status,
                 _steps(run.final_step),
+                _steps(run.converged_at) if run.converged_at is not None else "–",
                 wc,
                 sps,
                 _pct(mean_sd([e.get("picked_rate")])),
                 _pct(mean_sd([e.get("installed_rate")])),
                 _num(mean_sd([e.get("mean_episode_length")])),
+                _pct(mean_sd([s.get("picked_rate")])),
+                _pct(mean_sd([s.get("installed_rate")])),
+                _num(mean_sd([s.get("mean_episode_length")])),
             ]
         )
-    columns = ["Run", "Status", "Final step", "Wall clock (train + eval)", "Steps/s", "Picked"]
-    columns += ["Installed", "Length"]
+    columns = ["Run", "Status", "Final step", "Converged at", "Wall clock (train + eval)"]
+    columns += ["Steps/s", "Picked det.", "Installed det.", "Length det."]
+    columns += ["Picked sampl.", "Installed sampl.", "Length sampl."]
     return ["## Runs", "", *_table(columns, rows), ""]
 
 
@@ -424,7 +518,7 @@ def section_reproduce(r: ReportInput) -> list[str]:
         "```sh",
         "make experiments   # set-up, requirements/experiments.txt, the sweep, this report",
     ]
-    cmds = [p.get("command") for p in (r.sweep or {}).get("sweeps", [r.sweep or {}])]
+    cmds = [p.get("command") for s in r.sweeps for p in s.get("sweeps", [s])]
     if all(cmds) and cmds:
         lines.extend(f"{c}   # the sweep as run" for c in cmds)
     else:
@@ -435,7 +529,8 @@ def section_reproduce(r: ReportInput) -> list[str]:
     lines += [
         "python -m mimicrete.experiments ...   # the same command again resumes it",
         "python -m mimicrete.experiments --address auto ...   # on an existing Ray cluster",
-        "python -m mimicrete.experiments.report --runs runs/experiments/runs --out docs/RESULTS.md",
+        "python -m mimicrete.experiments.report --runs runs/experiments/runs --out docs/RESULTS.md"
+        + ("   # --runs A B: a sweep run in parts" if len(r.sweeps) > 1 else ""),
         "```",
         "",
     ]
@@ -456,7 +551,11 @@ SECTIONS = (
 
 
 def render(
-    runs: list[Run], figures: dict[str, Path], report_path: Path, sweep: dict | None = None
+    runs: list[Run],
+    figures: dict[str, Path],
+    report_path: Path,
+    sweep: dict | None = None,
+    sweeps: list[dict] | None = None,
 ) -> str:
     """The report's Markdown: every section of :data:`SECTIONS` in order."""
     by_group: dict[int, list[Run]] = {}
@@ -470,24 +569,30 @@ def render(
         sweep=sweep,
         budget=_budget(runs),
         seeds=sorted({x.seed for x in runs}),
+        sweeps=sweeps if sweeps is not None else ([sweep] if sweep else []),
     )
     return "\n".join(line for section in SECTIONS for line in section(r))
 
 
 def write_report(
-    run_root: Path,
+    run_root: Path | list[Path],
     out: Path,
     fig_dir: Path | None = None,
     sweep_file: Path | None = None,
 ) -> Path:
+    """The report of the runs under ``run_root`` (or several roots: a sweep run in parts, e.g.
+    groups 8 and 9 at another budget), each root's ``sweep.json`` beside it unless
+    ``sweep_file`` is given."""
     out = Path(out)
     fig_dir = Path(fig_dir or out.parent / "figures")
-    if sweep_file is None and (Path(run_root).parent / "sweep.json").exists():
-        sweep_file = Path(run_root).parent / "sweep.json"
-    runs = load_runs(Path(run_root), sweep_file)
+    roots = [Path(p) for p in run_root] if isinstance(run_root, list) else [Path(run_root)]
+    files = [Path(sweep_file)] if sweep_file else []
+    if not files:
+        files = [p.parent / "sweep.json" for p in roots if (p.parent / "sweep.json").exists()]
+    runs = load_runs(roots, files)
     figures = write_figures(runs, fig_dir)
-    sweep = _json(Path(sweep_file)) if sweep_file else None
-    text = render(runs, figures, out, sweep)
+    sweeps = [s for s in (_json(f) for f in files) if s]
+    text = render(runs, figures, out, sweeps[0] if sweeps else None, sweeps)
     if out.exists():
         text = keep_why(out.read_text(), text)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -497,13 +602,19 @@ def write_report(
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m mimicrete.experiments.report", description=__doc__)
-    p.add_argument("--runs", default="runs/experiments/runs", help="dir of group<g>-seed<s> runs")
+    p.add_argument(
+        "--runs",
+        nargs="+",
+        default=["runs/experiments/runs"],
+        help="dir(s) of group<g>-seed<s> runs (several: a sweep run in parts; a later dir's run "
+        "replaces an earlier one's of the same group and seed)",
+    )
     p.add_argument("--out", default="docs/RESULTS.md")
     p.add_argument("--figures", help="figure dir (default: <out dir>/figures)")
     p.add_argument("--sweep", help="sweep.json (default: beside --runs, if there)")
     a = p.parse_args(argv)
     out = write_report(
-        Path(a.runs),
+        [Path(x) for x in a.runs],
         Path(a.out),
         Path(a.figures) if a.figures else None,
         Path(a.sweep) if a.sweep else None,

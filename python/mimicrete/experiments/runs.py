@@ -2,8 +2,9 @@
 
 Per run dir (written by ``mimicrete.experiments`` / ``mimicrete train``): ``scalars.csv``
 (ML-Agents tag names, one row per summary, ``step`` first), ``eval.json`` (``mimicrete eval``:
-picked_rate, installed_rate, mean_episode_length), ``trial.json`` (status, error, wall clock,
-budget) and ``run.json`` (max_steps). ``sweep.json`` beside the run dirs adds trials that crashed
+picked_rate, installed_rate, mean_episode_length) and ``eval_stochastic.json`` (the same with the
+policy sampled), ``trial.json`` (status, error, wall clock, budget) and ``run.json`` (max_steps,
+the step where training converged). ``sweep.json`` beside the run dirs adds trials that crashed
 before writing anything.
 """
 
@@ -34,6 +35,8 @@ class Run:
     final_step: int | None = None
     scalars: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     eval: dict[str, Any] | None = None
+    eval_sampled: dict[str, Any] | None = None
+    converged_at: int | None = None  # run.json's convergence.converged_at_step
     resolved: dict[str, Any] | None = None
 
     @property
@@ -58,13 +61,16 @@ def load_run(path: Path) -> Run | None:
     run.error = trial.get("error")
     run.wall_clock_s = trial.get("wall_clock_s")
     run.final_step = trial.get("final_step")
-    run.max_steps = trial.get("max_steps") or (_json(path / "run.json") or {}).get("max_steps")
+    info = _json(path / "run.json") or {}
+    run.max_steps = trial.get("max_steps") or info.get("max_steps")
+    run.converged_at = (info.get("convergence") or {}).get("converged_at_step")
     if (path / "scalars.csv").exists():
         run.scalars = read_scalars(path / "scalars.csv")
         if run.final_step is None:
             steps = [s[-1] for s, _ in run.scalars.values() if len(s)]
             run.final_step = int(max(steps)) if steps else None
     run.eval = _json(path / "eval.json")
+    run.eval_sampled = _json(path / "eval_stochastic.json")
     if run.status == "unknown" and run.eval is not None:
         run.status = "done"
     rc = path / "resolved_config.yaml"
@@ -75,17 +81,24 @@ def load_run(path: Path) -> Run | None:
     return run
 
 
-def load_runs(run_root: Path, sweep_file: Path | None = None) -> list[Run]:
-    """Every ``group<g>-seed<s>`` dir under ``run_root``, plus the errored trials of
-    ``sweep_file`` that left no run dir (or no error in it)."""
+def load_runs(
+    run_root: Path | list[Path], sweep_file: Path | list[Path] | None = None
+) -> list[Run]:
+    """Every ``group<g>-seed<s>`` dir under ``run_root`` (or under each of a list of roots: a
+    sweep run in parts with different budgets; a later root's run replaces an earlier one's of
+    the same group and seed), plus the errored trials of ``sweep_file`` (or files) that left no
+    run dir (or no error in it)."""
+    roots = run_root if isinstance(run_root, list) else [run_root]
     runs: dict[tuple[int, int], Run] = {}
-    if Path(run_root).is_dir():
-        for p in sorted(Path(run_root).iterdir()):
-            r = load_run(p)
-            if r is not None:
-                runs[(r.group, r.seed)] = r
-    sweep = _json(Path(sweep_file)) if sweep_file else None
-    for t in (sweep or {}).get("trials", []):
+    for root in roots:
+        if Path(root).is_dir():
+            for p in sorted(Path(root).iterdir()):
+                r = load_run(p)
+                if r is not None:
+                    runs[(r.group, r.seed)] = r
+    files = sweep_file if isinstance(sweep_file, list) else [sweep_file] if sweep_file else []
+    trials = [t for f in files for t in (_json(Path(f)) or {}).get("trials", [])]
+    for t in trials:
         if t.get("group") is None or t.get("seed") is None:
             continue
         key = (int(t["group"]), int(t["seed"]))

@@ -91,6 +91,14 @@ class GroupStats:
     steps_to: list[int | None]
     final_installed_train: tuple[float, float, int]
     trend: float  # installed rate: mean of the last 10 % of steps minus the 10 % before
+    # the same evaluation with the policy sampled (ML-Agents' inference unless
+    # deterministic_inference is set; the paper does not say which it used)
+    picked_sampled: tuple[float, float, int] = (math.nan, math.nan, 0)
+    installed_sampled: tuple[float, float, int] = (math.nan, math.nan, 0)
+    length_sampled: tuple[float, float, int] = (math.nan, math.nan, 0)
+    budget: int | None = None  # the largest max_steps of the group's runs
+    final_steps: tuple[float, float, int] = (math.nan, math.nan, 0)
+    converged: int = 0  # runs that stopped on convergence before their budget
 
 
 def _trend(steps: np.ndarray, values: np.ndarray) -> float:
@@ -129,6 +137,8 @@ def group_stats(group: int, runs: list[Run]) -> GroupStats:
             final_inst.append(float(v[-1]))
             trends.append(_trend(s, v))
     tr = [t for t in trends if math.isfinite(t)]
+    sampled = [r.eval_sampled for r in done if r.eval_sampled]
+    budgets = [r.max_steps for r in runs if r.max_steps]
     return GroupStats(
         group=group,
         runs=runs,
@@ -139,6 +149,12 @@ def group_stats(group: int, runs: list[Run]) -> GroupStats:
         steps_to=steps_to,
         final_installed_train=mean_sd(final_inst),
         trend=float(np.mean(tr)) if tr else math.nan,
+        picked_sampled=mean_sd([e.get("picked_rate") for e in sampled]),
+        installed_sampled=mean_sd([e.get("installed_rate") for e in sampled]),
+        length_sampled=mean_sd([e.get("mean_episode_length") for e in sampled]),
+        budget=int(max(budgets)) if budgets else None,
+        final_steps=mean_sd([r.final_step for r in done if r.eval and r.final_step]),
+        converged=sum(r.converged_at is not None for r in done),
     )
 
 
