@@ -52,6 +52,19 @@ def test_stop_on_convergence_ends_the_run_and_records_the_step(toy_yaml, tmp_pat
     assert (run_dir / "policy.pt").exists() and (run_dir / "policy.onnx").exists()
 
 
+def test_resuming_a_converged_run_keeps_it_as_it_was(toy_yaml, tmp_path):
+    run_dir = tmp_path / "run"
+    crit = "behavior.stop_on_convergence={installed_rate: 0.0, summaries: 2, min_episodes: 1}"
+    assert train(toy_yaml, run_dir, "--set", crit) == 0
+    info = json.loads((run_dir / "run.json").read_text())
+    rows = (run_dir / "scalars.csv").read_text()
+    cks = sorted(p.name for p in (run_dir / "checkpoints").iterdir())
+    assert train(toy_yaml, run_dir, "--set", crit, "--resume") == 0
+    assert json.loads((run_dir / "run.json").read_text()) == info  # converged_at_step kept
+    assert (run_dir / "scalars.csv").read_text() == rows  # no update ran
+    assert sorted(p.name for p in (run_dir / "checkpoints").iterdir()) == cks
+
+
 def test_an_unmet_criterion_runs_to_max_steps(toy_yaml, tmp_path):
     run_dir = tmp_path / "run"
     assert train(toy_yaml, run_dir, "--stop-on-convergence",

@@ -54,7 +54,6 @@ def train(
     if skip_bad_demos:
         info["skip_bad_demos"] = True
         info["demo_files_skipped"] = tr.demo_files_skipped
-    run_files.write_run_info(run_dir, info)
     resume_step = None
     if resume:
         ck = run_files.latest_checkpoint(run_dir)
@@ -65,18 +64,19 @@ def train(
         warm = tr.pretrain()
         if warm is not None:
             info["bc_warm_start"] = warm
-            run_files.write_run_info(run_dir, info)
+    conv = cfg.behavior.stop_on_convergence
+    # a resumed run that had already converged stays converged (its streak is in the checkpoint)
+    converged = conv is not None and tr.converged_streak >= conv.summaries
+    if conv is not None and not converged:
+        info["convergence"] = {**dataclasses.asdict(conv), "converged_at_step": None}
+    run_files.write_run_info(run_dir, info)
     log = run_files.ScalarLog(run_dir, resume_step)
     bar = _progress_bar(total, tr.step) if progress else None
-    conv = cfg.behavior.stop_on_convergence
-    if conv is not None:
-        info["convergence"] = {**dataclasses.asdict(conv), "converged_at_step": None}
-        run_files.write_run_info(run_dir, info)
     ck_every = max(cfg.behavior.checkpoint_interval, 1)
     next_ck = (tr.step // ck_every + 1) * ck_every
     updates = 0
     try:
-        while tr.step < total:
+        while tr.step < total and not converged:
             before = tr.step
             tr.iterate()
             updates += 1
