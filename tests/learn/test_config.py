@@ -104,3 +104,25 @@ def test_demo_drop_idle_range():
     for bad in ("-0.1", "1.0"):
         with pytest.raises(config.ConfigError, match="demo_drop_idle"):
             config.with_overrides(cfg, [f"behavior.demo_drop_idle={bad}"])
+
+
+def test_init_std_sets_the_policys_initial_sigma_and_is_range_checked(tmp_path):
+    """``behavior.init_std`` (extension): the actor's initial sigma; the default is ML-Agents'
+    effective 1/3 (bit for bit the old initialisation); out of (0, 1] names the field."""
+    import math
+
+    import torch
+
+    from mimicrete.learn.networks import Actor
+    from mimicrete.learn.toyenv import toy_config
+    from mimicrete.learn.trainer import Trainer
+
+    base = toy_config(tmp_path)
+    assert base.behavior.init_std == 1.0 / 3.0
+    assert torch.equal(Actor(4, 6, 8, 1, False).log_std.data, torch.full((6,), -math.log(3.0)))
+    cfg = config.with_overrides(base, ["behavior.init_std=0.05"])
+    tr = Trainer(cfg, tmp_path / "run", None, 10_000)
+    assert torch.allclose(tr.actor.log_std.exp(), torch.full((6,), 0.05))
+    tr.env.close()
+    with pytest.raises(config.ConfigError, match=r"init_std: 0.0 is"):
+        config.with_overrides(base, ["behavior.init_std=0.0"])

@@ -91,6 +91,11 @@ def run_one(
         seed=seed,
         max_steps=args.max_steps,
     )
+    # every checkpoint is kept: the first one that evaluates >= 97 % is looked up among them
+    every = max(1, cfg.behavior.checkpoint_interval)
+    cfg.behavior.keep_checkpoints = max(
+        cfg.behavior.keep_checkpoints, -(-cfg.behavior.max_steps // every) + 1
+    )
     t0 = time.perf_counter()
     learn.train(cfg, run_dir, demos=str(demos), force=True, progress=not args.no_progress)
     train_s = time.perf_counter() - t0

@@ -138,6 +138,9 @@ class BehaviorConfig:
     keep_checkpoints: int = 5
     demo_episodes: int | None = None  # extension
     demo_drop_idle: float = 0.0  # extension: no-op filtering of the demos (0 = keep all)
+    # extension: the policy's initial Gaussian sigma, in action units (ML-Agents' sigma 1 on
+    # clamp(u, -3, 3) / 3 is 1/3, the default)
+    init_std: float = 1.0 / 3.0
     demo_curriculum: DemoCurriculumSettings | None = None  # extension: reverse curriculum
     stop_on_convergence: ConvergenceSettings | None = None  # extension: early stop
 
@@ -253,6 +256,7 @@ RANGES: dict[tuple[type, str], Range] = {
     (BehaviorConfig, "keep_checkpoints"): POSITIVE_INT,
     (BehaviorConfig, "demo_episodes"): POSITIVE_INT,
     (BehaviorConfig, "demo_drop_idle"): Range(0, 1, hi_open=True),
+    (BehaviorConfig, "init_std"): Range(0, 1, lo_open=True),
     (EnvSettings, "num_envs"): POSITIVE_INT,
     (EnvSettings, "seed"): Range(0, 2**32, hi_open=True),
     (TorchSettings, "num_threads"): POSITIVE_INT,

@@ -79,6 +79,7 @@ class Actor(nn.Module):
         layers: int,
         normalize: bool,
         n_branches: int = 1,
+        init_std: float = 1.0 / 3.0,
     ):
         super().__init__()
         if n_branches < 1:
@@ -88,9 +89,9 @@ class Actor(nn.Module):
         self.norm = RunningNorm(obs_dim, enabled=normalize)
         self.body = mlp(obs_dim, hidden, layers)
         self.mu = _head(hidden, n_cont, 0.2)
-        # sigma starts at 1/3: ML-Agents starts at sigma 1 but sends clamp(u, -3, 3) / 3 to the
-        # env, i.e. an initial exploration sigma of 1/3 in action units; ours is the same.
-        self.log_std = nn.Parameter(torch.full((n_cont,), -math.log(3.0)))
+        # sigma starts at 1/3 by default: ML-Agents starts at sigma 1 but sends clamp(u, -3, 3) / 3
+        # to the env, i.e. an initial exploration sigma of 1/3 in action units; ours is the same.
+        self.log_std = nn.Parameter(torch.full((n_cont,), math.log(init_std)))
         self.logits = _head(hidden, N_EE * n_branches, 0.1)
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

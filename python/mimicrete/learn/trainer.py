@@ -113,7 +113,13 @@ class Trainer:
         ]
         ns = self.b.network_settings
         self.actor = Actor(
-            self.obs_dim, N_CONT, ns.hidden_units, ns.num_layers, ns.normalize, self.n_branches
+            self.obs_dim,
+            N_CONT,
+            ns.hidden_units,
+            ns.num_layers,
+            ns.normalize,
+            self.n_branches,
+            self.b.init_std,
         )
         self.critic = Critic(
             self.obs_dim, len(self.signals), ns.hidden_units, ns.num_layers, ns.normalize
