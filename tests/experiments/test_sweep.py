@@ -133,6 +133,8 @@ def test_sweep_trial_dirs_crash_report(tmp_path):
             assert _csv_steps(rd) == [512, 1024, 1536, 2048]
             ev = json.loads((rd / "eval.json").read_text())
             assert ev["episodes"] == 8 and 0 <= ev["installed_rate"] <= 1
+            sampled = json.loads((rd / "eval_stochastic.json").read_text())
+            assert sampled["episodes"] == 8 and sampled["policy"] == "stochastic"
             resolved = (rd / "resolved_config.yaml").read_text()
             assert f"seed: {s}" in resolved and "max_steps: 2048" in resolved
             assert (rd / "policy.onnx").exists()
@@ -160,7 +162,7 @@ def test_sweep_trial_dirs_crash_report(tmp_path):
     assert "group3-seed0" in crashed and "group3-seed1" in crashed and "not_a_key" in crashed
     assert "Step budget per run: 2,048 env steps" in text
     assert (results.parent / "figures" / "fig7a_RL_methods.png").stat().st_size > 5000
-    assert "| 1 | PPO | - | 2 |" in text  # group 1, two evaluated seeds
+    assert "| 1 | PPO | - | 2k | 2 |" in text  # group 1: 2,048 steps, two evaluated seeds
 
 
 def test_interrupted_sweep_resumes(tmp_path):
@@ -310,3 +312,19 @@ def test_sweeps_into_one_out_dir_add_up():
     # the report prints each sweep's command
     lines = report.render([], {}, Path("x.md"), m).splitlines()
     assert sum(ln.endswith("# the sweep as run") for ln in lines) == 2
+
+
+def test_stop_on_convergence_flag_reaches_every_trial(tmp_path):
+    pytest.importorskip("ray", reason="requirements/experiments.txt not installed")
+    from mimicrete.experiments.__main__ import build_parser
+    from mimicrete.experiments.sweep import CONVERGENCE_OVERRIDE, build_param_space
+    from mimicrete.learn import config
+    from mimicrete.learn.toyenv import toy_config
+
+    args = build_parser().parse_args(["--stop-on-convergence", "--set", "behavior.beta=0.01"])
+    space = build_param_space(args, [1], [0])
+    assert space["overrides"] == ["behavior.beta=0.01", CONVERGENCE_OVERRIDE]
+    cfg = config.with_overrides(toy_config(tmp_path), [CONVERGENCE_OVERRIDE])
+    assert cfg.behavior.stop_on_convergence == config.ConvergenceSettings()
+    plain = build_parser().parse_args([])
+    assert build_param_space(plain, [1], [0])["overrides"] == []

@@ -49,6 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="config override passed to every trial (repeatable)",
     )
+    p.add_argument(
+        "--stop-on-convergence",
+        action="store_true",
+        help="end a trial once training has converged (installed >= 99 %% in 3 summaries in a "
+        "row, as the paper stopped; run.json records the step)",
+    )
     p.add_argument("--eval-episodes", type=int, default=100, help="evaluation episodes (100)")
     p.add_argument("--out", default=DEFAULT_OUT, help=f"run root ({DEFAULT_OUT})")
     p.add_argument("--name", default=DEFAULT_NAME, help=f"Tune experiment name ({DEFAULT_NAME})")

@@ -41,6 +41,8 @@ GROUPS = tuple(range(1, 10))  # Table 3
 DEFAULT_SEEDS = (0, 1, 2)
 DEFAULT_MAX_STEPS = 1_000_000  # docs/RESULTS.md: 27 trials in ~2 h on 2 cores (paper: 5M)
 DEFAULT_OUT = "runs/experiments"
+#: ``--stop-on-convergence``: the criterion of ``mimicrete train --stop-on-convergence``
+CONVERGENCE_OVERRIDE = "behavior.stop_on_convergence={}"
 DEFAULT_NAME = "table3"
 SWEEP_FILE = "sweep.json"
 
@@ -106,7 +108,8 @@ def build_param_space(args: argparse.Namespace, groups: list[int], seeds: list[i
         "max_steps": int(args.max_steps),
         "demos": str(Path(args.demos).resolve()) if args.demos else None,
         "num_envs": args.num_envs,
-        "overrides": list(args.set),
+        "overrides": list(args.set)
+        + ([CONVERGENCE_OVERRIDE] if getattr(args, "stop_on_convergence", False) else []),
         "eval_episodes": int(args.eval_episodes),
     }
 
