@@ -317,14 +317,19 @@ def test_sweeps_into_one_out_dir_add_up():
 def test_stop_on_convergence_flag_reaches_every_trial(tmp_path):
     pytest.importorskip("ray", reason="requirements/experiments.txt not installed")
     from mimicrete.experiments.__main__ import build_parser
-    from mimicrete.experiments.sweep import CONVERGENCE_OVERRIDE, build_param_space
+    from mimicrete.experiments.sweep import (
+        CONVERGENCE_OVERRIDE,
+        NO_OVERLAP_OVERRIDE,
+        build_param_space,
+    )
     from mimicrete.learn import config
     from mimicrete.learn.toyenv import toy_config
 
     args = build_parser().parse_args(["--stop-on-convergence", "--set", "behavior.beta=0.01"])
     space = build_param_space(args, [1], [0])
-    assert space["overrides"] == ["behavior.beta=0.01", CONVERGENCE_OVERRIDE]
+    assert space["overrides"] == ["behavior.beta=0.01", CONVERGENCE_OVERRIDE, NO_OVERLAP_OVERRIDE]
     cfg = config.with_overrides(toy_config(tmp_path), [CONVERGENCE_OVERRIDE])
     assert cfg.behavior.stop_on_convergence == config.ConvergenceSettings()
-    plain = build_parser().parse_args([])
+    # a trial with 2 CPUs overlaps GAIL's steps with PPO (the config's default)
+    plain = build_parser().parse_args(["--cpus-per-trial", "2"])
     assert build_param_space(plain, [1], [0])["overrides"] == []

@@ -43,6 +43,7 @@ DEFAULT_MAX_STEPS = 1_000_000  # docs/RESULTS.md: 27 trials in ~2 h on 2 cores (
 DEFAULT_OUT = "runs/experiments"
 #: ``--stop-on-convergence``: the criterion of ``mimicrete train --stop-on-convergence``
 CONVERGENCE_OVERRIDE = "behavior.stop_on_convergence={}"
+NO_OVERLAP_OVERRIDE = "torch_settings.overlap_gail=false"
 DEFAULT_NAME = "table3"
 SWEEP_FILE = "sweep.json"
 
@@ -109,7 +110,9 @@ def build_param_space(args: argparse.Namespace, groups: list[int], seeds: list[i
         "demos": str(Path(args.demos).resolve()) if args.demos else None,
         "num_envs": args.num_envs,
         "overrides": list(args.set)
-        + ([CONVERGENCE_OVERRIDE] if getattr(args, "stop_on_convergence", False) else []),
+        + ([CONVERGENCE_OVERRIDE] if getattr(args, "stop_on_convergence", False) else [])
+        # a trial given less than 2 CPUs keeps GAIL's steps on its own thread (no free core)
+        + ([NO_OVERLAP_OVERRIDE] if float(getattr(args, "cpus_per_trial", 1.0)) < 2 else []),
         "eval_episodes": int(args.eval_episodes),
     }
 
