@@ -127,6 +127,10 @@ def _secs(x: float) -> str:
     return f"{x:.0f} s"
 
 
+def _budget(steps: int) -> str:
+    return f"{steps / 1e6:g}M" if steps >= 1_000_000 else f"{steps / 1000:.0f}k"
+
+
 def _pct(x: float | None) -> str:
     return "–" if x is None else f"{x:.0%}"
 
@@ -150,7 +154,7 @@ def table(rows: list[dict[str, Any]]) -> str:
             for r in rs
         ]  # fmt: skip
         lines.append(
-            f"| {task} | {n} | {rs[0]['max_steps'] / 1000:.0f}k | "
+            f"| {task} | {n} | {_budget(rs[0]['max_steps'])} | "
             f"{' / '.join(_pct(r['installed']) for r in rs)} | "
             f"{' / '.join(_pct(r['picked']) for r in rs)} | "
             f"{' / '.join(_pct(r['installed_stochastic']) for r in rs)} | "
