@@ -205,7 +205,8 @@ def test_ctrl_c_in_convert_exits_130_and_leaves_no_broken_file(tmp_path):
     import time
 
     hands = tmp_path / "hands"
-    sy.synth_hands("suction", 6, 2, hands)
+    n = 40  # enough that the run is far from done when the first demo lands, on a fast machine
+    sy.synth_hands("suction", n, 2, hands)
     out = tmp_path / "o"
     p = subprocess.Popen(
         [sys.executable, "-m", "mimicrete", "convert", str(hands), "--task", "suction",
@@ -214,7 +215,7 @@ def test_ctrl_c_in_convert_exits_130_and_leaves_no_broken_file(tmp_path):
     )  # fmt: skip
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not list(out.glob("*.mcap")):
-        time.sleep(0.05)  # the first demo is done: interrupt during a later one
+        time.sleep(0.005)  # the first demo is done: interrupt during a later one
     p.send_signal(signal.SIGINT)
     rc = p.wait(120)
     err = p.stderr.read()
@@ -222,4 +223,4 @@ def test_ctrl_c_in_convert_exits_130_and_leaves_no_broken_file(tmp_path):
     assert rc == 130 and "mimicrete convert: interrupted" in err, (rc, err)
     assert not list(out.glob("*.partial")) and not list(out.glob("*.lock"))
     done = sorted(out.glob("*.mcap"))
-    assert 1 <= len(done) < 6 and demos.load(out).num_episodes == len(done)
+    assert 1 <= len(done) < n and demos.load(out).num_episodes == len(done)

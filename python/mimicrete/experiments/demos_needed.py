@@ -24,6 +24,8 @@ from typing import Any
 from mimicrete import tasks
 from mimicrete.learn.run_files import atomic_write
 
+from .markdown import steps
+
 DEFAULT_COUNTS = (60, 20, 10, 5)
 DEFAULT_SEEDS = (0, 1, 2)
 #: synth-hands seed of each demo count (``make demos`` uses 0): fixed, so the demos are the same
@@ -127,10 +129,6 @@ def _secs(x: float) -> str:
     return f"{x:.0f} s"
 
 
-def _budget(steps: int) -> str:
-    return f"{steps / 1e6:g}M" if steps >= 1_000_000 else f"{steps / 1000:.0f}k"
-
-
 def _pct(x: float | None) -> str:
     return "–" if x is None else f"{x:.0%}"
 
@@ -150,11 +148,11 @@ def table(rows: list[dict[str, Any]]) -> str:
         rs.sort(key=lambda r: r["seed"])
         first = [
             "never" if r["first_97_step"] is None
-            else f"{r['first_97_step'] / 1000:.0f}k, {r['first_97_elapsed_s']:.0f} s"
+            else f"{steps(r['first_97_step'])}, {r['first_97_elapsed_s']:.0f} s"
             for r in rs
         ]  # fmt: skip
         lines.append(
-            f"| {task} | {n} | {_budget(rs[0]['max_steps'])} | "
+            f"| {task} | {n} | {steps(rs[0]['max_steps'])} | "
             f"{' / '.join(_pct(r['installed']) for r in rs)} | "
             f"{' / '.join(_pct(r['picked']) for r in rs)} | "
             f"{' / '.join(_pct(r['installed_stochastic']) for r in rs)} | "

@@ -19,6 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from .figures import write_figures
+from .markdown import listing as _list
+from .markdown import num as _num
+from .markdown import pct as _pct
+from .markdown import steps as _steps
+from .markdown import table as _table
 from .paper import FIG7_PANELS, PAPER_GAIL_LOSS, PAPER_MAX_STEPS, PAPER_TABLE3, PAPER_TABLE5
 from .runs import Run, _json, load_runs
 from .stats import (
@@ -56,36 +61,6 @@ def keep_why(old_text: str, new_text: str) -> str:
     cut = tail.find("\n## ")
     rest = "" if cut < 0 else tail[cut + 1 :]
     return head + WHY_MARK + written + rest
-
-
-# ----------------------------------------------------------------------------------------------
-# formatting
-# ----------------------------------------------------------------------------------------------
-
-
-def _pct(ms: tuple[float, float, int]) -> str:
-    m, sd, n = ms
-    if n == 0:
-        return "–"
-    return f"{100 * m:.0f} ± {100 * sd:.0f} %" if n > 1 else f"{100 * m:.0f} %"
-
-
-def _num(ms: tuple[float, float, int], fmt: str = ".0f") -> str:
-    m, sd, n = ms
-    if n == 0:
-        return "–"
-    return f"{m:{fmt}} ± {sd:{fmt}}" if n > 1 else f"{m:{fmt}}"
-
-
-def _steps(x: float | int | None) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "–"
-    x = float(x)
-    if x >= 1e6:
-        return f"{x / 1e6:.2f}M"
-    if x >= 1e3:
-        return f"{x / 1e3:.0f}k"
-    return f"{x:.0f}"
 
 
 def _budget(runs: list[Run]) -> int | None:
@@ -175,19 +150,6 @@ def _departures(runs: list[Run]) -> list[str]:
             "(`demo_drop_idle` > 0; ML-Agents uses every step)"
         )
     return out
-
-
-def _table(columns: list[str], rows: list[list[object]]) -> list[str]:
-    """A Markdown table: the header of ``columns``, its rule and one line a row."""
-    return [
-        "| " + " | ".join(columns) + " |",
-        "|" + "---|" * len(columns),
-        *("| " + " | ".join(map(str, row)) + " |" for row in rows),
-    ]
-
-
-def _list(gs) -> str:
-    return ", ".join(str(g) for g in sorted(gs))
 
 
 def _sampled_verdict(st: GroupStats, paper: tuple[float, float, float]) -> str:
