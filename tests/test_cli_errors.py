@@ -212,6 +212,9 @@ def test_ctrl_c_in_convert_exits_130_and_leaves_no_broken_file(tmp_path):
         [sys.executable, "-m", "mimicrete", "convert", str(hands), "--task", "suction",
          "--out", str(out), "--no-progress"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # a shell without job control starts background jobs with SIGINT ignored, and Python
+        # keeps an ignored SIGINT: give convert the default, as a terminal's Ctrl-C finds it
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and not list(out.glob("*.mcap")):
