@@ -356,3 +356,7 @@ def test_report_of_a_sweep_run_in_parts(tmp_path):
     assert [c.strip() for c in row3.strip("|").split("|")][3] == "1.00M"
     runs = text.split("## Runs")[1].split("\n## ")[0]
     assert "| group9-seed1 | done | 2.50M | 2.50M |" in runs
+    # no sweep record: one command per part, as the run dirs show it
+    repro = text.split("## Reproduce")[1]
+    assert "--groups 3 --seeds 0 1 --max-steps 1000000 --out" in repro  # 9: replaced by b
+    assert "--groups 9 --seeds 0 1 --max-steps 5000000 --out" in repro

@@ -25,7 +25,7 @@ from .markdown import pct as _pct
 from .markdown import steps as _steps
 from .markdown import table as _table
 from .paper import FIG7_PANELS, PAPER_GAIL_LOSS, PAPER_MAX_STEPS, PAPER_TABLE3, PAPER_TABLE5
-from .runs import Run, _json, load_runs
+from .runs import Run, _json, load_runs, sweep_parts
 from .stats import (
     GAIL_WINDOW,
     LENGTH_TOL,
@@ -481,18 +481,24 @@ def section_reproduce(r: ReportInput) -> list[str]:
         "make experiments   # set-up, requirements/experiments.txt, the sweep, this report",
     ]
     cmds = [p.get("command") for s in r.sweeps for p in s.get("sweeps", [s])]
+    parts = sweep_parts(r.runs)
     if all(cmds) and cmds:
         lines.extend(f"{c}   # the sweep as run" for c in cmds)
-    else:
-        lines.append(
-            f"python -m mimicrete.experiments --groups 1-9 --seeds {' '.join(map(str, r.seeds))}"
-            + (f" --max-steps {r.budget}" if r.budget else "")
-        )
+    else:  # one command per part (run root and budget) the run dirs show
+        for (out, budget, conv), groups in parts.items():
+            lines.append(
+                f"python -m mimicrete.experiments --groups {','.join(map(str, sorted(groups)))} "
+                f"--seeds {' '.join(map(str, r.seeds))}"
+                + (f" --max-steps {budget}" if budget else "")
+                + (" --stop-on-convergence" if conv else "")
+                + (f" --out {out}" if out else "")
+            )
+    roots = list(dict.fromkeys(f"{out}/runs" for out, _, _ in parts if out))
+    roots = roots or ["runs/experiments/runs"]
     lines += [
         "python -m mimicrete.experiments ...   # the same command again resumes it",
         "python -m mimicrete.experiments --address auto ...   # on an existing Ray cluster",
-        "python -m mimicrete.experiments.report --runs runs/experiments/runs --out docs/RESULTS.md"
-        + ("   # --runs A B: a sweep run in parts" if len(r.sweeps) > 1 else ""),
+        f"python -m mimicrete.experiments.report --runs {' '.join(roots)} --out docs/RESULTS.md",
         "```",
         "",
     ]

@@ -11,6 +11,7 @@ before writing anything.
 from __future__ import annotations
 
 import json
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -109,3 +110,16 @@ def load_runs(
                 r.error = r.error or t.get("error")
             runs[key] = r
     return [runs[k] for k in sorted(runs)]
+
+
+def sweep_parts(runs: list[Run]) -> dict[tuple[str | None, int | None, bool], set[int]]:
+    """Groups by (sweep out dir relative to the working dir, budget, stop on convergence)."""
+    out: dict[tuple[str | None, int | None, bool], set[int]] = {}
+    for run in runs:
+        root = None
+        if run.path is not None:
+            root = os.path.relpath(run.path.parent.parent)
+        beh = next(iter(((run.resolved or {}).get("behaviors") or {}).values()), None) or {}
+        key = (root, run.max_steps, bool(beh.get("stop_on_convergence")))
+        out.setdefault(key, set()).add(run.group)
+    return out
