@@ -360,3 +360,11 @@ def test_report_of_a_sweep_run_in_parts(tmp_path):
     repro = text.split("## Reproduce")[1]
     assert "--groups 3 --seeds 0 1 --max-steps 1000000 --out" in repro  # 9: replaced by b
     assert "--groups 9 --seeds 0 1 --max-steps 5000000 --out" in repro
+
+
+def test_report_cli_names_a_missing_runs_dir(tmp_path, capsys):
+    out = tmp_path / "R.md"
+    assert report.main(["--runs", str(tmp_path), str(tmp_path / "nope"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(f"--runs {tmp_path / 'nope'}: no such directory") and "\n" not in err
+    assert not out.exists()

@@ -582,6 +582,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--figures", help="figure dir (default: <out dir>/figures)")
     p.add_argument("--sweep", help="sweep.json (default: beside --runs, if there)")
     a = p.parse_args(argv)
+    missing = [r for r in a.runs if not Path(r).is_dir()]
+    if missing:
+        print(f"{p.prog}: error: --runs {missing[0]}: no such directory", file=sys.stderr)
+        return 2
     out = write_report(
         [Path(x) for x in a.runs],
         Path(a.out),
