@@ -95,7 +95,7 @@ def _convergence_line(runs: list[Run]) -> str | None:
     crit = None
     on = 0
     for r in runs:
-        beh = next(iter(((r.resolved or {}).get("behaviors") or {}).values()), None) or {}
+        beh = r.behavior
         c = beh.get("stop_on_convergence")
         if c:
             on += 1
@@ -123,7 +123,7 @@ def _departures(runs: list[Run]) -> list[str]:
     """Config facts (from resolved_config.yaml) that differ from ML-Agents / the paper."""
     surv, pre, idle = set(), set(), set()
     for r in runs:
-        beh = next(iter(((r.resolved or {}).get("behaviors") or {}).values()), None) or {}
+        beh = r.behavior
         g = (beh.get("reward_signals") or {}).get("gail") or {}
         if g.get("survivor_bias") not in (None, "none"):
             surv.add(r.group)

@@ -44,6 +44,12 @@ class Run:
     def name(self) -> str:
         return f"group{self.group}-seed{self.seed}"
 
+    @property
+    def behavior(self) -> dict[str, Any]:
+        """The behavior section of the run's resolved config ({} without one)."""
+        behaviors = (self.resolved or {}).get("behaviors") or {}
+        return next(iter(behaviors.values()), None) or {}
+
 
 def _json(path: Path) -> dict[str, Any] | None:
     try:
@@ -119,7 +125,6 @@ def sweep_parts(runs: list[Run]) -> dict[tuple[str | None, int | None, bool], se
         root = None
         if run.path is not None:
             root = os.path.relpath(run.path.parent.parent)
-        beh = next(iter(((run.resolved or {}).get("behaviors") or {}).values()), None) or {}
-        key = (root, run.max_steps, bool(beh.get("stop_on_convergence")))
+        key = (root, run.max_steps, bool(run.behavior.get("stop_on_convergence")))
         out.setdefault(key, set()).add(run.group)
     return out
