@@ -310,7 +310,7 @@ def test_sweeps_into_one_out_dir_add_up():
     # the same experiment resumed alone replaces its summary
     assert sweep.merge_summaries(first, first) == first
     # the report prints each sweep's command
-    lines = report.render([], {}, Path("x.md"), m).splitlines()
+    lines = report.render([], {}, Path("x.md"), [m]).splitlines()
     assert sum(ln.endswith("# the sweep as run") for ln in lines) == 2
 
 

@@ -235,6 +235,8 @@ def test_fewdemo_config_loads_and_only_extends_the_schema():
         config.with_overrides(cfg, ["behavior.demo_curriculum.threshold=1.5"])
     with pytest.raises(config.ConfigError, match="unknown"):
         config.with_overrides(cfg, ["behavior.demo_curriculum.bogus=1"])
+    with pytest.raises(config.ConfigError, match="max_demos"):
+        config.with_overrides(cfg, ["behavior.demo_curriculum.max_demos=0"])
 
 
 def test_short_fewdemo_run(hand_demos, tmp_path):
@@ -291,3 +293,29 @@ def test_short_fewdemo_run(hand_demos, tmp_path):
     tr2 = learn.train(cfg, run2, demos=str(hand_demos), progress=False, resume=True)
     assert tr2.step == 3072
     assert all(a >= b for a, b in zip(tr2.curriculum.stage, b1.curriculum.stage, strict=True))
+
+
+def test_max_demos_walks_back_the_first_demos_only(hand_demos, tmp_path):
+    """``demo_curriculum.max_demos`` caps the demos the curriculum starts from (the first ones, in
+    the trainer's order); BC still reads every demo."""
+    from mimicrete import learn
+
+    cfg = config.load(config.find_config_dir() / "fewdemo.yaml")
+    cfg = config.with_overrides(
+        cfg,
+        [
+            *SMALL_RUN,
+            "behavior.max_steps=1024",
+            "behavior.summary_freq=1024",
+            "behavior.checkpoint_interval=1024",
+            "behavior.demo_curriculum.max_demos=2",
+            "env_settings.num_envs=8",
+        ],
+    )
+    tr = learn.train(cfg, tmp_path / "run", demos=str(hand_demos), progress=False)
+    assert tr.curriculum is not None
+    every = curriculum.demo_tracks(hand_demos, None)
+    assert [t.seed for t in tr.curriculum.tracks] == [t.seed for t in every[:2]]
+    assert len(every) == 3 and len({t.seed for t in every}) == 3
+    assert set(tr.curriculum.env_demo.tolist()) <= {-1, 0, 1}
+    assert tr.demo_steps_loaded == sum(t.length for t in every)  # BC read all three

@@ -234,10 +234,14 @@ class ReportInput:
     stats: dict[int, GroupStats]
     figures: dict[str, Path]
     report_path: Path
-    sweep: dict | None
     budget: int | None
     seeds: list[int]
     sweeps: list[dict]  # every sweep record the runs came from (one per part)
+
+    @property
+    def sweep(self) -> dict | None:
+        """The first part's sweep record (the whole sweep's when it ran in one part)."""
+        return self.sweeps[0] if self.sweeps else None
 
     def rel(self, figure: Path) -> str:
         return os.path.relpath(figure, self.report_path.parent)
@@ -523,7 +527,6 @@ def render(
     runs: list[Run],
     figures: dict[str, Path],
     report_path: Path,
-    sweep: dict | None = None,
     sweeps: list[dict] | None = None,
 ) -> str:
     """The report's Markdown: every section of :data:`SECTIONS` in order."""
@@ -535,10 +538,9 @@ def render(
         stats={g: group_stats(g, rs) for g, rs in sorted(by_group.items())},
         figures=figures,
         report_path=report_path,
-        sweep=sweep,
         budget=_budget(runs),
         seeds=sorted({x.seed for x in runs}),
-        sweeps=sweeps if sweeps is not None else ([sweep] if sweep else []),
+        sweeps=sweeps or [],
     )
     return "\n".join(line for section in SECTIONS for line in section(r))
 
@@ -561,7 +563,7 @@ def write_report(
     runs = load_runs(roots, files)
     figures = write_figures(runs, fig_dir)
     sweeps = [s for s in (_json(f) for f in files) if s]
-    text = render(runs, figures, out, sweeps[0] if sweeps else None, sweeps)
+    text = render(runs, figures, out, sweeps)
     if out.exists():
         text = keep_why(out.read_text(), text)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -109,6 +109,7 @@ class DemoCurriculumSettings:
     horizon_ratio: float = 0.75  # a demo-start episode is cut after ratio x remaining demo steps
     min_horizon: int = 30  # ... plus this many steps
     old_start_prob: float = 0.3  # share of demo starts at a start already passed
+    max_demos: int | None = None  # walk back at most this many demos (the first ones); BC uses all
 
 
 @dataclass
@@ -249,6 +250,7 @@ RANGES: dict[tuple[type, str], Range] = {
     (DemoCurriculumSettings, "horizon_ratio"): NON_NEGATIVE,
     (DemoCurriculumSettings, "min_horizon"): POSITIVE_INT,
     (DemoCurriculumSettings, "old_start_prob"): UNIT,
+    (DemoCurriculumSettings, "max_demos"): POSITIVE_INT,
     (BehaviorConfig, "max_steps"): POSITIVE_INT,
     (BehaviorConfig, "time_horizon"): POSITIVE_INT,
     (BehaviorConfig, "summary_freq"): POSITIVE_INT,

@@ -191,8 +191,9 @@ class Trainer:
                 raise config_mod.ConfigError(
                     f"demo_curriculum: {cfg.env_settings.env_id} cannot replay demos"
                 )
+            tracks = demo_tracks(path, self.b.demo_episodes)
             self.curriculum = ReverseCurriculum(
-                demo_tracks(path, self.b.demo_episodes),
+                tracks[: self.b.demo_curriculum.max_demos],
                 self.b.demo_curriculum,
                 self.N,
                 np.random.default_rng(self.seed + 1),
