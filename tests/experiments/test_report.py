@@ -247,6 +247,19 @@ def test_curve_band_t_interval():
     assert m3[-1] == 1.0 and lo3[-1] == hi3[-1] == 1.0 and m3[0] == 0.5
 
 
+def test_a_converged_run_is_held_at_its_last_value_to_the_budget():
+    s, v = np.array([0, 10, 20]), np.array([0.0, 0.5, 1.0])
+    hs, hv = stats.held_to_budget(s, v, converged_at=20, budget=50)
+    assert hs.tolist() == [0, 10, 20, 50] and hv.tolist() == [0.0, 0.5, 1.0, 1.0]
+    for conv, budget in ((None, 50), (20, None), (20, 20)):  # ran to the end, or no budget known
+        same = stats.held_to_budget(s, v, conv, budget)
+        assert same[0] is s and same[1] is v
+    # the seed mean with a converged seed held: both seeds count to the end
+    other = (np.array([0, 25, 50]), np.array([0.0, 0.0, 0.0]))
+    _, mean, _, _ = stats.curve_band([(hs, hv), other], points=3)
+    assert mean.tolist() == [0.0, 0.5, 0.5]
+
+
 @given(st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=50), st.floats(-1e3, 1e3))
 @settings(max_examples=200, deadline=None)
 def test_steps_to_threshold_is_first_crossing(values, thr):

@@ -9,13 +9,32 @@ import numpy as np
 
 from .paper import FIG7_PANELS, PAPER_GAIL_LOSS
 from .runs import Run
-from .stats import TAG_GAIL_LOSS, TAG_INSTALLED, TAG_PICKED, TAG_REWARD, curve_band
+from .stats import (
+    TAG_GAIL_LOSS,
+    TAG_INSTALLED,
+    TAG_PICKED,
+    TAG_REWARD,
+    curve_band,
+    held_to_budget,
+)
 
 
-def _plot_panel(ax, runs_by_group: dict[int, list[Run]], groups: list[int], tag: str) -> bool:
+def _plot_panel(
+    ax, runs_by_group: dict[int, list[Run]], groups: list[int], tag: str, hold: bool = False
+) -> bool:
+    """One panel: every group's seed mean and band; ``hold``: a run that stopped on convergence
+    counts at its last value up to where the group's curves end."""
     drew = False
     for g in groups:
-        curves = [r.scalars[tag] for r in runs_by_group.get(g, []) if tag in r.scalars]
+        runs = [r for r in runs_by_group.get(g, []) if tag in r.scalars and len(r.scalars[tag][0])]
+        # held to where the group's longest curve ends (a last rollout can pass the budget)
+        end = max(
+            [r.scalars[tag][0][-1] for r in runs] + [r.max_steps or 0 for r in runs], default=0
+        )
+        curves = [
+            held_to_budget(*r.scalars[tag], r.converged_at, end) if hold else r.scalars[tag]
+            for r in runs
+        ]
         if not curves:
             continue
         grid, mean, lo, hi = curve_band(curves)
@@ -47,7 +66,7 @@ def write_figures(runs: list[Run], fig_dir: Path) -> dict[str, Path]:
             ((TAG_REWARD, "cumulative reward"), (TAG_INSTALLED, "installed rate (training)")),
             strict=True,
         ):
-            drew |= _plot_panel(ax, by_group, groups, tag)
+            drew |= _plot_panel(ax, by_group, groups, tag, hold=True)
             ax.set_xlabel("env steps")
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)

@@ -354,8 +354,9 @@ def section_fig7(r: ReportInput) -> list[str]:
         "## Fig. 7: learning curves",
         "",
         "Mean over the seeds whose run reaches the step, with a 95 % Student-t confidence band "
-        "of the mean (no band where one seed covers the step): where a run stops on convergence "
-        "the mean jumps to the seeds still training. Left: cumulative extrinsic reward per "
+        "of the mean (no band where one seed covers the step). A run that stopped on "
+        "convergence counts at its last summary from there to the budget (its policy is final). "
+        "Left: cumulative extrinsic reward per "
         "episode (Fig. 7's y axis); right: training installed rate. The curves end at our step "
         "budget: that is where each group stands at the cut.",
         "",

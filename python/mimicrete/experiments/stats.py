@@ -80,6 +80,17 @@ def curve_band(
     return grid, mean, mean - half, mean + half
 
 
+def held_to_budget(
+    steps: np.ndarray, values: np.ndarray, converged_at: int | None, budget: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """A curve of a run that stopped on convergence, its last summary held to the step budget
+    (its policy is final: it would have trained no further), so a seed mean over the budget
+    stays a mean over every seed. Other curves are returned as they are."""
+    if converged_at is None or budget is None or not len(steps) or steps[-1] >= budget:
+        return steps, values
+    return np.append(steps, budget), np.append(values, values[-1])
+
+
 @dataclass
 class GroupStats:
     group: int
