@@ -239,24 +239,31 @@ def test_fewdemo_config_loads_and_only_extends_the_schema():
         config.with_overrides(cfg, ["behavior.demo_curriculum.max_demos=0"])
 
 
+def _small_fewdemo(max_steps: int, *overrides: str) -> config.TrainerConfig:
+    """configs/fewdemo.yaml shrunk to a short run on 8 envs, summaries every 1024 steps."""
+    return config.with_overrides(
+        config.load(config.find_config_dir() / "fewdemo.yaml"),
+        [
+            *SMALL_RUN,
+            f"behavior.max_steps={max_steps}",
+            "behavior.summary_freq=1024",
+            "env_settings.num_envs=8",
+            *overrides,
+        ],
+    )
+
+
 def test_short_fewdemo_run(hand_demos, tmp_path):
     """configs/fewdemo.yaml, shrunk: episodes start inside the demos, are cut at their horizon,
     are counted apart from the env's own starts, and the run resumes exactly."""
     from mimicrete import learn
     from mimicrete.learn import run_files
 
-    cfg = config.load(config.find_config_dir() / "fewdemo.yaml")
-    cfg = config.with_overrides(
-        cfg,
-        [
-            *SMALL_RUN,
-            "behavior.max_steps=3072",
-            "behavior.summary_freq=1024",
-            "behavior.checkpoint_interval=2048",
-            "behavior.demo_curriculum.min_horizon=5",
-            "behavior.demo_curriculum.horizon_ratio=0.1",
-            "env_settings.num_envs=8",
-        ],
+    cfg = _small_fewdemo(
+        3072,
+        "behavior.checkpoint_interval=2048",
+        "behavior.demo_curriculum.min_horizon=5",
+        "behavior.demo_curriculum.horizon_ratio=0.1",
     )
     run = tmp_path / "run"
     tr = learn.train(cfg, run, demos=str(hand_demos), progress=False)
@@ -300,17 +307,8 @@ def test_max_demos_walks_back_the_first_demos_only(hand_demos, tmp_path):
     the trainer's order); BC still reads every demo."""
     from mimicrete import learn
 
-    cfg = config.load(config.find_config_dir() / "fewdemo.yaml")
-    cfg = config.with_overrides(
-        cfg,
-        [
-            *SMALL_RUN,
-            "behavior.max_steps=1024",
-            "behavior.summary_freq=1024",
-            "behavior.checkpoint_interval=1024",
-            "behavior.demo_curriculum.max_demos=2",
-            "env_settings.num_envs=8",
-        ],
+    cfg = _small_fewdemo(
+        1024, "behavior.checkpoint_interval=1024", "behavior.demo_curriculum.max_demos=2"
     )
     tr = learn.train(cfg, tmp_path / "run", demos=str(hand_demos), progress=False)
     assert tr.curriculum is not None
