@@ -10,6 +10,8 @@ import pytest
 
 from mimicrete.experiments import demos_needed as dn
 
+from ._synthetic import write_run
+
 
 def _need_sim():
     native = pytest.importorskip("mimicrete._native")
@@ -53,12 +55,18 @@ def test_demos_needed_tiny_run(tmp_path, capsys):
     assert md.count("\n") == 3 and "| suction | 2 | 2k |" in md
     assert (out / "installed_vs_demos.png").stat().st_size > 5000
     assert len(list((out / "demos" / "suction-2").glob("*.mcap"))) == 2
-    # the finished run is reused, not trained again
+    # the finished run is reused, not trained again; --paper-runs adds the paper's config
     mtime = (run / "policy.pt").stat().st_mtime
     capsys.readouterr()
-    assert dn.main(argv) == 0
+    sweep = tmp_path / "sweep" / "runs"
+    write_run(sweep, 9, 0, [10_000, 20_000], [0, 1], [0, 2], ev=(1.0, 0.5, 300))
+    assert dn.main([*argv, "--paper-runs", str(sweep)]) == 0
     assert (run / "policy.pt").stat().st_mtime == mtime
     assert "suction 2 demos seed 0" in capsys.readouterr().out
+    assert json.loads((out / "paper_config.json").read_text())[0]["installed"] == 0.5
+    assert "| group 9 | 10 | 20k | 50% |" in (out / "summary.md").read_text()
+    assert dn.main(argv) == 0  # later calls keep the paper's rows
+    assert "| group 9 | 10 | 20k | 50% |" in (out / "summary.md").read_text()
 
 
 def test_table_groups_seeds_per_count():
@@ -85,3 +93,26 @@ def test_a_bad_config_is_one_line_before_any_demo_is_made(tmp_path, capsys):
     assert not (tmp_path / "o" / "demos").exists()
     assert dn.main(["--set", "behavior.max_steps=-3", "--out", str(tmp_path / "o")]) == 2
     assert "max_steps: -3 is out of range" in capsys.readouterr().err
+
+
+def test_the_papers_config_beside_ours_from_the_sweeps_run_dirs(tmp_path, capsys):
+    """``--paper-runs``: groups 4, 8 and 9 of the sweep (two roots, as run in parts) in a second
+    table; other groups and unevaluated runs are left out; a missing dir is one line, exit 2."""
+    a, b = tmp_path / "table5" / "runs", tmp_path / "table5-5m" / "runs"
+    steps = [10_000, 20_000]
+    write_run(a, 4, 0, steps, [0.5, 1.0], [1, 2], ev=(1.0, 1.0, 60), ev_sampled=(1, 0.98, 61),
+              converged_at=20_000, max_steps=1_000_000)  # fmt: skip
+    write_run(a, 3, 0, steps, [0.5, 1.0], [1, 2], ev=(1.0, 1.0, 60))  # not a demo-count group
+    write_run(b, 9, 0, steps, [0, 0], [0, 0], ev=(1.0, 0.0, 750), max_steps=20_000)
+    write_run(b, 9, 1, steps, [0, 1], [0, 2], ev=(1.0, 0.5, 300), max_steps=20_000)
+    write_run(b, 8, 0, steps, [0, 0], [0, 0], max_steps=20_000)  # still training: no eval
+    rows = dn.paper_config_rows([a, b])
+    assert sorted((r["group"], r["seed"]) for r in rows) == [(4, 0), (9, 0), (9, 1)]
+    md = dn.paper_table(rows)
+    assert md.splitlines()[2].startswith("| group 9 | 10 | 20k | 0% / 50% | – / – | 20k / 20k |")
+    assert md.splitlines()[3].startswith("| group 4 | 60 | 1.00M | 100% | 98% | 20k c |")
+    assert md.splitlines()[2].endswith("| 82% |") and md.splitlines()[3].endswith("| 97% |")
+    assert dn.main(["--paper-runs", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"demos_needed: error: --paper-runs {tmp_path / 'nope'}: no such directory"
+    )

@@ -9,6 +9,10 @@ plus a sampled evaluation, the robust starts (``mimicrete eval --robust``) and e
 to find the first one that installs >= 97 % and the training's wall clock there. Runs already
 evaluated are not run again (delete a run dir to redo it). Writes ``OUT/summary.json``, a Markdown
 table ``OUT/summary.md`` and the figure ``OUT/installed_vs_demos.png``.
+
+With ``--paper-runs`` (the sweep's run dirs) the paper's own recipe goes beside ours: its groups
+4, 8 and 9, which differ only in the demo count (60, 20, 10), as the sweep trained and evaluated
+them (``OUT/paper_config.json``, a second table and a second line in the figure).
 """
 
 from __future__ import annotations
@@ -25,12 +29,16 @@ from mimicrete import tasks
 from mimicrete.learn.run_files import atomic_write
 
 from .markdown import steps
+from .paper import PAPER_TABLE5
+from .runs import load_runs
 
 DEFAULT_COUNTS = (60, 20, 10, 5)
 DEFAULT_SEEDS = (0, 1, 2)
 #: synth-hands seed of each demo count (``make demos`` uses 0): fixed, so the demos are the same
 HAND_SEEDS = {60: 400, 20: 300, 10: 100, 5: 200}
 TARGET = 0.97
+#: the paper's groups that differ only in the number of demos (Table 3): group -> demos
+PAPER_DEMO_GROUPS = {4: 60, 8: 20, 9: 10}
 
 
 def hand_seed(count: int) -> int:
@@ -163,9 +171,60 @@ def table(rows: list[dict[str, Any]]) -> str:
     return head + "\n".join(lines) + "\n"
 
 
-def figure(rows: list[dict[str, Any]], path: Path) -> Path:
+def _last(curve: tuple[Any, Any] | None) -> float | None:
+    return float(curve[1][-1]) if curve is not None and len(curve[1]) else None
+
+
+def _mins(x: float | None) -> str:
+    return "–" if x is None else f"{x / 60:.0f} min"
+
+
+def paper_config_rows(roots: list[Path]) -> list[dict[str, Any]]:
+    """The evaluated runs of groups 4, 8 and 9 under the sweep's run dirs, one row each."""
+    rows = []
+    for r in load_runs([Path(p) for p in roots]):
+        if r.group in PAPER_DEMO_GROUPS and r.eval is not None:
+            rows.append({
+                "group": r.group,
+                "demos": PAPER_DEMO_GROUPS[r.group],
+                "seed": r.seed,
+                "max_steps": r.max_steps,
+                "installed": r.eval["installed_rate"],
+                "installed_stochastic": (r.eval_sampled or {}).get("installed_rate"),
+                "trained_steps": r.final_step,
+                "converged_at": r.converged_at,
+                "train_wall_clock_s": _last(r.scalars.get("Environment/Elapsed Seconds")),
+            })  # fmt: skip
+    return rows
+
+
+def paper_table(rows: list[dict[str, Any]]) -> str:
+    """The Markdown table of the paper's config here, one line per group, beside the paper's."""
+    head = (
+        "| paper's config | demos | budget | installed per seed | sampled | trained steps "
+        "(c: stopped on convergence) | training wall clock | paper installed |\n"
+        "|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = []
+    for g in sorted({r["group"] for r in rows}, key=lambda g: PAPER_DEMO_GROUPS[g]):
+        rs = sorted((r for r in rows if r["group"] == g), key=lambda r: r["seed"])
+        trained = [steps(r["trained_steps"]) + (" c" if r["converged_at"] else "") for r in rs]
+        lines.append(
+            f"| group {g} | {PAPER_DEMO_GROUPS[g]} | {steps(rs[0]['max_steps'])} | "
+            f"{' / '.join(_pct(r['installed']) for r in rs)} | "
+            f"{' / '.join(_pct(r['installed_stochastic']) for r in rs)} | "
+            f"{' / '.join(trained)} | {' / '.join(_mins(r['train_wall_clock_s']) for r in rs)} | "
+            f"{_pct(PAPER_TABLE5[g][1])} |"
+        )
+    return head + "\n".join(lines) + "\n"
+
+
+def figure(
+    rows: list[dict[str, Any]], path: Path, paper_rows: list[dict[str, Any]] | None = None
+) -> Path:
     """Success rate (deterministic, 100 episodes) against the demo count: every seed a dot, the
-    mean a line, per task; the paper's group 4 / 8 / 9 results beside ours for TileSuction."""
+    mean a line, per task; the paper's group 4 / 8 / 9 results beside ours for TileSuction, and
+    the paper's config as trained here (``paper_rows``) when given."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,7 +239,16 @@ def figure(rows: list[dict[str, Any]], path: Path) -> Path:
         line = ax.plot(counts, [100 * m for m in means], marker="o", label=f"ours ({task})")[0]
         ax.scatter([r["demos"] for r in rs], [100 * r["installed"] for r in rs],
                    color=line.get_color(), alpha=0.35, s=18)  # fmt: skip
-    ax.plot([10, 20, 60], [82, 0, 97], "s--", color="grey", label="paper (groups 9, 8, 4)")
+    if paper_rows:
+        counts = sorted({r["demos"] for r in paper_rows})
+        means = [100 * sum(r["installed"] for r in paper_rows if r["demos"] == n) /
+                 sum(1 for r in paper_rows if r["demos"] == n) for n in counts]  # fmt: skip
+        ax.plot(counts, means, "^-", color="k", label="paper's config here (groups 9, 8, 4)")
+        ax.scatter([r["demos"] for r in paper_rows], [100 * r["installed"] for r in paper_rows],
+                   color="k", marker="^", alpha=0.3, s=18)  # fmt: skip
+    paper = [100 * PAPER_TABLE5[g][1] for g in sorted(PAPER_DEMO_GROUPS, key=PAPER_DEMO_GROUPS.get)]
+    ax.plot(sorted(PAPER_DEMO_GROUPS.values()), paper, "s--", color="grey",
+            label="paper (groups 9, 8, 4)")  # fmt: skip
     ax.set_xscale("log")
     ax.minorticks_off()
     ax.set_xticks([5, 10, 20, 60], ["5", "10", "20", "60"])
@@ -213,6 +281,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="config override for every run (repeatable)")  # fmt: skip
     p.add_argument("--out", default="runs/demos_needed", help="output dir (runs/demos_needed)")
+    p.add_argument("--paper-runs", nargs="+", metavar="DIR",
+                   help="the sweep's run dirs: put the paper's groups 4, 8 and 9 beside ours "
+                   "(kept in OUT/paper_config.json for later calls)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -231,6 +302,9 @@ def main(argv: list[str] | None = None) -> int:
 
     if any(n < 1 for n in args.counts) or args.max_steps < 1 or args.episodes < 1:
         return error("counts, --max-steps and --episodes must be positive")
+    missing = [p for p in args.paper_runs or [] if not Path(p).is_dir()]
+    if missing:
+        return error(f"--paper-runs {missing[0]}: no such directory")
     try:  # the config is checked before any demo is made
         config.resolve(args.config, overrides=[f"env_settings.env_id={tasks.get(args.task).env_id}",
                                                *args.set])  # fmt: skip
@@ -263,9 +337,18 @@ def _run(args: argparse.Namespace) -> int:
     keep = [r for r in old if (r["task"], r["demos"], r["seed"]) not in done]
     rows = sorted(keep + rows, key=lambda r: (r["task"], -r["demos"], r["seed"]))
     atomic_write(prev, json.dumps(rows, indent=1))
-    atomic_write(out / "summary.md", table(rows))
-    print(table(rows))
-    print(f"wrote {prev}, {out / 'summary.md'}, {figure(rows, out / 'installed_vs_demos.png')}")
+    paper_file = out / "paper_config.json"
+    paper_rows = None
+    if args.paper_runs:
+        paper_rows = paper_config_rows([Path(p) for p in args.paper_runs])
+        atomic_write(paper_file, json.dumps(paper_rows, indent=1))
+    elif paper_file.exists():
+        paper_rows = json.loads(paper_file.read_text())
+    md = table(rows) + ("\n" + paper_table(paper_rows) if paper_rows else "")
+    atomic_write(out / "summary.md", md)
+    print(md)
+    fig = figure(rows, out / "installed_vs_demos.png", paper_rows)
+    print(f"wrote {prev}, {out / 'summary.md'}, {fig}")
     return 0
 
 
