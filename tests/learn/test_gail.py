@@ -136,3 +136,22 @@ def test_overlapped_gail_steps_give_the_same_training_bit_for_bit(tmp_path):
     assert sorted(s0) == sorted(s1) and "Losses/GAIL Loss" in s0
     assert all(sorted(s0[k]) == sorted(s1[k]) for k in s0)
     assert r0 == r1 and torch.equal(t0, t1)
+
+
+def test_a_finished_run_leaves_no_gail_thread_behind(tmp_path):
+    """``learn.train`` releases the discriminator's thread when the run ends, so a process that
+    trains many runs (the sweep's driver, demos_needed) does not collect idle threads."""
+    import threading
+
+    from mimicrete import learn
+    from mimicrete.learn.toyenv import toy_config
+
+    def gail_threads() -> int:
+        return sum(t.name.startswith("gail") for t in threading.enumerate())
+
+    before = gail_threads()
+    for i in range(2):
+        tr = learn.train(toy_config(tmp_path, gail=0.05, max_steps=1024), tmp_path / f"r{i}",
+                         progress=False)  # fmt: skip
+        assert tr.cfg.torch_settings.overlap_gail and tr.gail is not None
+    assert gail_threads() == before

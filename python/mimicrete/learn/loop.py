@@ -104,7 +104,7 @@ def train(
         if bar is not None:
             bar.close()
         log.close()
-        tr.env.close()
+        tr.close()
     run_files.save_policy(run_dir, tr.actor, tr.obs_dim, tr.step, cfg)
     return tr
 

@@ -457,6 +457,14 @@ class Trainer:
         self.opt.step()
         return info
 
+    def close(self) -> None:
+        """Release the envs and the GAIL thread (the trainer's weights stay readable; a later
+        update runs the discriminator steps in line)."""
+        self.env.close()
+        if self._gail_pool is not None:
+            self._gail_pool.shutdown(wait=True)
+            self._gail_pool = None
+
     def _submit_gail(self, buf: UpdateBuffer, batches: list, draws: list) -> Future:
         """One epoch's discriminator steps: on the GAIL thread, or here and now."""
         if self._gail_pool is not None:
