@@ -34,10 +34,10 @@ from .stats import (
     TAG_INSTALLED,
     THRESHOLD,
     GroupStats,
-    agrees,
     group_stats,
     mean_sd,
 )
+from .verdicts import comparison_lines
 
 WHY_MARK = "<!-- WHY: human-written explanation goes here -->"
 WHY_PLACEHOLDER = (
@@ -152,75 +152,6 @@ def _departures(runs: list[Run]) -> list[str]:
     return out
 
 
-def _sampled_verdict(st: GroupStats, paper: tuple[float, float, float]) -> str:
-    """ " Sampled: ... (agrees / differs on ...)." for a group with sampled evaluations."""
-    if st.installed_sampled[2] == 0:
-        return ""
-    pp, pi, pl = paper
-    off = [
-        label
-        for label, ours, ref, rate in (
-            ("picked", st.picked_sampled, pp, True),
-            ("installed", st.installed_sampled, pi, True),
-            ("episode length", st.length_sampled, pl, False),
-        )
-        if agrees(ours, ref, rate=rate) is False
-    ]
-    vals = (
-        f"picked {100 * st.picked_sampled[0]:.0f} %, installed "
-        f"{100 * st.installed_sampled[0]:.0f} %, episode length {st.length_sampled[0]:.0f}"
-    )
-    verdict = "agrees with the paper" if not off else f"differs on {', '.join(off)}"
-    return f" Sampled policy: {vals}, which {verdict}."
-
-
-def comparison_lines(stats: dict[int, GroupStats], budget: int | None) -> list[str]:
-    """Generated sentences: where each group agrees with Table 5 and where it does not."""
-    lines = []
-    for g, st in sorted(stats.items()):
-        if g not in PAPER_TABLE5 or st.installed[2] == 0:
-            continue
-        pp, pi, pl = PAPER_TABLE5[g]
-        parts, diffs = [], []
-        for label, ours, paper, rate in (
-            ("picked", st.picked, pp, True),
-            ("installed", st.installed, pi, True),
-            ("episode length", st.length, pl, False),
-        ):
-            ok = agrees(ours, paper, rate=rate)
-            if ok is None:
-                continue
-            if rate:
-                txt = f"{label} {100 * ours[0]:.0f} % vs the paper's {100 * paper:.0f} %"
-            else:
-                txt = f"{label} {ours[0]:.0f} vs {paper:.0f}"
-            (parts if ok else diffs).append(txt)
-        sampled = _sampled_verdict(st, (pp, pi, pl))
-        if not diffs:
-            lines.append(f"- Group {g} **agrees** with the paper ({'; '.join(parts)}).{sampled}")
-            continue
-        s = f"- Group {g} **differs** from the paper: {'; '.join(diffs)}"
-        if parts:
-            s += f" (agrees on {'; '.join(parts)})"
-        s += "." + sampled
-        hints = []
-        budget = st.budget or budget
-        if budget and budget < PAPER_MAX_STEPS and st.installed[0] < pi:
-            hints.append(
-                f"our budget was {_steps(budget)} steps, {100 * budget / PAPER_MAX_STEPS:.0f} % "
-                "of the paper's 5M"
-            )
-            if math.isfinite(st.trend) and st.trend > 0.05:
-                hints.append(
-                    "its training installed rate was still rising at the cut "
-                    f"(+{100 * st.trend:.0f} points over the last 10 % of steps)"
-                )
-        if hints:
-            s += " Data: " + "; ".join(hints) + "."
-        lines.append(s)
-    return lines
-
-
 # ----------------------------------------------------------------------------------------------
 # the report, section by section
 # ----------------------------------------------------------------------------------------------
@@ -237,11 +168,6 @@ class ReportInput:
     budget: int | None
     seeds: list[int]
     sweeps: list[dict]  # every sweep record the runs came from (one per part)
-
-    @property
-    def sweep(self) -> dict | None:
-        """The first part's sweep record (the whole sweep's when it ran in one part)."""
-        return self.sweeps[0] if self.sweeps else None
 
     def rel(self, figure: Path) -> str:
         return os.path.relpath(figure, self.report_path.parent)
@@ -268,7 +194,7 @@ def section_summary(r: ReportInput) -> list[str]:
         lines.append(conv)
     walls = [x.wall_clock_s for x in runs if x.wall_clock_s]
     if walls:
-        sweep = r.sweep
+        sweep = r.sweeps[0] if len(r.sweeps) == 1 else None  # a sweep run in one part
         lines.append(
             f"- Wall clock per run: mean {np.mean(walls) / 60:.1f} min, min "
             f"{min(walls) / 60:.1f}, max {max(walls) / 60:.1f} (total {sum(walls) / 3600:.2f} "
@@ -276,7 +202,7 @@ def section_summary(r: ReportInput) -> list[str]:
             + (
                 f"; the whole sweep took {sweep['sweep_wall_clock_s'] / 3600:.2f} h on "
                 f"{sweep.get('num_cpus')} CPU(s), {sweep.get('cpus_per_trial')} per trial."
-                if sweep and sweep.get("sweep_wall_clock_s") and len(r.sweeps) < 2
+                if sweep and sweep.get("sweep_wall_clock_s")
                 else "."
             )
         )
