@@ -1,0 +1,121 @@
+"""``python -m mimicrete.experiments.survivor``: GAIL's survivor-bias handling against the
+evaluation policy (issue 16), as a Markdown table from run dirs: ML-Agents' ``none`` beside our
+``bootstrap`` for the groups whose GAIL strength is large (2, 5, 7), each with the paper's row.
+
+The runs are plain ``mimicrete train`` runs (which evaluate the deterministic policy) plus a
+sampled evaluation, e.g. group 5 with ``none`` at the paper's 5M steps::
+
+    mimicrete train --config configs/group5.yaml --seed 1 --max-steps 5000000 \\
+        --run-dir runs/survivor/group5-none-seed1 \\
+        --set behavior.reward_signals.gail.survivor_bias=none
+    mimicrete eval --stochastic runs/survivor/group5-none-seed1
+
+Every dir named ``group<g>-...seed<s>`` under the ``--runs`` dirs with both evaluations counts; its
+handling and budget come from its own ``resolved_config.yaml`` and ``run.json``, so the sweep's
+runs (``bootstrap``) go beside the comparison's without being named again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import statistics
+import sys
+from pathlib import Path
+from typing import Any
+
+from .markdown import steps
+from .markdown import table as md_table
+from .paper import PAPER_TABLE5
+from .runs import _json
+
+NAME_RE = re.compile(r"^group(\d+)-(?:.+-)?seed(\d+)$")
+DEFAULT_GROUPS = (2, 5, 7)
+
+
+def load(roots: list[Path], groups: tuple[int, ...] = DEFAULT_GROUPS) -> list[dict[str, Any]]:
+    """One row per evaluated run dir of ``groups`` under ``roots``: group, seed, handling,
+    budget, and the deterministic and sampled (picked, installed, length)."""
+    import yaml
+
+    rows = []
+    for root in roots:
+        for d in sorted(p for p in Path(root).iterdir() if p.is_dir()):
+            m = NAME_RE.match(d.name)
+            det, sam = _json(d / "eval.json"), _json(d / "eval_stochastic.json")
+            if not m or int(m.group(1)) not in groups or det is None or sam is None:
+                continue
+            cfg = yaml.safe_load((d / "resolved_config.yaml").read_text())
+            behavior = next(iter(cfg["behaviors"].values()))
+            gail = behavior["reward_signals"].get("gail") or {}
+            rows.append({
+                "group": int(m.group(1)),
+                "seed": int(m.group(2)),
+                "survivor_bias": gail.get("survivor_bias", "none"),  # the config default
+                "max_steps": behavior["max_steps"],
+                "det": [det["picked_rate"], det["installed_rate"], det["mean_episode_length"]],
+                "sampled": [sam["picked_rate"], sam["installed_rate"], sam["mean_episode_length"]],
+            })  # fmt: skip
+    return rows
+
+
+def _mean_sd(xs: list[float], scale: float, unit: str) -> str:
+    if len(xs) == 1:
+        return f"{scale * xs[0]:.0f}{unit}"
+    return f"{scale * statistics.mean(xs):.0f} ± {scale * statistics.stdev(xs):.0f}{unit}"
+
+
+def _seeds(xs: list[float]) -> str:
+    return " / ".join(f"{100 * x:.0f}" for x in xs) + " %"
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """Per (group, handling, budget): the seeds' deterministic rates, the sampled mean ± sd
+    (per seed in brackets), and the paper's picked / installed / length."""
+    keys = sorted({(r["group"], r["survivor_bias"], r["max_steps"]) for r in rows})
+    out = []
+    for g, bias, budget in keys:
+        rs = sorted((r for r in rows if (r["group"], r["survivor_bias"], r["max_steps"]) ==
+                     (g, bias, budget)), key=lambda r: r["seed"])  # fmt: skip
+        det, sam = [r["det"] for r in rs], [r["sampled"] for r in rs]
+        pp, pi, pl = PAPER_TABLE5[g]
+        out.append([
+            g, f"`{bias}`", steps(budget), len(rs),
+            _seeds([x[0] for x in det]), _seeds([x[1] for x in det]),
+            f"{_mean_sd([x[0] for x in sam], 100, ' %')} ({_seeds([x[0] for x in sam])})",
+            f"{_mean_sd([x[1] for x in sam], 100, ' %')} ({_seeds([x[1] for x in sam])})",
+            _mean_sd([x[2] for x in sam], 1, ""),
+            f"{100 * pp:.0f} % / {100 * pi:.0f} % / {pl:.0f}",
+        ])  # fmt: skip
+    cols = ["group", "survivor bias", "steps", "n", "det. picked", "det. installed",
+            "sampled picked", "sampled installed", "sampled length",
+            "paper: picked / installed / length"]  # fmt: skip
+    return "\n".join(md_table(cols, out)) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="python -m mimicrete.experiments.survivor",
+        description="GAIL's survivor-bias handling (none / bootstrap) against the evaluation "
+        "policy: a Markdown table of the evaluated runs of groups 2, 5 and 7 under the given dirs.",
+    )
+    p.add_argument("--runs", nargs="+", required=True, metavar="DIR",
+                   help="dirs holding group<g>-...seed<s> run dirs (e.g. runs/survivor and the "
+                   "sweep's runs/table5/runs)")  # fmt: skip
+    p.add_argument("--out", help="also write the table to this file")
+    args = p.parse_args(argv)
+    missing = [d for d in args.runs if not Path(d).is_dir()]
+    if missing:
+        print(f"survivor: error: --runs {missing[0]}: no such directory", file=sys.stderr)
+        return 2
+    md = table(load([Path(d) for d in args.runs]))
+    print(md, end="")
+    if args.out:
+        from mimicrete.learn.run_files import atomic_write
+
+        atomic_write(Path(args.out), md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
