@@ -1,6 +1,6 @@
 """``python -m mimicrete.experiments.survivor``: GAIL's survivor-bias handling against the
 evaluation policy (issue 16), as a Markdown table from run dirs: ML-Agents' ``none`` beside our
-``bootstrap`` for the groups whose GAIL strength is large (2, 5, 7), each with the paper's row.
+``bootstrap`` for the groups whose GAIL strength is 0.1 or more (2, 5, 6, 7), with the paper's row.
 
 The runs are plain ``mimicrete train`` runs (which evaluate the deterministic policy) plus a
 sampled evaluation, e.g. group 5 with ``none`` at the paper's 5M steps::
@@ -30,7 +30,7 @@ from .paper import PAPER_TABLE5
 from .runs import _json
 
 NAME_RE = re.compile(r"^group(\d+)-(?:.+-)?seed(\d+)$")
-DEFAULT_GROUPS = (2, 5, 7)
+DEFAULT_GROUPS = (2, 5, 6, 7)  # GAIL strength 0.1 or more
 
 
 def load(roots: list[Path], groups: tuple[int, ...] = DEFAULT_GROUPS) -> list[dict[str, Any]]:
@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m mimicrete.experiments.survivor",
         description="GAIL's survivor-bias handling (none / bootstrap) against the evaluation "
-        "policy: a Markdown table of the evaluated runs of groups 2, 5 and 7 under the given dirs.",
+        "policy: a Markdown table of the evaluated runs of groups 2, 5, 6 and 7 under the given "
+        "dirs.",
     )
     p.add_argument("--runs", nargs="+", required=True, metavar="DIR",
                    help="dirs holding group<g>-...seed<s> run dirs (e.g. runs/survivor and the "
