@@ -30,7 +30,7 @@ from mimicrete.learn.run_files import atomic_write
 
 from .markdown import steps
 from .paper import PAPER_TABLE5
-from .runs import load_runs
+from .runs import load_runs, missing_dir
 
 DEFAULT_COUNTS = (60, 20, 10, 5)
 DEFAULT_SEEDS = (0, 1, 2)
@@ -302,9 +302,9 @@ def main(argv: list[str] | None = None) -> int:
 
     if any(n < 1 for n in args.counts) or args.max_steps < 1 or args.episodes < 1:
         return error("counts, --max-steps and --episodes must be positive")
-    missing = [p for p in args.paper_runs or [] if not Path(p).is_dir()]
-    if missing:
-        return error(f"--paper-runs {missing[0]}: no such directory")
+    bad = missing_dir("--paper-runs", args.paper_runs or [])
+    if bad:
+        return error(bad)
     try:  # the config is checked before any demo is made
         config.resolve(args.config, overrides=[f"env_settings.env_id={tasks.get(args.task).env_id}",
                                                *args.set])  # fmt: skip

@@ -25,7 +25,7 @@ from .markdown import pct as _pct
 from .markdown import steps as _steps
 from .markdown import table as _table
 from .paper import FIG7_PANELS, PAPER_GAIL_LOSS, PAPER_MAX_STEPS, PAPER_TABLE3, PAPER_TABLE5
-from .runs import Run, _json, load_runs, sweep_parts
+from .runs import Run, _json, load_runs, missing_dir, sweep_parts
 from .stats import (
     GAIL_WINDOW,
     LENGTH_TOL,
@@ -282,9 +282,9 @@ def section_fig7(r: ReportInput) -> list[str]:
         "Mean over the seeds whose run reaches the step, with a 95 % Student-t confidence band "
         "of the mean (no band where one seed covers the step). A run that stopped on "
         "convergence counts at its last summary from there to the budget (its policy is final). "
-        "Left: cumulative extrinsic reward per "
-        "episode (Fig. 7's y axis); right: training installed rate. The curves end at our step "
-        "budget: that is where each group stands at the cut.",
+        "Left: cumulative extrinsic reward per episode (Fig. 7's y axis); right: training "
+        "installed rate. The curves end at our step budget: that is where each group stands at "
+        "the cut.",
         "",
     ]
     for key, (title, groups) in FIG7_PANELS.items():
@@ -511,9 +511,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--figures", help="figure dir (default: <out dir>/figures)")
     p.add_argument("--sweep", help="sweep.json (default: beside --runs, if there)")
     a = p.parse_args(argv)
-    missing = [r for r in a.runs if not Path(r).is_dir()]
-    if missing:
-        print(f"{p.prog}: error: --runs {missing[0]}: no such directory", file=sys.stderr)
+    bad = missing_dir("--runs", a.runs)
+    if bad:
+        print(f"{p.prog}: error: {bad}", file=sys.stderr)
         return 2
     out = write_report(
         [Path(x) for x in a.runs],

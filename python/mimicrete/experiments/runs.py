@@ -58,8 +58,9 @@ def _json(path: Path) -> dict[str, Any] | None:
         return None
 
 
-def load_run(path: Path) -> Run | None:
-    m = RUN_DIR_RE.match(path.name)
+def load_run(path: Path, name_re: re.Pattern[str] = RUN_DIR_RE) -> Run | None:
+    """The run in ``path`` if its name matches ``name_re`` (group and seed its first two groups)."""
+    m = name_re.match(path.name)
     if not m or not path.is_dir():
         return None
     run = Run(int(m.group(1)), int(m.group(2)), path)
@@ -128,3 +129,9 @@ def sweep_parts(runs: list[Run]) -> dict[tuple[str | None, int | None, bool], se
         key = (root, run.max_steps, bool(run.behavior.get("stop_on_convergence")))
         out.setdefault(key, set()).add(run.group)
     return out
+
+
+def missing_dir(flag: str, dirs: list[str]) -> str | None:
+    """The error line for the first of ``dirs`` (given as ``flag``) that is not a directory."""
+    missing = [d for d in dirs if not Path(d).is_dir()]
+    return f"{flag} {missing[0]}: no such directory" if missing else None

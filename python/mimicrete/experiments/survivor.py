@@ -27,34 +27,30 @@ from typing import Any
 from .markdown import steps
 from .markdown import table as md_table
 from .paper import PAPER_TABLE5
-from .runs import _json
+from .runs import load_run, missing_dir
 
 NAME_RE = re.compile(r"^group(\d+)-(?:.+-)?seed(\d+)$")
 DEFAULT_GROUPS = (2, 5, 6, 7)  # GAIL strength 0.1 or more
+EVAL_KEYS = ("picked_rate", "installed_rate", "mean_episode_length")
 
 
 def load(roots: list[Path], groups: tuple[int, ...] = DEFAULT_GROUPS) -> list[dict[str, Any]]:
     """One row per evaluated run dir of ``groups`` under ``roots``: group, seed, handling,
     budget, and the deterministic and sampled (picked, installed, length)."""
-    import yaml
-
     rows = []
     for root in roots:
-        for d in sorted(p for p in Path(root).iterdir() if p.is_dir()):
-            m = NAME_RE.match(d.name)
-            det, sam = _json(d / "eval.json"), _json(d / "eval_stochastic.json")
-            if not m or int(m.group(1)) not in groups or det is None or sam is None:
+        for d in sorted(Path(root).iterdir()):
+            r = load_run(d, NAME_RE)
+            if r is None or r.group not in groups or r.eval is None or r.eval_sampled is None:
                 continue
-            cfg = yaml.safe_load((d / "resolved_config.yaml").read_text())
-            behavior = next(iter(cfg["behaviors"].values()))
-            gail = behavior["reward_signals"].get("gail") or {}
+            gail = (r.behavior.get("reward_signals") or {}).get("gail") or {}
             rows.append({
-                "group": int(m.group(1)),
-                "seed": int(m.group(2)),
+                "group": r.group,
+                "seed": r.seed,
                 "survivor_bias": gail.get("survivor_bias", "none"),  # the config default
-                "max_steps": behavior["max_steps"],
-                "det": [det["picked_rate"], det["installed_rate"], det["mean_episode_length"]],
-                "sampled": [sam["picked_rate"], sam["installed_rate"], sam["mean_episode_length"]],
+                "max_steps": r.max_steps or r.behavior.get("max_steps"),
+                "det": [r.eval[k] for k in EVAL_KEYS],
+                "sampled": [r.eval_sampled[k] for k in EVAL_KEYS],
             })  # fmt: skip
     return rows
 
@@ -105,9 +101,9 @@ def main(argv: list[str] | None = None) -> int:
                    "sweep's runs/table5/runs)")  # fmt: skip
     p.add_argument("--out", help="also write the table to this file")
     args = p.parse_args(argv)
-    missing = [d for d in args.runs if not Path(d).is_dir()]
-    if missing:
-        print(f"survivor: error: --runs {missing[0]}: no such directory", file=sys.stderr)
+    bad = missing_dir("--runs", args.runs)
+    if bad:
+        print(f"survivor: error: {bad}", file=sys.stderr)
         return 2
     md = table(load([Path(d) for d in args.runs]))
     print(md, end="")

@@ -458,8 +458,8 @@ class Trainer:
         return info
 
     def close(self) -> None:
-        """Release the envs and the GAIL thread (the trainer's weights stay readable; a later
-        update runs the discriminator steps in line)."""
+        """Release the envs and the GAIL thread once training is over (the trainer's weights,
+        normalisers and state stay readable)."""
         self.env.close()
         if self._gail_pool is not None:
             self._gail_pool.shutdown(wait=True)
