@@ -45,25 +45,32 @@ def test_hand_frame_is_the_wrist_rotation(seed, scale, hand, shape):
 
 def test_hand_dimensions_and_gesture_geometry():
     open_ = hm.hand_joints_local(hm.GESTURE_SHAPES["opening"])
-    fist = hm.hand_joints_local(hm.GESTURE_SHAPES["closing"])
+    pinch = hm.hand_joints_local(hm.GESTURE_SHAPES["closing"])
+    fist = hm.hand_joints_local(hm.GESTURE_SHAPES["tightening"])  # a pinch, the rest curled
     point = hm.hand_joints_local(hm.GESTURE_SHAPES["fixed"])
     # wrist -> middle fingertip of an adult open hand: 17-20 cm
     assert 0.17 < np.linalg.norm(open_[15] - open_[1]) < 0.20
-    # a fist brings every fingertip within 9 cm of the wrist; pointing keeps the index out
-    for tip in (10, 15, 20, 25):
+    # the pinch: thumb tip on the index tip, the index bent, the other fingers loose
+    assert np.linalg.norm(pinch[5] - pinch[10]) < 1e-3
+    assert np.linalg.norm(open_[5] - open_[10]) > 0.06
+    assert np.linalg.norm(pinch[10] - pinch[1]) < 0.15 < np.linalg.norm(pinch[15] - pinch[1])
+    # curled fingers come within 9 cm of the wrist; pointing keeps the index out
+    for tip in (15, 20, 25):
         assert np.linalg.norm(fist[tip] - fist[1]) < 0.09
     assert np.linalg.norm(point[10] - point[1]) > 0.16
     assert np.linalg.norm(point[15] - point[1]) < 0.09
     # fingers curl toward the palm (-Z for a right hand), the left hand toward +Z
     assert fist[12:16, 2].min() < -0.03
     assert (
-        hm.hand_joints_local(hm.GESTURE_SHAPES["closing"], handedness="left")[12:16, 2].max() > 0.03
+        hm.hand_joints_local(hm.GESTURE_SHAPES["tightening"], handedness="left")[12:16, 2].max()
+        > 0.03
     )
-    # bone lengths do not change with curl
+    # bone lengths do not change with curl or pinch
     for a, b in ((7, 8), (8, 9), (9, 10), (3, 4), (4, 5)):
-        assert np.linalg.norm(open_[a] - open_[b]) == pytest.approx(
-            np.linalg.norm(fist[a] - fist[b]), rel=1e-9
-        )
+        for other in (fist, pinch):
+            assert np.linalg.norm(open_[a] - open_[b]) == pytest.approx(
+                np.linalg.norm(other[a] - other[b]), rel=1e-9
+            )
 
 
 def test_layout_maps_keep_the_frame_joints():

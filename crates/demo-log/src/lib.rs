@@ -75,7 +75,7 @@ pub use salvage::{
 };
 pub use scene::{
     arm_capsule_entities, episode_scene, episode_scene_json, frame_numbers, frame_poses, robot_entities,
-    task_scene,
+    scene_json_at, task_scene,
 };
 /// tile-sim's task names (the scene of a demo is the task's).
 pub use tile_sim::Task;

@@ -25,7 +25,12 @@ fn dec(x: f32) -> f64 {
 /// object → [`TILE_FRAME`] (the object frame of every task: tile, block or nut). Ids are the
 /// items' names, numbered when a name repeats (`cup_0` … `cup_3`).
 pub fn task_scene(task: Task, seed: u64) -> Vec<SceneEntity> {
-    let scene = tile_sim::episode_scene(task, seed);
+    task_scene_at(task, &tile_sim::Variation::default().start(task, seed))
+}
+
+/// [`task_scene`] of an episode that began at `start` (its pad, target and plate where it put them).
+pub fn task_scene_at(task: Task, start: &tile_sim::Start) -> Vec<SceneEntity> {
+    let scene = tile_sim::world::scene(task, start);
     let count = |n: &str| scene.items.iter().filter(|i| i.name == n).count();
     let mut seen = std::collections::BTreeMap::<&str, usize>::new();
     let mut out = Vec::new();
@@ -64,7 +69,7 @@ pub fn task_scene(task: Task, seed: u64) -> Vec<SceneEntity> {
 /// (`ur3_kin::urdf::dh_frames_in_links`), so `/tf` moves it as tile-sim moves its links.
 pub fn arm_capsule_entities() -> Vec<SceneEntity> {
     let links = ur3_kin::urdf::dh_frames_in_links(&ur3_kin::UR3);
-    let scene = tile_sim::world::scene(Task::TileSuction, Default::default());
+    let scene = tile_sim::world::scene(Task::TileSuction, &tile_sim::Start::default());
     let mut out = Vec::new();
     for it in &scene.items {
         let (SceneFrame::Link(i @ 1..=6), tile_sim::Shape::Capsule { a, b, radius }) = (it.frame, it.shape)
@@ -143,7 +148,17 @@ fn model(name: &str) -> Result<&'static UrModel, DemoError> {
 /// # Errors
 /// [`DemoError::Invalid`] for an unknown model.
 pub fn episode_scene_json(model_name: &str, task: Task, seed: u64) -> Result<Vec<Value>, DemoError> {
-    Ok(episode_scene(model(model_name)?, task, seed).iter().map(|e| foxglove_entity(e, 0)).collect())
+    scene_json_at(model_name, task, &tile_sim::Variation::default().start(task, seed))
+}
+
+/// [`episode_scene_json`] of an episode that began at `start`.
+///
+/// # Errors
+/// [`DemoError::Invalid`] for an unknown model.
+pub fn scene_json_at(model_name: &str, task: Task, start: &tile_sim::Start) -> Result<Vec<Value>, DemoError> {
+    let mut v = robot_entities(model(model_name)?);
+    v.extend(task_scene_at(task, start));
+    Ok(v.iter().map(|e| foxglove_entity(e, 0)).collect())
 }
 
 /// [`frame_poses`] of the model named `model_name` as `{frame: [x, y, z, qx, qy, qz, qw]}`.

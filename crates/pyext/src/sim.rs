@@ -7,7 +7,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
-use tile_sim::{Env, StepBuffers, Task, VecEnv, VecEnvState};
+use tile_sim::{Env, Start, StepBuffers, Task, Variation, VecEnv, VecEnvState};
 
 type Any<'py> = Bound<'py, PyAny>;
 
@@ -21,6 +21,40 @@ type Actions<'py> = Like<'py, f32>;
 /// The rows of an `(n, cols)` array.
 fn flat<T: numpy::Element + Copy>(a: &Like<'_, T>, cols: usize, what: &str) -> PyResult<Vec<T>> {
     nd_from_py(a).into_matrix(cols, what).map_err(demo_err)
+}
+
+/// The explicit start the keyword arguments name, if `object_pose` is given.
+fn start_of(
+    object_pose: Option<[f32; 3]>,
+    target_offset: Option<[f32; 2]>,
+    pad_offset: Option<[f32; 2]>,
+) -> PyResult<Option<Start>> {
+    match object_pose {
+        Some(o) => Ok(Some(Start::from_options(o, target_offset.unwrap_or([0.0; 2]), pad_offset))),
+        None if target_offset.is_some() || pad_offset.is_some() => {
+            Err(PyValueError::new_err("target_offset / pad_offset need an object_pose"))
+        }
+        None => Ok(None),
+    }
+}
+
+/// The variation `set_variation`'s arguments name (`starts`: "training" | "robust" | "wide";
+/// `towards_wide`: that far from the paper's starts to the wide ones).
+fn variation_of(
+    starts: Option<&str>,
+    towards_wide: Option<f32>,
+    object_x: Option<[f32; 2]>,
+    target_jitter: f32,
+    robust: bool,
+) -> PyResult<Variation> {
+    match (starts, towards_wide) {
+        (Some(_), Some(_)) => Err(PyValueError::new_err("give starts or towards_wide, not both")),
+        (Some(name), None) => Variation::named(name).ok_or_else(|| {
+            PyValueError::new_err(format!("starts: expected training, robust or wide, got {name:?}"))
+        }),
+        (None, Some(s)) => Ok(Variation::towards_wide(s)),
+        (None, None) => Ok(Variation::from_options(object_x, target_jitter, robust)),
+    }
 }
 
 /// The Foxglove `SceneEntity` list (JSON-ready dicts) of episode `seed` of `task`.
@@ -69,10 +103,46 @@ impl SimEnv {
         Ok(SimEnv { env: Env::new(t, seed), task, obs_dim, obs_frame_dim, act_dim })
     }
 
-    /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`.
-    #[pyo3(signature = (seed = None))]
-    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<F32s<'py>> {
-        Ok(vector(py, self.env.reset_owned(seed).map_err(sim_err)?))
+    /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`; at
+    /// `object_pose` `[x, y, yaw]` with the target (and pad) moved by `target_offset` when given.
+    #[pyo3(signature = (seed = None, object_pose = None, target_offset = None, pad_offset = None))]
+    fn reset<'py>(
+        &mut self,
+        py: Python<'py>,
+        seed: Option<u64>,
+        object_pose: Option<[f32; 3]>,
+        target_offset: Option<[f32; 2]>,
+        pad_offset: Option<[f32; 2]>,
+    ) -> PyResult<F32s<'py>> {
+        match start_of(object_pose, target_offset, pad_offset)? {
+            None => Ok(vector(py, self.env.reset_owned(seed).map_err(sim_err)?)),
+            Some(st) => {
+                let s = seed.unwrap_or_else(|| self.env.episode_seed().wrapping_add(1));
+                let mut obs = vec![0.0; self.obs_dim];
+                self.env.reset_start(st, s, &mut obs).map_err(sim_err)?;
+                Ok(vector(py, obs))
+            }
+        }
+    }
+
+    /// Where the running episode started: `{"object_pose": [x, y, yaw], "target_offset": [dx, dy],
+    /// "pad_offset": [dx, dy]}`.
+    fn start<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        to_py(py, &self.env.start())
+    }
+
+    /// How episodes start from the next reset (see `SimVecEnv.set_variation`).
+    #[pyo3(signature = (starts = None, towards_wide = None, object_x = None, target_jitter = 0.0, robust = false))]
+    fn set_variation(
+        &mut self,
+        starts: Option<&str>,
+        towards_wide: Option<f32>,
+        object_x: Option<[f32; 2]>,
+        target_jitter: f32,
+        robust: bool,
+    ) -> PyResult<()> {
+        let v = variation_of(starts, towards_wide, object_x, target_jitter, robust)?;
+        self.env.set_variation(v).map_err(sim_err)
     }
 
     /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
@@ -97,9 +167,9 @@ impl SimEnv {
         to_py(py, &self.env.scene().items)
     }
 
-    /// `scene_entities(task, episode_seed)` of the current episode.
+    /// The Foxglove `SceneEntity` list of the current episode (its start's pad, target, plate).
     fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
-        scene_entities(py, self.task, self.env.snapshot().episode_seed, "ur3")
+        to_py(py, &demo_log::scene_json_at("ur3", self.env.task(), &self.env.start()).map_err(demo_err)?)
     }
 
     /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.
@@ -169,28 +239,80 @@ impl SimVecEnv {
         matrix(py, self.venv.reset_mask_owned(&m).map_err(sim_err)?, self.obs_dim)
     }
 
-    /// How episodes start from the next reset (tile-sim's `Variation`; `robust`: `Variation::robust`).
-    #[pyo3(signature = (object_x = None, target_jitter = 0.0, robust = false))]
+    /// How episodes start from the next reset (tile-sim's `Variation`): `starts` names one
+    /// ("training", "robust", "wide"), `towards_wide` in [0, 1] is that far from the paper's
+    /// starts to the wide ones; else `robust`, or the paper's with `object_x` / `target_jitter`.
+    #[pyo3(signature = (starts = None, towards_wide = None, object_x = None, target_jitter = 0.0, robust = false))]
     fn set_variation(
         &mut self,
+        starts: Option<&str>,
+        towards_wide: Option<f32>,
         object_x: Option<[f32; 2]>,
         target_jitter: f32,
         robust: bool,
     ) -> PyResult<()> {
-        let v = tile_sim::Variation::from_options(object_x, target_jitter, robust);
+        let v = variation_of(starts, towards_wide, object_x, target_jitter, robust)?;
         self.venv.set_variation(v).map_err(sim_err)
     }
 
-    /// Reset env `i` to episode `seed` and replay `actions` (k, act_dim) in it → its obs.
+    /// Reset every env with base seed `seed`, env i at `object_poses[i]` `[x, y, yaw]` with its
+    /// target (and pad) moved by `target_offsets[i]` → obs (num_envs, obs_dim).
+    #[pyo3(signature = (seed, object_poses, target_offsets = None, pad_offsets = None))]
+    fn reset_starts<'py>(
+        &mut self,
+        py: Python<'py>,
+        seed: u64,
+        object_poses: Vec<[f32; 3]>,
+        target_offsets: Option<Vec<[f32; 2]>>,
+        pad_offsets: Option<Vec<[f32; 2]>>,
+    ) -> PyResult<Obs<'py>> {
+        let n = self.num_envs;
+        let count = |what: &str, len: usize| {
+            if len == n {
+                Ok(())
+            } else {
+                Err(PyValueError::new_err(format!("{what}: {len} entries for {n} envs")))
+            }
+        };
+        count("object_pose", object_poses.len())?;
+        let t = target_offsets.unwrap_or_else(|| vec![[0.0; 2]; n]);
+        count("target_offset", t.len())?;
+        if let Some(p) = &pad_offsets {
+            count("pad_offset", p.len())?;
+        }
+        let starts: Vec<Start> = (0..n)
+            .map(|i| Start::from_options(object_poses[i], t[i], pad_offsets.as_ref().map(|p| p[i])))
+            .collect();
+        matrix(py, self.venv.reset_starts_owned(seed, &starts).map_err(sim_err)?, self.obs_dim)
+    }
+
+    /// Reset env `i` to episode `seed` (at `object_pose` / `target_offset` when given, else the
+    /// paper's start of `seed`, where demos are recorded) and replay `actions` (k, act_dim) → its obs.
+    #[pyo3(signature = (i, seed, actions, object_pose = None, target_offset = None, pad_offset = None))]
+    #[allow(clippy::too_many_arguments)]
     fn reset_replay<'py>(
         &mut self,
         py: Python<'py>,
         i: usize,
         seed: u64,
         actions: Actions<'py>,
+        object_pose: Option<[f32; 3]>,
+        target_offset: Option<[f32; 2]>,
+        pad_offset: Option<[f32; 2]>,
     ) -> PyResult<F32s<'py>> {
         let acts = flat(&actions, self.act_dim, "actions")?;
-        Ok(vector(py, self.venv.reset_replay_owned(i, seed, &acts).map_err(sim_err)?))
+        let st = start_of(object_pose, target_offset, pad_offset)?;
+        Ok(vector(py, self.venv.reset_replay_owned(i, seed, st, &acts).map_err(sim_err)?))
+    }
+
+    /// Where env `i`'s running episode started (see `SimEnv.start`).
+    fn start<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Any<'py>> {
+        let n = self.num_envs;
+        let env = self
+            .venv
+            .env(i)
+            .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))?;
+        to_py(py, &env.start())
     }
 
     /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
@@ -211,11 +333,14 @@ impl SimVecEnv {
         let st = self.venv.state();
         let acts =
             st.actions.into_iter().map(|a| matrix(py, a, self.act_dim)).collect::<PyResult<Vec<_>>>()?;
+        let starts: Vec<f32> = st.starts.iter().flat_map(|s| s.to_row()).collect();
         Ok(dict!(py; "base_seed" => st.base_seed, "episodes" => vector(py, st.episodes),
-            "seeds" => vector(py, st.seeds), "actions" => PyList::new(py, acts)?))
+            "seeds" => vector(py, st.seeds), "starts" => matrix(py, starts, 7)?,
+            "actions" => PyList::new(py, acts)?))
     }
 
     /// Rebuild the envs from a `state()` dict's values (replaying each running episode) → obs.
+    #[pyo3(signature = (base_seed, episodes, seeds, actions, starts = None))]
     fn restore<'py>(
         &mut self,
         py: Python<'py>,
@@ -223,11 +348,18 @@ impl SimVecEnv {
         episodes: Vec<u64>,
         seeds: Vec<u64>,
         actions: Vec<Actions<'py>>,
+        starts: Option<Vec<[f32; 7]>>,
     ) -> PyResult<Obs<'py>> {
         let actions = actions.iter().enumerate();
         let actions =
             actions.map(|(i, a)| flat(a, self.act_dim, &format!("actions[{i}]"))).collect::<PyResult<_>>()?;
-        let st = VecEnvState { base_seed, episodes, seeds, actions };
+        // A state saved before starts were recorded: every episode then began at the paper's start of its seed.
+        let task = self.venv.task();
+        let starts = match starts {
+            Some(rows) => rows.into_iter().map(Start::from_row).collect(),
+            None => seeds.iter().map(|&s| Variation::default().start(task, s)).collect(),
+        };
+        let st = VecEnvState { base_seed, episodes, seeds, starts, actions };
         let venv = &mut self.venv;
         matrix(py, py.detach(|| venv.restore_owned(&st)).map_err(sim_err)?, self.obs_dim)
     }

@@ -1,8 +1,9 @@
 //! One simulated episode stream: a Rapier world, the UR3, an end effector, a task object.
 
+use crate::starts::{Start, Variation};
 use crate::world::{self, Handles, Scene};
 use crate::{CONTROL_DT, FRAME_STACK, MAX_EPISODE_STEPS, MAX_JOINT_STEP, SCREW_TURNS, SimError, Task};
-use rand::{Rng, RngExt, SeedableRng};
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
 use std::f64::consts::PI;
@@ -116,7 +117,7 @@ pub struct Env {
     spin: i8,
     turns: f64,
     picked: bool,
-    object_start: Vector,
+    start: Start,
     target: Pose,
     hist: Vec<f32>,
     skipped_steps: u64,
@@ -124,75 +125,17 @@ pub struct Env {
     variation: Variation,
 }
 
-/// How episode starts vary: the object's x range and how far the target may move. The default is
-/// the paper's (x uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]`, fixed target); [`Variation::robust`]
-/// is the robustness evaluation's.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Variation {
-    /// The object's start x is uniform in `[object_x[0], object_x[1]]` (m, Base frame).
-    pub object_x: [f32; 2],
-    /// The target moves by `(dx, dy)`, each uniform in `[-target_jitter, target_jitter]` (m), per
-    /// episode (TileSuction and BlockGrip; the pad stays: a 0.2 m pad holds a 0.15 m tile moved
-    /// 2.5 cm). 0 = the fixed target.
-    pub target_jitter: f32,
-}
-
-impl Default for Variation {
-    fn default() -> Self {
-        Variation { object_x: [world::OBJECT_X_MIN, world::OBJECT_X_MAX], target_jitter: 0.0 }
-    }
-}
-
-impl Variation {
-    /// The robustness evaluation: the x range widened by half its width on each side
-    /// (`[-0.075, 0.225]` m) and the target moved by up to ±2 cm in x and y.
-    pub fn robust() -> Variation {
-        let half = 0.5 * (world::OBJECT_X_MAX - world::OBJECT_X_MIN);
-        Variation { object_x: [world::OBJECT_X_MIN - half, world::OBJECT_X_MAX + half], target_jitter: 0.02 }
-    }
-
-    /// Checks the ranges (finite, ordered, jitter in [0, 0.025] m, x within the table's reach).
-    pub fn validate(&self) -> Result<(), SimError> {
-        let [lo, hi] = self.object_x;
-        let bad = |what: String| Err(SimError::InvalidArgument(what));
-        if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -0.3 || hi > 0.3 {
-            return bad(format!("object_x [{lo}, {hi}] must be an ordered range within [-0.3, 0.3] m"));
-        }
-        if !(0.0..=0.025).contains(&self.target_jitter) {
-            return bad(format!("target_jitter {} must be in [0, 0.025] m", self.target_jitter));
-        }
-        Ok(())
-    }
-}
-
-/// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset: x
-/// uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` from the seed, y = `OBJECT_Y`, resting height.
+/// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset under
+/// the paper's variation: x uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` from the seed, y =
+/// `OBJECT_Y`, resting height.
 pub fn object_start(task: Task, seed: u64) -> Vector {
-    episode_start(task, seed, &Variation::default()).0
-}
-
-/// The object's start and the target's offset of episode `seed` under `v` (the default draws
-/// exactly what [`object_start`] always drew; the offset comes after, from the same stream).
-fn episode_start(task: Task, seed: u64, v: &Variation) -> (Vector, Vector) {
-    let mut ep = ChaCha8Rng::seed_from_u64(seed);
-    let x: f32 = ep.random_range(v.object_x[0]..=v.object_x[1]);
-    let mut offset = Vector::ZERO;
-    if v.target_jitter > 0.0 && task != Task::Screw {
-        let j = v.target_jitter;
-        offset = Vector::new(ep.random_range(-j..=j), ep.random_range(-j..=j), 0.0);
-    }
-    let start = match task {
-        Task::TileSuction => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::TILE_HALF[2]),
-        Task::BlockGrip => Vector::new(x, world::OBJECT_Y, world::TABLE_TOP + world::BLOCK_HALF),
-        Task::Screw => Vector::new(x, world::OBJECT_Y, world::NUT_START_Z),
-    };
-    (start, offset)
+    Variation::default().start(task, seed).object_centre(task)
 }
 
 /// The static scene of episode `seed` of `task` (what [`Env::scene`] gives after `reset(seed)`),
 /// without building a world.
 pub fn episode_scene(task: Task, seed: u64) -> Scene {
-    world::scene(task, object_start(task, seed))
+    world::scene(task, &Variation::default().start(task, seed))
 }
 
 impl Env {
@@ -201,7 +144,7 @@ impl Env {
     pub fn new(task: Task, seed: u64) -> Env {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let first = rng.next_u64();
-        let (world, h) = world::build(task, Vector::ZERO);
+        let (world, h) = world::build(task, &Start::default());
         let mut env = Env {
             task,
             world,
@@ -219,7 +162,7 @@ impl Env {
             spin: 0,
             turns: 0.0,
             picked: false,
-            object_start: Vector::ZERO,
+            start: Start::default(),
             target: Pose::IDENTITY,
             hist: vec![0.0; task.obs_dim()],
             skipped_steps: 0,
@@ -251,15 +194,18 @@ impl Env {
         self.episode_seed
     }
 
-    /// Start episode `seed` and step it through `actions` (`k × act_dim`, row-major): the state a
-    /// recorded episode had after its first `k` steps (same seed + same actions → bit-identical
-    /// trajectory), for training from demonstration states. Every action is validated first, and
-    /// an episode that would end within the replay is refused ([`SimError::InvalidArgument`]);
-    /// on error the env is left reset to `seed`'s start or, for a bad action, unchanged.
-    /// Writes the observation after the last replayed step into `obs_out`; returns `k`.
+    /// Start episode `seed` at `start` (`None`: the paper's start of `seed`, where demos are
+    /// recorded) and step it through `actions` (`k × act_dim`, row-major): the state a
+    /// recorded episode had after its first `k` steps (same start + same actions →
+    /// bit-identical trajectory), for training from demonstration states. Every action and the
+    /// start are validated first, and an episode that would end within the replay is refused
+    /// ([`SimError::InvalidArgument`]); on error the env is left reset to the start or, for a
+    /// bad action or start, unchanged. Writes the observation after the last replayed step
+    /// into `obs_out`; returns `k`.
     pub fn reset_replay(
         &mut self,
         seed: u64,
+        start: Option<Start>,
         actions: &[f32],
         obs_out: &mut [f32],
     ) -> Result<usize, SimError> {
@@ -274,11 +220,18 @@ impl Env {
         for row in actions.chunks(ad) {
             check_action(self.task, row)?;
         }
-        self.reset_with(seed);
+        let start = match start {
+            Some(st) => {
+                st.check(self.task)?;
+                st
+            }
+            None => Variation::default().start(self.task, seed),
+        };
+        self.reset_at(start, seed);
         for (k, row) in actions.chunks(ad).enumerate() {
             let out = self.step_unchecked(row);
             if out.terminated || out.truncated {
-                self.reset_with(seed);
+                self.reset_at(start, seed);
                 return Err(SimError::InvalidArgument(format!(
                     "the replayed episode ends at step {} of {}",
                     k + 1,
@@ -302,22 +255,38 @@ impl Env {
         self.variation
     }
 
+    /// Start an episode at `start` ([`Start::check`]ed first; on error nothing changes), recorded
+    /// as episode `seed`. Writes the first observation into `obs_out`.
+    pub fn reset_start(&mut self, start: Start, seed: u64, obs_out: &mut [f32]) -> Result<(), SimError> {
+        check_len("obs", self.task.obs_dim(), obs_out.len())?;
+        start.check(self.task)?;
+        self.reset_at(start, seed);
+        obs_out.copy_from_slice(&self.hist);
+        Ok(())
+    }
+
+    /// [`Env::reset_start`] without the check, for a start this simulator drew itself (a restore).
+    pub(crate) fn reset_start_unchecked(&mut self, start: Start, seed: u64, obs_out: &mut [f32]) {
+        self.reset_at(start, seed);
+        obs_out.copy_from_slice(&self.hist);
+    }
+
+    /// Where the running episode started.
+    pub fn start(&self) -> Start {
+        self.start
+    }
+
     fn reset_with(&mut self, seed: u64) {
-        let (start, offset) = episode_start(self.task, seed, &self.variation);
-        let x = start.x;
-        let (w, h) = world::build(self.task, start);
+        self.reset_at(self.variation.start(self.task, seed), seed);
+    }
+
+    fn reset_at(&mut self, start: Start, seed: u64) {
+        let (w, h) = world::build(self.task, &start);
         self.world = w;
         self.h = h;
         self.episode_seed = seed;
-        self.object_start = start;
-        self.target = match self.task {
-            Task::Screw => Pose::from_translation(Vector::new(
-                x,
-                world::OBJECT_Y,
-                world::NUT_START_Z - (SCREW_TURNS as f32) * world::THREAD_PITCH,
-            )),
-            t => Pose::from_translation(world::pad_target(t) + offset),
-        };
+        self.start = start;
+        self.target = Pose::from_translation(start.target(self.task));
         self.step_idx = 0;
         self.done = false;
         self.suction_on = false;
@@ -373,7 +342,7 @@ impl Env {
         let ang = (self.turns * 2.0 * PI) as f32;
         // Tightening a right-hand thread turns the nut clockwise seen from above (−Z rotation).
         let p = Pose::from_parts(
-            Vector::new(self.object_start.x, self.object_start.y, z),
+            Vector::new(self.start.object_xy[0], self.start.object_xy[1], z),
             Rotation::from_rotation_z(-ang),
         );
         if let Some(b) = self.world.bodies.get_mut(self.h.object) {
@@ -808,7 +777,7 @@ impl Env {
 
     /// Static geometry of this env's scene (the object item is relative to the object pose).
     pub fn scene(&self) -> Scene {
-        world::scene(self.task, self.object_start)
+        world::scene(self.task, &self.start)
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (rad, each within [-π, π]).

@@ -65,14 +65,16 @@ mod env;
 pub mod expert;
 mod owned;
 mod pool;
+mod starts;
 mod vecenv;
 pub mod world;
 
 pub use env::{
     Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
-    Variation, episode_scene, object_start,
+    episode_scene, object_start,
 };
 pub use owned::{RecordState, StepInfo};
+pub use starts::{MAX_TARGET_OFFSET, MAX_YAW, PAD_CLEARANCE, REACH_MARGIN, Start, Variation};
 pub use vecenv::{StepBuffers, StepOut, VecEnv, VecEnvState, episode_seed};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
 

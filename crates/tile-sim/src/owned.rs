@@ -63,9 +63,21 @@ impl VecEnv {
     }
 
     /// [`VecEnv::reset_replay`] → env `i`'s observation (`obs_dim`).
-    pub fn reset_replay_owned(&mut self, i: usize, seed: u64, actions: &[f32]) -> Result<Vec<f32>, SimError> {
+    pub fn reset_replay_owned(
+        &mut self,
+        i: usize,
+        seed: u64,
+        start: Option<crate::Start>,
+        actions: &[f32],
+    ) -> Result<Vec<f32>, SimError> {
         let mut obs = self.obs_buffer(1);
-        self.reset_replay(i, seed, actions, &mut obs).map(|_| obs)
+        self.reset_replay(i, seed, start, actions, &mut obs).map(|_| obs)
+    }
+
+    /// [`VecEnv::reset_starts`] → the observations of all envs.
+    pub fn reset_starts_owned(&mut self, seed: u64, starts: &[crate::Start]) -> Result<Vec<f32>, SimError> {
+        let mut obs = self.obs_buffer(self.num_envs());
+        self.reset_starts(seed, starts, &mut obs).map(|()| obs)
     }
 
     /// [`VecEnv::restore`] → the observations of all envs.
@@ -76,13 +88,24 @@ impl VecEnv {
 }
 
 impl crate::Variation {
+    /// The variation a caller names: `"training"` (the paper's, [`Variation::default`](crate::Variation::default)),
+    /// `"robust"` or `"wide"`; `None` for another name.
+    pub fn named(name: &str) -> Option<crate::Variation> {
+        match name {
+            "training" | "paper" => Some(crate::Variation::default()),
+            "robust" => Some(crate::Variation::robust()),
+            "wide" => Some(crate::Variation::wide()),
+            _ => None,
+        }
+    }
+
     /// The variation a caller names by options: [`Variation::robust`](crate::Variation::robust)
     /// when `robust`, else the object's x range `object_x` (default: the paper's) and the
     /// target's jitter (m).
     pub fn from_options(object_x: Option<[f32; 2]>, target_jitter: f32, robust: bool) -> crate::Variation {
         match (robust, object_x) {
             (true, _) => crate::Variation::robust(),
-            (false, Some(x)) => crate::Variation { object_x: x, target_jitter },
+            (false, Some(x)) => crate::Variation { object_x: x, target_jitter, ..Default::default() },
             (false, None) => crate::Variation { target_jitter, ..Default::default() },
         }
     }

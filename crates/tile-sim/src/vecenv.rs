@@ -15,6 +15,7 @@
 
 use crate::env::{Env, StepOutcome, check_action};
 use crate::pool::Pool;
+use crate::starts::Start;
 use crate::{MAX_EPISODE_STEPS, SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -126,6 +127,9 @@ pub struct VecEnvState {
     /// Per env: the seed of its running episode ([`episode_seed`], or the demo's seed of a
     /// [`VecEnv::reset_replay`] start).
     pub seeds: Vec<u64>,
+    /// Per env: where its running episode started (drawn from the seed under the variation of
+    /// that moment, or given), so a restore does not depend on the variation set at restore time.
+    pub starts: Vec<Start>,
     /// Per env: the actions (`act_dim` each, row-major, as passed to `step`) of its running
     /// episode, fewer than `MAX_EPISODE_STEPS` rows.
     pub actions: Vec<Vec<f32>>,
@@ -172,7 +176,7 @@ impl VecEnv {
     }
 
     /// How every env's episodes start from the next reset on ([`Variation`]); refused (and
-    /// nothing changed) if out of range. Not part of [`VecEnv::state`]: set it again after a restore.
+    /// nothing changed) if out of range. Not part of [`VecEnv::state`] (each running episode's start is); a restore keeps it.
     pub fn set_variation(&mut self, v: crate::Variation) -> Result<(), SimError> {
         v.validate()?;
         for env in &mut self.envs {
@@ -228,6 +232,28 @@ impl VecEnv {
         Ok(())
     }
 
+    /// Reset every env as [`VecEnv::reset`] with `Some(seed)` does, but env `i` starts at
+    /// `starts[i]` (each [`Start::check`]ed first: on error nothing changes). Later episodes
+    /// draw their starts from the variation again.
+    pub fn reset_starts(&mut self, seed: u64, starts: &[Start], obs_out: &mut [f32]) -> Result<(), SimError> {
+        let od = self.task.obs_dim();
+        check("obs", self.envs.len() * od, obs_out.len())?;
+        check("starts", self.envs.len(), starts.len())?;
+        for (i, st) in starts.iter().enumerate() {
+            st.check(self.task).map_err(|e| match e {
+                SimError::InvalidArgument(m) => SimError::InvalidArgument(format!("env {i}: {m}")),
+                e => e,
+            })?;
+        }
+        self.base_seed = seed;
+        for (i, ((env, o), st)) in self.envs.iter_mut().zip(obs_out.chunks_mut(od)).zip(starts).enumerate() {
+            env.reset_start(*st, episode_seed(seed, i as u64, 0), o)?;
+            self.episodes[i] = 0;
+            self.logs[i].clear();
+        }
+        Ok(())
+    }
+
     /// Reset the envs whose mask entry is true (each starts its next episode, seeded by
     /// [`episode_seed`]); the rows of the others in `obs_out` are filled with their current
     /// observation.
@@ -247,12 +273,14 @@ impl VecEnv {
         Ok(())
     }
 
-    /// Reset env `i` to episode `seed` and replay `actions` in it ([`Env::reset_replay`]); the
-    /// other envs do not move. Writes env `i`'s observation (`obs_dim` floats) into `obs_out`.
+    /// Reset env `i` to episode `seed` (at `start`, or the paper's start of `seed`) and replay
+    /// `actions` in it ([`Env::reset_replay`]); the other envs do not move. Writes env `i`'s
+    /// observation (`obs_dim` floats) into `obs_out`.
     pub fn reset_replay(
         &mut self,
         i: usize,
         seed: u64,
+        start: Option<Start>,
         actions: &[f32],
         obs_out: &mut [f32],
     ) -> Result<usize, SimError> {
@@ -261,7 +289,7 @@ impl VecEnv {
             .envs
             .get_mut(i)
             .ok_or_else(|| SimError::InvalidArgument(format!("env index {i} out of range (num_envs {n})")))?;
-        let steps = env.reset_replay(seed, actions, obs_out)?;
+        let steps = env.reset_replay(seed, start, actions, obs_out)?;
         // a new episode of env i: counted, and its actions so far are the replayed ones (so
         // `state`/`restore` rebuild it from its own seed)
         self.episodes[i] += 1;
@@ -282,6 +310,7 @@ impl VecEnv {
             base_seed: self.base_seed,
             episodes: self.episodes.clone(),
             seeds: self.envs.iter().map(Env::episode_seed).collect(),
+            starts: self.envs.iter().map(Env::start).collect(),
             actions: self.logs.clone(),
         }
     }
@@ -295,6 +324,7 @@ impl VecEnv {
         check("obs", n * od, obs_out.len())?;
         check("episodes", n, state.episodes.len())?;
         check("seeds", n, state.seeds.len())?;
+        check("starts", n, state.starts.len())?;
         check("actions", n, state.actions.len())?;
         for (i, a) in state.actions.iter().enumerate() {
             if a.len() % ad != 0 || a.len() / ad >= MAX_EPISODE_STEPS as usize {
@@ -312,7 +342,8 @@ impl VecEnv {
         let mut envs = Vec::with_capacity(n);
         for (i, (a, o)) in state.actions.iter().zip(obs_out.chunks_mut(od)).enumerate() {
             let mut env = Env::new(self.task, 0);
-            env.reset(Some(state.seeds[i]), o)?;
+            env.set_variation(self.envs[i].variation())?;
+            env.reset_start_unchecked(state.starts[i], state.seeds[i], o);
             for (k, row) in a.chunks(ad).enumerate() {
                 let r = env.step(row, o)?;
                 if r.terminated || r.truncated {

@@ -1,7 +1,7 @@
 //! World geometry: table, arm link shapes, end effectors, task objects, and the static scene
 //! description for visualisation. All lengths in metres, Base frame, Z up.
 
-use crate::{CONTROL_DT, PHYSICS_SUBSTEPS, Task};
+use crate::{CONTROL_DT, PHYSICS_SUBSTEPS, Start, Task};
 use rapier3d::prelude::*;
 use std::f32::consts::FRAC_PI_2;
 
@@ -33,6 +33,8 @@ pub const BLOCK_HALF: f32 = 0.02;
 pub const BLOCK_MASS: f32 = 0.045;
 
 // ---- screw task ----
+/// Half extent (x and y) of the 1 cm steel plate the bolt stands on.
+pub const SCREW_PLATE_HALF: f32 = 0.04;
 /// Bolt: M12, radius 6 mm, standing on a 1 cm steel plate; its top is at `BOLT_TOP` above the table.
 pub const BOLT_RADIUS: f32 = 0.006;
 pub const BOLT_TOP: f32 = 0.08;
@@ -118,15 +120,22 @@ fn item(name: &'static str, frame: SceneFrame, shape: Shape, t: [f32; 3], rgba: 
 
 /// The grey pad and the translucent green target marker (half-size `marker_half_xy`, drawn
 /// `marker_dz` above the task's target point) of the tasks that place an object on the pad.
-fn push_pad_and_target(items: &mut Vec<SceneItem>, task: Task, marker_half_xy: [f32; 2], marker_dz: f32) {
+fn push_pad_and_target(
+    items: &mut Vec<SceneItem>,
+    task: Task,
+    start: &Start,
+    marker_half_xy: [f32; 2],
+    marker_dz: f32,
+) {
+    let pad = start.pad_xy();
     items.push(item(
         "pad",
         SceneFrame::World,
         Shape::Box { half: PAD_HALF },
-        [PAD_XY[0], PAD_XY[1], PAD_HALF[2]],
+        [pad[0], pad[1], PAD_HALF[2]],
         [0.5, 0.5, 0.5, 1.0],
     ));
-    let t = pad_target(task);
+    let t = start.target(task);
     items.push(item(
         "target",
         SceneFrame::World,
@@ -189,8 +198,11 @@ pub struct Handles {
     pub object: RigidBodyHandle,
 }
 
-/// Build a fresh world for `task` with the object centre at `object_pos` (Base frame).
-pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
+/// Build a fresh world for `task` with the object and the pad where `start` puts them.
+pub fn build(task: Task, start: &Start) -> (PhysicsWorld, Handles) {
+    let object_pos = start.object_centre(task);
+    let object_at = Pose::from_parts(object_pos, Rotation::from_rotation_z(start.yaw));
+    let pad = start.pad_xy();
     let mut w = PhysicsWorld::new();
     w.gravity = Vector::new(0.0, 0.0, -9.81);
     w.integration_parameters.dt = CONTROL_DT;
@@ -221,7 +233,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
         Task::TileSuction | Task::BlockGrip => {
             w.insert_collider(
                 ColliderBuilder::cuboid(PAD_HALF[0], PAD_HALF[1], PAD_HALF[2])
-                    .translation(Vector::new(PAD_XY[0], PAD_XY[1], TABLE_TOP + PAD_HALF[2]))
+                    .translation(Vector::new(pad[0], pad[1], TABLE_TOP + PAD_HALF[2]))
                     .friction(FRICTION)
                     .collision_groups(static_groups()),
                 Some(table),
@@ -230,7 +242,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
         Task::Screw => {
             // Steel plate with the bolt (the nut is kinematic along the bolt, no contact needed).
             w.insert_collider(
-                ColliderBuilder::cuboid(0.04, 0.04, 0.005)
+                ColliderBuilder::cuboid(SCREW_PLATE_HALF, SCREW_PLATE_HALF, 0.005)
                     .translation(Vector::new(object_pos.x, object_pos.y, 0.005))
                     .collision_groups(static_groups()),
                 Some(table),
@@ -309,7 +321,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
     // The object.
     let object = match task {
         Task::TileSuction => {
-            let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
+            let b = w.insert_body(RigidBodyBuilder::dynamic().pose(object_at));
             w.insert_collider(
                 ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2])
                     .mass(TILE_MASS)
@@ -320,7 +332,7 @@ pub fn build(task: Task, object_pos: Vector) -> (PhysicsWorld, Handles) {
             b
         }
         Task::BlockGrip => {
-            let b = w.insert_body(RigidBodyBuilder::dynamic().translation(object_pos));
+            let b = w.insert_body(RigidBodyBuilder::dynamic().pose(object_at));
             w.insert_collider(
                 ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF)
                     .mass(BLOCK_MASS)
@@ -355,8 +367,10 @@ pub fn pad_target(task: Task) -> Vector {
     }
 }
 
-/// The static scene description of a task (object item placed at its centre via `SceneFrame::Object`).
-pub fn scene(task: Task, object_pos: Vector) -> Scene {
+/// The static scene description of a task at `start` (the pad, the target and the screw's plate
+/// where `start` puts them; the object item is relative to the object, `SceneFrame::Object`).
+pub fn scene(task: Task, start: &Start) -> Scene {
+    let object_pos = start.object_centre(task);
     let mut items = vec![item(
         "table",
         SceneFrame::World,
@@ -385,7 +399,7 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
     let tool = SceneFrame::Link(6);
     match task {
         Task::TileSuction => {
-            push_pad_and_target(&mut items, task, [TILE_HALF[0], TILE_HALF[1]], 0.0);
+            push_pad_and_target(&mut items, task, start, [TILE_HALF[0], TILE_HALF[1]], 0.0);
             items.push(item(
                 "suction_plate",
                 tool,
@@ -431,7 +445,7 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
                 ));
             }
             if task == Task::BlockGrip {
-                push_pad_and_target(&mut items, task, [BLOCK_HALF, BLOCK_HALF], -BLOCK_HALF);
+                push_pad_and_target(&mut items, task, start, [BLOCK_HALF, BLOCK_HALF], -BLOCK_HALF);
                 items.push(item(
                     "block",
                     SceneFrame::Object,
@@ -443,7 +457,7 @@ pub fn scene(task: Task, object_pos: Vector) -> Scene {
                 items.push(item(
                     "plate",
                     SceneFrame::World,
-                    Shape::Box { half: [0.04, 0.04, 0.005] },
+                    Shape::Box { half: [SCREW_PLATE_HALF, SCREW_PLATE_HALF, 0.005] },
                     [object_pos.x, object_pos.y, 0.005],
                     [0.5, 0.5, 0.5, 1.0],
                 ));

@@ -37,12 +37,12 @@ fn vecenv_owned_calls_match_the_buffer_calls() {
     assert_eq!(b.reset_mask_owned(&[true, false, true]).unwrap(), obs);
     let acts = vec![0.2; 2 * ad];
     let mut one = vec![0.0; od];
-    a.reset_replay(1, 9, &acts, &mut one).unwrap();
-    assert_eq!(b.reset_replay_owned(1, 9, &acts).unwrap(), one);
+    a.reset_replay(1, 9, None, &acts, &mut one).unwrap();
+    assert_eq!(b.reset_replay_owned(1, 9, None, &acts).unwrap(), one);
     let st = a.state();
     a.restore(&st, &mut obs).unwrap();
     assert_eq!(b.restore_owned(&st).unwrap(), obs);
-    assert!(b.reset_replay_owned(n, 0, &acts).is_err());
+    assert!(b.reset_replay_owned(n, 0, None, &acts).is_err());
 }
 
 #[test]

@@ -54,17 +54,20 @@ fn the_robust_variation_widens_x_and_moves_the_target() {
 fn out_of_range_variations_are_refused_and_change_nothing() {
     let mut env = Env::new(Task::TileSuction, 0);
     for bad in [
-        Variation { object_x: [0.2, 0.1], target_jitter: 0.0 },
-        Variation { object_x: [f32::NAN, 0.1], target_jitter: 0.0 },
-        Variation { object_x: [-0.5, 0.1], target_jitter: 0.0 },
-        Variation { object_x: [0.0, 0.15], target_jitter: 0.05 },
-        Variation { object_x: [0.0, 0.15], target_jitter: -0.01 },
+        Variation { object_x: [0.2, 0.1], target_jitter: 0.0, ..Default::default() },
+        Variation { object_x: [f32::NAN, 0.1], target_jitter: 0.0, ..Default::default() },
+        Variation { object_x: [-0.5, 0.1], target_jitter: 0.0, ..Default::default() },
+        Variation { object_x: [0.0, 0.15], target_jitter: 0.05, ..Default::default() },
+        Variation { object_x: [0.0, 0.15], target_jitter: -0.01, ..Default::default() },
     ] {
         assert!(env.set_variation(bad).is_err(), "{bad:?}");
         assert_eq!(env.variation(), Variation::default());
     }
     let mut venv = VecEnv::new(Task::TileSuction, 3, 0, 1).unwrap();
-    assert!(venv.set_variation(Variation { object_x: [0.2, 0.1], target_jitter: 0.0 }).is_err());
+    assert!(
+        venv.set_variation(Variation { object_x: [0.2, 0.1], target_jitter: 0.0, ..Default::default() })
+            .is_err()
+    );
     venv.set_variation(Variation::robust()).unwrap();
     assert!((0..3).all(|i| venv.env(i).unwrap().variation() == Variation::robust()));
 }

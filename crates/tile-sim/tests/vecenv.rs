@@ -442,6 +442,11 @@ fn state_restore_continues_bit_for_bit() {
     }
 }
 
+/// The paper's start of each seed (what a VecEnv at the default variation draws).
+fn paper_starts(seeds: &[u64]) -> Vec<tile_sim::Start> {
+    seeds.iter().map(|&s| tile_sim::Variation::default().start(Task::TileSuction, s)).collect()
+}
+
 #[test]
 fn restore_refuses_states_that_do_not_fit() {
     let task = Task::TileSuction;
@@ -454,11 +459,13 @@ fn restore_refuses_states_that_do_not_fit() {
         base_seed: 4,
         episodes: vec![0, 3],
         seeds: seeds.clone(),
+        starts: paper_starts(&seeds),
         actions: vec![vec![0.1; 7], vec![]],
     };
     let bad = [
         VecEnvState { episodes: vec![0], ..good.clone() },
         VecEnvState { seeds: vec![1], ..good.clone() },
+        VecEnvState { starts: paper_starts(&[1]), ..good.clone() },
         VecEnvState { actions: vec![vec![0.0; 6], vec![]], ..good.clone() },
         VecEnvState { actions: vec![vec![0.0; 750 * 7], vec![]], ..good.clone() },
         VecEnvState { actions: vec![vec![f32::NAN; 7], vec![]], ..good.clone() },
@@ -488,14 +495,20 @@ fn restore_refuses_states_that_do_not_fit() {
         base_seed: 4,
         episodes: vec![0, 0],
         seeds: first.clone(),
+        starts: paper_starts(&first),
         actions: vec![rows.clone(), vec![]],
     };
     let err = v.restore(&ends, &mut o).unwrap_err().to_string();
     assert!(err.contains("env 0: the recorded episode ends at action"), "{err}");
     assert_eq!(v.state(), before);
     rows.truncate(rows.len() - 7); // one step before the install: a running episode
-    let running =
-        VecEnvState { base_seed: 4, episodes: vec![0, 0], seeds: first, actions: vec![rows, vec![]] };
+    let running = VecEnvState {
+        base_seed: 4,
+        episodes: vec![0, 0],
+        starts: paper_starts(&first),
+        seeds: first,
+        actions: vec![rows, vec![]],
+    };
     v.restore(&running, &mut o).unwrap();
     assert!(v.env(0).unwrap().snapshot().held);
     v.restore(&good, &mut o).unwrap();
@@ -523,13 +536,13 @@ fn reset_replay_matches_stepping_the_recorded_episode() {
             let mut all = vec![0.0; 3 * od];
             v.reset(None, &mut all).unwrap();
             let other_before = all[..od].to_vec();
-            assert_eq!(v.reset_replay(2, 1234, &acts[..k * ad], &mut ob).unwrap(), k);
+            assert_eq!(v.reset_replay(2, 1234, None, &acts[..k * ad], &mut ob).unwrap(), k);
             assert_eq!(oa, ob, "{task:?} k={k}: replayed observation differs");
             assert_eq!(v.env(0).unwrap().observation(), &other_before[..], "env 0 moved");
             assert_eq!(v.env(2).unwrap().snapshot().step, k as u32);
             // the continuation is the same too
             let mut env_b = Env::new(task, 1);
-            env_b.reset_replay(1234, &acts[..k * ad], &mut ob).unwrap();
+            env_b.reset_replay(1234, None, &acts[..k * ad], &mut ob).unwrap();
             for row in acts[k * ad..].chunks(ad) {
                 let ra = a.step(row, &mut oa).unwrap();
                 let rb = env_b.step(row, &mut ob).unwrap();
@@ -549,14 +562,17 @@ fn reset_replay_refuses_bad_input() {
     let (ad, od) = (task.act_dim(), task.obs_dim());
     let mut v = VecEnv::new(task, 2, 0, 1).unwrap();
     let mut o = vec![0.0; od];
-    assert!(matches!(v.reset_replay(2, 1, &[], &mut o), Err(SimError::InvalidArgument(_))));
-    assert!(matches!(v.reset_replay(0, 1, &vec![0.0; ad + 1], &mut o), Err(SimError::InvalidArgument(_))));
+    assert!(matches!(v.reset_replay(2, 1, None, &[], &mut o), Err(SimError::InvalidArgument(_))));
+    assert!(matches!(
+        v.reset_replay(0, 1, None, &vec![0.0; ad + 1], &mut o),
+        Err(SimError::InvalidArgument(_))
+    ));
     let mut bad = vec![0.0; ad];
     bad[3] = f32::NAN;
-    assert!(matches!(v.reset_replay(0, 1, &bad, &mut o), Err(SimError::NonFiniteAction { .. })));
+    assert!(matches!(v.reset_replay(0, 1, None, &bad, &mut o), Err(SimError::NonFiniteAction { .. })));
     // 750 idle steps: the episode is truncated inside the replay, which is refused
     let idle = vec![0.0; 750 * ad];
-    assert!(matches!(v.reset_replay(1, 1, &idle, &mut o), Err(SimError::InvalidArgument(_))));
+    assert!(matches!(v.reset_replay(1, 1, None, &idle, &mut o), Err(SimError::InvalidArgument(_))));
     // and the env is left at the start of that episode, steppable
     assert_eq!(v.env(1).unwrap().snapshot().step, 0);
     assert_eq!(v.env(1).unwrap().snapshot().episode_seed, 1);
@@ -571,7 +587,7 @@ fn state_and_restore_keep_a_demo_start() {
     let mut v = VecEnv::new(task, 2, 9, 1).unwrap();
     let acts: Vec<f32> = random_actions(task, 30, 3).iter().map(|a| a * 0.05).collect();
     let mut o1 = vec![0.0; od];
-    v.reset_replay(1, 12345, &acts[..20 * ad], &mut o1).unwrap();
+    v.reset_replay(1, 12345, None, &acts[..20 * ad], &mut o1).unwrap();
     let st = v.state();
     assert_eq!((st.seeds[1], st.episodes[1], st.actions[1].len()), (12345, 1, 20 * ad));
     let mut w = VecEnv::new(task, 2, 0, 1).unwrap();

@@ -2,9 +2,10 @@
 models, fitting with 5-fold CV, and the smoother that turns per-frame classes into commands.
 An RBF support vector machine per task, tuned by 5-fold cross-validation:
 
-* ``grip`` (gripping and suction): 3 classes ``closing`` (suction / gripper close), ``opening``
-  (drop / gripper open), ``fixed`` (hold). Built-in data: 827 samples (290 / 274 / 263), 80/20
-  split; the paper reports 98.19 % on its 165 test samples.
+* ``grip`` (gripping and suction): 3 classes ``closing`` (suction / gripper close: a pinch),
+  ``opening`` (drop / gripper open: an open hand), ``fixed`` (hold: pointing). Built-in data:
+  827 samples (290 / 274 / 263), 80/20 split; the paper reports 98.19 % on its 165 test
+  samples.
 * ``screw``: 5 classes, the tuples (gripping gesture, screwing gesture) of the paper:
   ``closing_tightening``, ``closing_loosening``, ``closing_fixed``, ``opening_stopped``,
   ``fixed_stopped``. Built-in data: 6,925 samples (1475 / 1289 / 1494 / 1209 / 1458), 70/30
@@ -25,15 +26,23 @@ of frames (median and change) into the same SVM, trained on labelled sequences
 and :data:`DEFAULT_KIND` picks the shipped default per task. Labelled CSVs may carry a
 ``sequence`` column (:mod:`.data`). Recording samples from a live hand: :mod:`.record`.
 
-The built-in data come from the parametric hand (:mod:`mimicrete.hands.model`): per-class finger
-shapes jittered per sample, a share of in-between shapes (blends toward another class, as hands
-caught mid-change), hand sizes 0.8-1.2, any wrist orientation, left and right hands, and
-tracking noise that grows for fingertips hidden in a curled hand.
+The built-in data come from the parametric hand (:mod:`mimicrete.hands.model`): each class's
+shapes drawn from wide ranges (:data:`~mimicrete.hands.model.GESTURE_RANGES`: any pinch, any
+open hand, any point; :data:`CLASS_FAMILIES`), a share of in-between shapes (blends toward
+another class, as hands caught mid-change), random proportions, hand sizes 0.8-1.2, any wrist
+orientation, left and right hands, and tracking noise that grows for fingertips hidden in a
+curled hand. Default gestures: pinch = ``closing`` (suction on), open hand = ``opening``
+(drop), point = ``fixed`` (hold).
+
+The shipped models (``models/``, remade by ``python -m mimicrete.gestures.shipped``,
+:mod:`.shipped`) are trained on those synthetic hands only and tested on hands captured on a
+real headset (:mod:`.captured`: IWER's Quest-3 poses, moved and turned; ``models/README.md``).
 """
 
 from __future__ import annotations
 
 from .classes import (
+    CLASS_FAMILIES,
     CLASS_SHAPE,
     DEFAULT_KIND,
     MODELS_DIR,
@@ -59,6 +68,7 @@ from .smoother import GestureSmoother
 from .temporal import TemporalGestureModel, fit_temporal, train_temporal_builtin
 
 __all__ = [
+    "CLASS_FAMILIES",
     "CLASS_SHAPE",
     "DEFAULT_KIND",
     "GestureSequence",

@@ -15,7 +15,9 @@ TASK_CLASSES: dict[str, tuple[str, ...]] = {
         "fixed_stopped",
     ),
 }
-#: Which finger shape (:data:`mimicrete.hands.model.GESTURE_SHAPES`) each class is made with.
+#: Which finger shape (:data:`mimicrete.hands.model.GESTURE_SHAPES`) shows each class (the
+#: typical one: the scripted demonstrator's and the drills'; training draws from
+#: :data:`CLASS_FAMILIES`).
 CLASS_SHAPE: dict[str, str] = {
     "closing": "closing",
     "opening": "opening",
@@ -25,6 +27,19 @@ CLASS_SHAPE: dict[str, str] = {
     "closing_fixed": "closing",
     "opening_stopped": "opening",
     "fixed_stopped": "fixed",
+}
+#: Which shape families (:data:`mimicrete.hands.model.GESTURE_RANGES`) the built-in training
+#: hands of each class are drawn from. For the 3-class model every pinch is ``closing`` (the
+#: screwing tuples' gripping half: closing with the other fingers loose or curled).
+CLASS_FAMILIES: dict[str, tuple[str, ...]] = {
+    "closing": ("closing", "tightening", "loosening"),
+    "opening": ("opening",),
+    "fixed": ("fixed",),
+    "closing_tightening": ("tightening",),
+    "closing_loosening": ("loosening",),
+    "closing_fixed": ("closing",),
+    "opening_stopped": ("opening",),
+    "fixed_stopped": ("fixed",),
 }
 #: Paper §3.2: samples per class and the held-out share.
 PAPER_COUNTS: dict[str, tuple[int, ...]] = {
@@ -49,7 +64,8 @@ DEFAULT_GRID: dict[str, list[Any]] = {
 #: the default for both tasks.
 DEFAULT_KIND: dict[str, str] = {"grip": "per-frame", "screw": "per-frame"}
 MODELS_DIR = Path(__file__).resolve().parent / "models"
-"""The shipped models (trained on the built-in synthetic hands)."""
+"""The shipped models (trained on the built-in synthetic hands only, tested on captured ones;
+remade by ``python -m mimicrete.gestures.shipped``, see ``models/README.md``)."""
 
 
 class GestureDataError(ValueError):

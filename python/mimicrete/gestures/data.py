@@ -29,7 +29,7 @@ import numpy as np
 from mimicrete.hands import layouts
 from mimicrete.hands import model as hm
 
-from .classes import CLASS_SHAPE, PAPER_COUNTS, TASK_CLASSES, GestureDataError
+from .classes import CLASS_FAMILIES, PAPER_COUNTS, TASK_CLASSES, GestureDataError
 
 
 def sample_gesture_hand(
@@ -41,13 +41,18 @@ def sample_gesture_hand(
 ) -> tuple[np.ndarray, str]:
     """One noisy OpenXR hand ``(26, 3)`` making gesture class ``label``, and its handedness.
 
-    With probability ``ambiguity`` the shape is blended part-way (10-50 %) toward another
-    class of ``classes``: a hand caught forming or leaving the gesture, still labelled ``label``.
+    The shape is drawn from the class's families (:data:`~.classes.CLASS_FAMILIES`, uniform in
+    :data:`~mimicrete.hands.model.GESTURE_RANGES`) on a hand of random proportions
+    (:func:`~mimicrete.hands.model.random_anatomy`) and size. With probability ``ambiguity``
+    the shape is blended part-way (10-50 %) toward a shape of another class of ``classes``: a
+    hand caught forming or leaving the gesture, still labelled ``label``.
     """
-    shape = hm.jitter_shape(hm.GESTURE_SHAPES[CLASS_SHAPE[label]], rng, sd=0.07)
+    fams = CLASS_FAMILIES[label]
+    shape = hm.sample_shape(fams[rng.integers(len(fams))], rng)
     if classes and rng.random() < ambiguity:
-        others = [c for c in classes if CLASS_SHAPE[c] != CLASS_SHAPE[label]]
-        other = hm.GESTURE_SHAPES[CLASS_SHAPE[others[rng.integers(len(others))]]]
+        others = [c for c in classes if set(CLASS_FAMILIES[c]) != set(fams)]
+        ofams = CLASS_FAMILIES[others[rng.integers(len(others))]]
+        other = hm.sample_shape(ofams[rng.integers(len(ofams))], rng)
         shape = shape.lerp(other, float(rng.uniform(0.1, 0.5)))
     handed = "left" if rng.random() < 0.2 else "right"
     joints = hm.hand_joints(
@@ -56,6 +61,7 @@ def sample_gesture_hand(
         rng.uniform(-0.5, 0.5, size=3) + np.array([0.0, 1.2, -0.4]),
         scale=float(rng.uniform(0.8, 1.2)),
         handedness=handed,
+        anatomy=hm.random_anatomy(rng),
     )
     sigma = float(rng.uniform(0.001, 0.005))
     return hm.tracking_noise(joints, rng, sigma=sigma, occluded_sigma=0.008), handed

@@ -347,7 +347,10 @@ def train_builtin(
     pipe, info, held = fit(
         feats, labels, test_size=PAPER_TEST_SIZE[task], seed=seed, grid=grid, n_jobs=n_jobs
     )
-    info["data"] = f"builtin synthetic (seed {seed})"
+    info["data"] = (
+        f"builtin synthetic (seed {seed}): shape families GESTURE_RANGES, random anatomy, "
+        "no captured hands"
+    )
     info["paper_accuracy"] = PAPER_ACCURACY[task]
     return GestureModel(pipe, TASK_CLASSES[task], "openxr", 3, task, info), held
 

@@ -1,0 +1,342 @@
+//! Where episodes start: the object on the table and the target (with or without its pad).
+//!
+//! An episode's [`Start`] is plain numbers: the object's centre on the table `(x, y)` (m, Base
+//! frame), its yaw about Base Z (rad), the target's offset from the task's nominal target and the
+//! pad's offset (m). A [`Variation`] draws one from an episode seed. Three are named:
+//!
+//! | variation | object x (m) | object y (m) | yaw | target | pad |
+//! |---|---|---|---|---|---|
+//! | [`Variation::default`] (the paper's) | [0, 0.15] | 0.32 | 0 | fixed | fixed |
+//! | [`Variation::robust`] | [−0.075, 0.225] | 0.32 | 0 | ±2 cm in x and y | fixed |
+//! | [`Variation::wide`] | [0.035, 0.285] | [0.26, 0.36] | ±30° | ±4 cm in x and y | moves with the target |
+//!
+//! The wide box is the largest of that shape that keeps every start valid: a tile turned by 30°
+//! reaches 0.1025 m from its centre along x, the pad moved 4 cm towards it ends at x = −0.08, so
+//! x ≥ 0.035 keeps 1 cm between them; the far corner (0.285, 0.36) stays 3 cm inside the arm's
+//! reach with the flange down (see [`Start::check`], and `tests/starts.rs`, which checks a grid
+//! over the whole box with the IK). Screw spreads its bolt plate over the same x and y and has no
+//! target to move (the target is on the bolt).
+//!
+//! [`Start::check`] refuses a start whose object leaves the table, touches the pad, or whose
+//! grasp point, or the target, is less than [`REACH_MARGIN`] inside the arm's reach with the
+//! flange pointing down (IK at the pick height and 10 cm above it, at the point moved
+//! [`REACH_MARGIN`] outwards and inwards).
+
+use crate::expert::{ik_dls, tool0_for_tcp};
+use crate::world;
+use crate::{HOME_Q, SimError, Task};
+use nalgebra::Vector3;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rapier3d::prelude::Vector;
+
+/// Distance (m) every grasp point and target keeps from the limits of the arm's reach.
+pub const REACH_MARGIN: f64 = 0.03;
+/// Clearance (m) between the object's footprint and the pad's at the start.
+pub const PAD_CLEARANCE: f32 = 0.01;
+/// Largest target / pad offset (m) a start may have in x and in y.
+pub const MAX_TARGET_OFFSET: f32 = 0.04;
+/// Largest object yaw (rad) a start may have: 45°.
+pub const MAX_YAW: f32 = std::f32::consts::FRAC_PI_4;
+
+/// One episode's start (see the module docs). Serialized as the reset options name it:
+/// `{"object_pose": [x, y, yaw], "target_offset": [dx, dy], "pad_offset": [dx, dy]}`.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Start {
+    /// The object's centre on the table (m, Base frame): x, y.
+    pub object_xy: [f32; 2],
+    /// The object's yaw about Base Z (rad).
+    pub yaw: f32,
+    /// The target's offset from the task's nominal target (m): dx, dy. Screw: always 0.
+    pub target_offset: [f32; 2],
+    /// The pad's offset from its nominal place (m). Screw: always 0.
+    pub pad_offset: [f32; 2],
+}
+
+impl serde::Serialize for Start {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(3))?;
+        m.serialize_entry("object_pose", &[self.object_xy[0], self.object_xy[1], self.yaw])?;
+        m.serialize_entry("target_offset", &self.target_offset)?;
+        m.serialize_entry("pad_offset", &self.pad_offset)?;
+        m.end()
+    }
+}
+
+impl Start {
+    /// The start the reset options name: the object at `object_pose` `[x, y, yaw]`, the target
+    /// moved by `target_offset` and the pad by `pad_offset` (default: with the target).
+    pub fn from_options(
+        object_pose: [f32; 3],
+        target_offset: [f32; 2],
+        pad_offset: Option<[f32; 2]>,
+    ) -> Start {
+        Start {
+            object_xy: [object_pose[0], object_pose[1]],
+            yaw: object_pose[2],
+            target_offset,
+            pad_offset: pad_offset.unwrap_or(target_offset),
+        }
+    }
+
+    /// As 7 numbers: x, y, yaw, target dx, dy, pad dx, dy (a checkpoint's row).
+    pub fn to_row(&self) -> [f32; 7] {
+        let (o, t, p) = (self.object_xy, self.target_offset, self.pad_offset);
+        [o[0], o[1], self.yaw, t[0], t[1], p[0], p[1]]
+    }
+
+    /// The inverse of [`Start::to_row`].
+    pub fn from_row(r: [f32; 7]) -> Start {
+        Start { object_xy: [r[0], r[1]], yaw: r[2], target_offset: [r[3], r[4]], pad_offset: [r[5], r[6]] }
+    }
+}
+
+/// How episode starts vary (the module docs name the three in use). Each range is `[lo, hi]`; a
+/// range with `lo == hi` is not drawn from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Variation {
+    /// The object's start x is uniform in `[object_x[0], object_x[1]]` (m, Base frame).
+    pub object_x: [f32; 2],
+    /// The object's start y (m).
+    pub object_y: [f32; 2],
+    /// The object's yaw (rad).
+    pub yaw: [f32; 2],
+    /// The target moves by `(dx, dy)`, each uniform in `[-target_jitter, target_jitter]` (m)
+    /// (TileSuction and BlockGrip). 0 = the fixed target.
+    pub target_jitter: f32,
+    /// The pad moves with the target (else it stays: a 0.2 m pad holds a 0.15 m tile moved 2.5 cm).
+    pub pad_follows: bool,
+}
+
+impl Default for Variation {
+    fn default() -> Self {
+        Variation {
+            object_x: [world::OBJECT_X_MIN, world::OBJECT_X_MAX],
+            object_y: [world::OBJECT_Y, world::OBJECT_Y],
+            yaw: [0.0, 0.0],
+            target_jitter: 0.0,
+            pad_follows: false,
+        }
+    }
+}
+
+fn drawn(r: [f32; 2]) -> bool {
+    r[0] < r[1]
+}
+
+impl Variation {
+    /// The robustness evaluation: the x range widened by half its width on each side
+    /// (`[-0.075, 0.225]` m) and the target moved by up to ±2 cm in x and y (the pad stays).
+    pub fn robust() -> Variation {
+        let half = 0.5 * (world::OBJECT_X_MAX - world::OBJECT_X_MIN);
+        Variation {
+            object_x: [world::OBJECT_X_MIN - half, world::OBJECT_X_MAX + half],
+            target_jitter: 0.02,
+            ..Default::default()
+        }
+    }
+
+    /// The wide starts (module docs): the object over 0.25 m of x and 0.10 m of y, turned by up
+    /// to ±30°, the target and its pad moved by up to ±4 cm in x and y.
+    pub fn wide() -> Variation {
+        let yaw = 30f32.to_radians();
+        Variation {
+            object_x: [0.035, 0.285],
+            object_y: [0.26, 0.36],
+            yaw: [-yaw, yaw],
+            target_jitter: MAX_TARGET_OFFSET,
+            pad_follows: true,
+        }
+    }
+
+    /// `s` of the way from the paper's starts (`s = 0`) to the wide ones (`s = 1`): every range
+    /// grows linearly about the paper's (a forward curriculum's schedule). `s` is clamped to [0, 1].
+    pub fn towards_wide(s: f32) -> Variation {
+        let s = if s.is_nan() { 0.0 } else { s.clamp(0.0, 1.0) };
+        let (a, b) = (Variation::default(), Variation::wide());
+        let mix = |p: [f32; 2], q: [f32; 2]| [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])];
+        Variation {
+            object_x: mix(a.object_x, b.object_x),
+            object_y: mix(a.object_y, b.object_y),
+            yaw: mix(a.yaw, b.yaw),
+            target_jitter: s * b.target_jitter,
+            pad_follows: s > 0.0,
+        }
+    }
+
+    /// Checks the ranges: finite and ordered, within the table, yaw within ±45°, jitter in
+    /// `[0, 0.025]` m with the pad fixed or `[0, 0.04]` m with the pad following.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |what: String| Err(SimError::InvalidArgument(what));
+        for (name, [lo, hi], lim) in [
+            ("object_x", self.object_x, 0.3f32),
+            ("object_y", self.object_y, 0.5),
+            ("yaw", self.yaw, MAX_YAW),
+        ] {
+            if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -lim || hi > lim {
+                return bad(format!("{name} [{lo}, {hi}] must be an ordered range within [-{lim}, {lim}]"));
+            }
+        }
+        let max_jitter = if self.pad_follows { MAX_TARGET_OFFSET } else { 0.025 };
+        if !(0.0..=max_jitter).contains(&self.target_jitter) {
+            return bad(format!("target_jitter {} must be in [0, {max_jitter}] m", self.target_jitter));
+        }
+        Ok(())
+    }
+
+    /// The start of episode `seed` of `task`. The draws come from one ChaCha8 stream in a fixed
+    /// order: x, then (if the target moves) dx and dy, then y and yaw where their ranges are
+    /// not a point; so the paper's variation draws exactly what it always drew.
+    pub fn start(&self, task: Task, seed: u64) -> Start {
+        let mut ep = ChaCha8Rng::seed_from_u64(seed);
+        let x: f32 = ep.random_range(self.object_x[0]..=self.object_x[1]);
+        let mut offset = [0.0; 2];
+        if self.target_jitter > 0.0 && task != Task::Screw {
+            let j = self.target_jitter;
+            offset = [ep.random_range(-j..=j), ep.random_range(-j..=j)];
+        }
+        let y = if drawn(self.object_y) {
+            ep.random_range(self.object_y[0]..=self.object_y[1])
+        } else {
+            self.object_y[0]
+        };
+        let yaw = if drawn(self.yaw) { ep.random_range(self.yaw[0]..=self.yaw[1]) } else { self.yaw[0] };
+        let yaw = if task == Task::Screw { 0.0 } else { yaw };
+        Start {
+            object_xy: [x, y],
+            yaw,
+            target_offset: offset,
+            pad_offset: if self.pad_follows { offset } else { [0.0; 2] },
+        }
+    }
+}
+
+/// Half extents (x, y) of the object's footprint on the table, unturned.
+fn footprint_half(task: Task) -> [f32; 2] {
+    match task {
+        Task::TileSuction => [world::TILE_HALF[0], world::TILE_HALF[1]],
+        Task::BlockGrip => [world::BLOCK_HALF; 2],
+        Task::Screw => [world::SCREW_PLATE_HALF; 2],
+    }
+}
+
+/// Half extent along x and y of a `half` box turned by `yaw`.
+fn turned_half(half: [f32; 2], yaw: f32) -> [f32; 2] {
+    let (s, c) = (yaw.sin().abs(), yaw.cos().abs());
+    [half[0] * c + half[1] * s, half[0] * s + half[1] * c]
+}
+
+/// The tool0 pose heights and points at which a reachable place must have an IK solution.
+fn reachable(p: Vector3<f64>, tcp_z: f64) -> bool {
+    let radial = Vector3::new(p.x, p.y, 0.0);
+    let n = radial.norm();
+    let dir = if n > 1e-9 { radial / n } else { Vector3::x() };
+    [REACH_MARGIN, -REACH_MARGIN].iter().all(|&m| {
+        [0.0, 0.10].iter().all(|&up| {
+            let q = p + dir * m + Vector3::new(0.0, 0.0, up);
+            ik_dls(&tool0_for_tcp(q, tcp_z), &HOME_Q).is_some()
+        })
+    })
+}
+
+impl Start {
+    /// The object's centre (Base frame) at this start: on the table, or caught on the bolt (Screw).
+    pub fn object_centre(&self, task: Task) -> Vector {
+        let [x, y] = self.object_xy;
+        match task {
+            Task::TileSuction => Vector::new(x, y, world::TABLE_TOP + world::TILE_HALF[2]),
+            Task::BlockGrip => Vector::new(x, y, world::TABLE_TOP + world::BLOCK_HALF),
+            Task::Screw => Vector::new(x, y, world::NUT_START_Z),
+        }
+    }
+
+    /// The pad's centre (x, y) at this start.
+    pub fn pad_xy(&self) -> [f32; 2] {
+        [world::PAD_XY[0] + self.pad_offset[0], world::PAD_XY[1] + self.pad_offset[1]]
+    }
+
+    /// The target (the object's centre when the task is done) at this start.
+    pub fn target(&self, task: Task) -> Vector {
+        match task {
+            Task::Screw => {
+                let c = self.object_centre(task);
+                Vector::new(c.x, c.y, world::NUT_START_Z - (crate::SCREW_TURNS as f32) * world::THREAD_PITCH)
+            }
+            t => {
+                let d = self.target_offset;
+                world::pad_target(t) + Vector::new(d[0], d[1], 0.0)
+            }
+        }
+    }
+
+    /// Refuses a start that is not finite, leaves the table, touches the pad, or lies out of
+    /// reach (module docs); the message names the field (`object_pose` or `target_offset`).
+    pub fn check(&self, task: Task) -> Result<(), SimError> {
+        let bad = |m: String| Err(SimError::InvalidArgument(m));
+        let [x, y] = self.object_xy;
+        if ![x, y, self.yaw].iter().all(|v| v.is_finite()) {
+            return bad(format!("object_pose [{x}, {y}, {}] must be finite", self.yaw));
+        }
+        let offsets = self.target_offset.iter().chain(self.pad_offset.iter());
+        if !offsets.clone().all(|v| v.is_finite()) {
+            return bad(format!("target_offset {:?} must be finite", self.target_offset));
+        }
+        if offsets.clone().any(|v| v.abs() > MAX_TARGET_OFFSET + 1e-6) {
+            return bad(format!(
+                "target_offset {:?} moves the target more than {MAX_TARGET_OFFSET} m in x or y",
+                self.target_offset
+            ));
+        }
+        if task == Task::Screw && offsets.clone().any(|v| *v != 0.0) {
+            return bad("target_offset: Screw's target is on the bolt and cannot move".into());
+        }
+        if self.yaw.abs() > MAX_YAW {
+            return bad(format!("object_pose yaw {} rad is beyond ±{MAX_YAW:.4} rad (45°)", self.yaw));
+        }
+        let h = turned_half(footprint_half(task), self.yaw);
+        let (tx, ty) = (world::TABLE_HALF[0] - h[0], world::TABLE_HALF[1] - h[1]);
+        if x.abs() > tx || y.abs() > ty {
+            return bad(format!(
+                "object_pose ({x}, {y}) m puts the object off the table (|x| <= {tx:.3}, |y| <= {ty:.3})"
+            ));
+        }
+        if task != Task::Screw {
+            let pad = self.pad_xy();
+            let gap_x = (x - pad[0]).abs() - h[0] - world::PAD_HALF[0];
+            let gap_y = (y - pad[1]).abs() - h[1] - world::PAD_HALF[1];
+            if gap_x.max(gap_y) < PAD_CLEARANCE {
+                return bad(format!(
+                    "object_pose ({x}, {y}) m, yaw {} rad: the object comes within {PAD_CLEARANCE} m of the pad at ({}, {})",
+                    self.yaw, pad[0], pad[1]
+                ));
+            }
+        }
+        let reach = |p: Vector| {
+            let tcp_z = if task == Task::TileSuction { world::CUP_TCP_Z } else { world::GRIP_TCP_Z } as f64;
+            reachable(Vector3::new(p.x as f64, p.y as f64, p.z as f64), tcp_z)
+        };
+        let grasp = self.object_centre(task) + Vector::new(0.0, 0.0, footprint_top(task));
+        if !reach(grasp) {
+            return bad(format!(
+                "object_pose ({x}, {y}) m is out of reach: the UR3 (reach {:.3} m from the shoulder) cannot take it with the flange down and {REACH_MARGIN} m to spare",
+                ur3_kin::UR3.reach()
+            ));
+        }
+        if task != Task::Screw && !reach(self.target(task)) {
+            return bad(format!(
+                "target_offset {:?} puts the target out of reach of the UR3 with the flange down and {REACH_MARGIN} m to spare",
+                self.target_offset
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Height of the grasp point above the object's centre.
+fn footprint_top(task: Task) -> f32 {
+    match task {
+        Task::TileSuction => world::TILE_HALF[2],
+        Task::BlockGrip | Task::Screw => 0.0,
+    }
+}
