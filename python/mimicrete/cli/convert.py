@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from mimicrete.cli import UsageError, gesture_model_arg
 
@@ -41,13 +42,35 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete convert``; prints per-file outcomes and a summary. Exit 1 when any log
     failed."""
-    from tqdm import tqdm
-
-    from mimicrete import LogFormatError
     from mimicrete.teleop import convert as cv
 
     logs = cv.find_logs(args.source)
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out}: exists and is not a directory")
+    made = not out.exists()
+    try:
+        lock = cv.out_dir_lock(out).acquire()  # one convert into --out at a time
+    except cv.ConvertError as e:
+        raise UsageError(str(e)) from None
+    except OSError as e:
+        raise UsageError(f"--out {out}: {e.strerror or e}") from None
+    try:
+        return _convert(args, cv, logs, out)
+    finally:
+        lock.release()
+        if made:  # refused before writing anything: no empty --out left behind
+            try:
+                out.rmdir()
+            except OSError:
+                pass
+
+
+def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> int:
+    from tqdm import tqdm
+
+    from mimicrete import LogFormatError
+
     try:
         plan = cv.plan_outputs(logs, out, args.overwrite)
     except cv.ConvertError as e:

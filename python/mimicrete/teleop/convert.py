@@ -27,6 +27,7 @@ from mimicrete import gestures as gest
 from mimicrete.hands import log as handlog
 from mimicrete.hands.log import HandLogData
 from mimicrete.kin import Calibration
+from mimicrete.safe_io import FileLock
 
 from .record import DemoSink, episode_meta
 from .session import Counts, Session
@@ -169,32 +170,16 @@ def plan_outputs(logs: list[Path], out_dir: Path, overwrite: bool) -> dict[Path,
     return plan
 
 
-class _Lock:
-    """``PATH.lock`` created exclusively: a second converter writing the same demo is refused."""
+def _Lock(path: Path) -> FileLock:  # noqa: N802 (was a class; the lock is mimicrete.safe_io's)
+    """``PATH.lock`` held while one demo is written: a second converter writing the same demo is
+    refused (a :class:`ConvertError`); a lock left by a killed process is taken over."""
+    return FileLock(Path(str(path) + ".lock"), "this demo", ConvertError)
 
-    def __init__(self, path: Path) -> None:
-        self.path = Path(str(path) + ".lock")
 
-    def __enter__(self) -> _Lock:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            raise ConvertError(
-                f"{self.path}: another process is writing this demo (remove the lock file if "
-                "no other mimicrete convert or teleop is running)"
-            ) from None
-        try:
-            os.write(fd, f"{os.getpid()}\n".encode())
-        except BaseException:  # interrupted while taking it: leave no lock behind
-            os.close(fd)
-            self.path.unlink(missing_ok=True)
-            raise
-        os.close(fd)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.path.unlink(missing_ok=True)
+def out_dir_lock(out_dir: Path) -> FileLock:
+    """``OUT/.lock`` held by one ``mimicrete convert`` for its whole run: a second convert into
+    the same ``--out`` is refused before it plans anything (a :class:`ConvertError`)."""
+    return FileLock(Path(out_dir) / ".lock", "this --out directory", ConvertError)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -1,0 +1,116 @@
+"""``python -m mimicrete.experiments.peers`` end to end at a tiny budget: one demo exported, ACT
+and Diffusion trained for 2 steps each by lerobot in the lerobot venv (.venv-export, which
+`make test` builds), each evaluated for 2 episodes per start set in our env through the adapter,
+then the table and the figure from the result files. Evaluation episodes are cut at 40 steps
+(``--eval-max-steps``) to keep it short."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from mimicrete.experiments import peers
+
+REPO = Path(__file__).resolve().parents[2]
+LEROBOT_PY = Path(os.environ.get("MIMICRETE_LEROBOT_PYTHON", REPO / ".venv-export/bin/python"))
+
+
+@pytest.fixture(scope="module")
+def one_demo(tmp_path_factory) -> Path:
+    from mimicrete.teleop import convert, synth
+
+    root = tmp_path_factory.mktemp("peers-demos")
+    out = root / "demos"
+    out.mkdir()
+    for i, p in enumerate(synth.synth_hands("suction", 1, 7, root / "hands")):
+        convert.convert_log(p, "suction", out, episode_index=i)
+    return out
+
+
+def test_dataset_gets_environment_state(one_demo, tmp_path):
+    root = peers.make_dataset(one_demo, 1, tmp_path)
+    info = json.loads((root / "meta/info.json").read_text())
+    env = info["features"][peers.ENV_STATE]
+    assert env["names"] == [f"t.{o}_{a}" for o in ("target", "tile") for a in "xyz"]
+    data = pq.read_table(root / "data/chunk-000/file-000.parquet").to_pylist()
+    names = info["features"]["observation.state"]["names"]
+    cols = [names.index(n) for n in env["names"]]
+    assert data[3][peers.ENV_STATE] == [data[3]["observation.state"][c] for c in cols]
+    stats = json.loads((root / "meta/stats.json").read_text())
+    # the target never moves in the demos: its std is floored, its min/max widened
+    assert stats[peers.ENV_STATE]["std"][0] == peers.STAT_FLOOR
+    lo, hi = stats[peers.ENV_STATE]["min"][0], stats[peers.ENV_STATE]["max"][0]
+    assert hi - lo == pytest.approx(2 * peers.STAT_FLOOR)
+    assert peers.make_dataset(one_demo, 1, tmp_path) == root  # made once
+    with pytest.raises(peers.PeersError, match="1 demos, 2 asked for"):
+        peers.make_dataset(one_demo, 2, tmp_path)
+
+
+def _run(demos: Path, out: Path, methods: list[str]) -> int:
+    return peers.main(
+        ["run", "--demos", str(demos), "--counts", "1", "--methods", *methods,
+         "--act-steps", "2", "--diffusion-steps", "2", "--batch-size", "4", "--episodes", "2",
+         "--eval-max-steps", "40", "--starts", "training", "robust", "--nice", "0",
+         "--lerobot-python", str(LEROBOT_PY), "--out", str(out)]
+    )  # fmt: skip
+
+
+def test_pipeline_end_to_end(one_demo, tmp_path):
+    if not LEROBOT_PY.exists():
+        pytest.fail(f"{LEROBOT_PY} missing: run `make export-venv` (lerobot 0.4.4)")
+    out = tmp_path / "run"
+    t0 = time.perf_counter()
+    # the two methods side by side (each a training and an evaluation process, most of it
+    # lerobot's imports), each in its own run dir; the results go into one for the report
+    with ThreadPoolExecutor(2) as ex:
+        rcs = list(ex.map(lambda m: _run(one_demo, tmp_path / m, [m]), peers.METHODS))
+    assert rcs == [0, 0]
+    print(f"pipeline at a tiny budget: {time.perf_counter() - t0:.1f} s")
+    (out / "results").mkdir(parents=True)
+    for m in peers.METHODS:
+        for f in (tmp_path / m / "results").glob("*.json"):
+            shutil.copy(f, out / "results" / f.name)
+    files = sorted(p.name for p in (out / "results").glob("*.json"))
+    assert files == [f"{m}-n1-{s}.json" for m in peers.METHODS for s in ("robust", "training")]
+    for f in (out / "results").glob("*.json"):
+        r = json.loads(f.read_text())
+        for k in peers.RESULT_FIELDS:
+            assert k in r, (f.name, k)
+        assert r["episodes"] == 2 and r["steps"] == 2 and r["demos"] == 1
+        assert 0.0 <= r["installed_rate"] <= 1.0 and 0.0 <= r["picked_rate"] <= 1.0
+        assert 1 <= r["mean_episode_length"] <= 40 and r["max_steps"] == 40
+        assert r["train_wall_s"] > 0 and r["lerobot"] == "0.4.4"
+        assert r["policy_type"] == r["method"]
+        assert r["starts"] in f.name and r["seed"] == 10_000
+    # a second run reuses everything (no training, no evaluation)
+    t1 = time.perf_counter()
+    assert _run(one_demo, tmp_path / "act", ["act"]) == 0
+    assert time.perf_counter() - t1 < 5
+
+    doc = tmp_path / "RESULTS.md"
+    doc.write_text(f"# R\n\n{peers.TABLE_BEGIN}\nold\n{peers.TABLE_END}\n\nafter\n")
+    fig = tmp_path / "fig.png"
+    rc = peers.main(["report", "--out", str(out), "--figure", str(fig), "--into", str(doc)])
+    assert rc == 0
+    assert fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = doc.read_text()
+    assert "old" not in text and text.endswith("after\n")
+    assert "| ACT (LeRobot) | 1 |" in text and "| Diffusion Policy (LeRobot) | 1 |" in text
+    assert "installed (robust)" in text and "2 × 4" in text
+    assert (out / "summary.md").read_text() in text
+
+
+def test_bad_input_is_one_line(tmp_path, capsys):
+    assert peers.main(["run", "--demos", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no such directory" in err[0]
+    assert peers.main(["report", "--out", str(tmp_path)]) == 2
+    assert "no such directory" in capsys.readouterr().err
+    assert peers.main(["run", "--counts", "0"]) == 2
