@@ -116,7 +116,7 @@ def test_bad_calibration_is_named_not_defaulted(tmp_path, hands, edit, says):
     bad = _with_header(first_log(hands), tmp_path / "bad.jsonl", edit)
     p = run("convert", str(bad), "--task", "suction", "--out", str(tmp_path / "o"))
     no_traceback(p)
-    assert p.returncode == 1 and f"{bad}:1: extra.calibration" in p.stderr and says in p.stderr
+    assert p.returncode == 2 and f"{bad}:1: extra.calibration" in p.stderr and says in p.stderr
     assert "0 demos" in p.stdout and not list((tmp_path / "o").glob("*.mcap*"))
 
 
@@ -129,7 +129,7 @@ def test_a_log_the_robot_never_followed_is_a_failure(tmp_path, hands):
     dead.write_text("\n".join([lines[0], *map(json.dumps, frames)]) + "\n")
     p = run("convert", str(dead), "--task", "suction", "--out", str(tmp_path / "o"))
     no_traceback(p)
-    assert p.returncode == 1 and "the robot never followed the hand" in p.stderr
+    assert p.returncode == 2 and "the robot never followed the hand" in p.stderr
     assert "untracked" in p.stderr and not list((tmp_path / "o").glob("*.mcap*"))
 
 
@@ -139,7 +139,7 @@ def test_lenient_skips_bad_lines_and_says_so(tmp_path, hands):
     log = tmp_path / "holey.jsonl"
     log.write_text("\n".join(lines) + "\n")
     strict = run("convert", str(log), "--task", "suction", "--out", str(tmp_path / "a"))
-    assert strict.returncode == 1 and f"{log}:51:" in strict.stderr
+    assert strict.returncode == 2 and f"{log}:51:" in strict.stderr
     lenient = run(
         "convert", str(log), "--task", "suction", "--out", str(tmp_path / "b"), "--lenient"
     )

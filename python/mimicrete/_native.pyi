@@ -62,6 +62,7 @@ __all__ = [
     "demo_salvage",
     "demo_salvage_to",
     "demo_verify",
+    "demo_files",
     "DEMO_FORMAT_VERSION",
     "HANDLOG_VERSION",
 ]
@@ -334,6 +335,7 @@ class _ParseReport(TypedDict):
     untracked_skipped: int
     invalid_skipped: int
     skipped: list[tuple[int, str]]
+    sha256: str | None
 
 class _HandLog(TypedDict):
     header: dict[str, Any]
@@ -396,6 +398,7 @@ class _SalvageReport(TypedDict):
     attachments: int
     complete: bool
     stopped_because: str | None
+    magic_damaged: bool
     lost_chunks: list[_ChunkCheck]
     step_gaps: list[tuple[int, int]]
     messages_unattributed: int
@@ -510,3 +513,6 @@ def demo_salvage_to(path_in: _StrPath, path_out: _StrPath) -> _SalvageReport:
 
 def demo_verify(path: _StrPath) -> _VerifyReport:
     """Check every chunk's CRC, the data-section and summary CRCs and completeness."""
+
+def demo_files(path: _StrPath) -> list[str]:
+    """The *.mcap entries of a directory, sorted by name, whatever they are."""

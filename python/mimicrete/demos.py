@@ -28,6 +28,7 @@ __all__ = [
     "STEP_DTYPES",
     "Demos",
     "configure",
+    "files",
     "inspect",
     "load",
     "main",
@@ -124,6 +125,41 @@ def load(path_or_dir: str | os.PathLike[str]) -> Demos:
     )
 
 
+def files(directory: str | os.PathLike[str]) -> list[Path]:
+    """The ``*.mcap`` entries of a directory, sorted by name (``*.partial`` files never match),
+    as :func:`load` reads them: every entry with the name, so that one that is not a demo file
+    (a dangling symbolic link, a named pipe) is refused by name when it is read, never skipped."""
+    return [Path(f) for f in _native.demo_files(os.fspath(directory))]
+
+
+def _regular_file(path: Path) -> None:
+    """Refuse, by name, what is not a regular file before opening it (opening a named pipe
+    blocks until a writer comes); the Rust readers make the same check
+    (``demo_log::read_input``)."""
+    import stat
+
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        if path.is_symlink():
+            raise _native.log_format_error(
+                str(path),
+                None,
+                f"dangling symbolic link (its target {os.readlink(path)!r} does not exist)",
+            ) from None
+        raise
+    if not stat.S_ISREG(st.st_mode):
+        kinds = [
+            (stat.S_ISFIFO, "a named pipe"),
+            (stat.S_ISSOCK, "a socket"),
+            (stat.S_ISCHR, "a character device"),
+            (stat.S_ISBLK, "a block device"),
+            (stat.S_ISDIR, "a directory"),
+        ]
+        kind = next((k for test, k in kinds if test(st.st_mode)), "something else")
+        raise _native.log_format_error(str(path), None, f"not a regular file ({kind})")
+
+
 def read(path: str | os.PathLike[str]) -> dict[str, Any]:
     """One episode: dict obs, actions, rewards, terminated, truncated, t (s) and meta."""
     return dict(_native.demo_read(os.fspath(path)))
@@ -160,13 +196,16 @@ def verify(path: str | os.PathLike[str]) -> dict[str, Any]:
 def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
     """What is in a demo, read from its summary with the official ``mcap`` reader: channels with
     schema, encoding and message count, metadata records, attachments, start/end log time,
-    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage.
+    duration, steps and success. A cut file raises ``mimicrete.LogFormatError`` naming salvage;
+    so does an MCAP file without a ``/demo/step`` channel (not a mimicrete demo) and a path that
+    is not a regular file (a named pipe would block).
     The summary says nothing about the chunks' integrity: ``verify`` checks every chunk's CRC
     (``mimicrete inspect`` runs both)."""
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
     p = Path(path)
+    _regular_file(p)
     with p.open("rb") as f:
         try:
             reader = make_reader(f, validate_crcs=True)
@@ -201,6 +240,11 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
             ) from e
     start = int(stats.message_start_time) if stats else 0
     end = int(stats.message_end_time) if stats else 0
+    if not any(c["topic"] == STEP_TOPIC for c in channels):
+        topics = ", ".join(sorted({c["topic"] for c in channels})) or "none"
+        raise _native.log_format_error(
+            str(p), None, f"not a mimicrete demo: no {STEP_TOPIC} channel (its topics: {topics})"
+        )
     ep = metadata.get("episode") or metadata.get("episode_start") or {}
     steps = next((c["messages"] for c in channels if c["topic"] == STEP_TOPIC), 0)
     return {
@@ -304,7 +348,7 @@ def main(args: argparse.Namespace) -> int:
             continue
         if info is not None:
             _print_report(info)
-        elif rep is None:
+        elif rep is None or rep["ok"]:  # a sound MCAP file that is not a demo, ...
             print(f"error: {error}")
         else:
             print(f"{f}  ({rep['bytes']} bytes; summary unreadable: {error})")

@@ -281,7 +281,7 @@ def test_cli_convert_dir(tmp_path, capsys):
     sy.synth_hands("grip", 2, 1, tmp_path / "logs")
     (tmp_path / "logs" / "broken.jsonl").write_text('{"format": "nope"}\n')
     argv = ["convert", str(tmp_path / "logs"), "--task", "grip", "--out", str(tmp_path / "demos")]
-    assert cli_main([*argv, "--no-progress"]) == 1  # one log failed
+    assert cli_main([*argv, "--no-progress"]) == 2  # one log refused (bad input)
     out = capsys.readouterr()
     assert 'broken.jsonl:1: unknown format "nope" in header' in out.err
     assert "2 demos in" in out.out and "2 installed (100.0 %), 1 logs failed" in out.out

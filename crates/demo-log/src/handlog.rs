@@ -28,6 +28,22 @@ const HEADER_KEYS: [&str; 10] = [
 ];
 const FRAME_KEYS: [&str; 4] = ["t", "tracked", "joints", "orientations"];
 
+/// The largest joint coordinate accepted, metres. A tracked hand is metres from its tracking
+/// origin; a value beyond 10 km is a unit or encoding error, and near `f64::MAX` it would
+/// overflow to infinity in the first distance computed downstream.
+pub const MAX_COORD_M: f64 = 1e4;
+
+fn coordinate_in_range(x: f64, what: &dyn Fn() -> String) -> Result<f64, String> {
+    if x.abs() > MAX_COORD_M {
+        let shown = if x.abs() < 1e6 { format!("{x}") } else { format!("{x:e}") };
+        return Err(format!(
+            "{} is {shown} m, out of range (at most {MAX_COORD_M} m from the origin; hand logs are in metres)",
+            what()
+        ));
+    }
+    Ok(x)
+}
+
 /// A malformed hand log: where (file, 1-based line) and why. Displays as `file:line: reason`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct HandLogError {
@@ -109,6 +125,9 @@ pub struct ParseReport {
     pub invalid_skipped: usize,
     /// Every dropped line with its reason, in file order.
     pub skipped: Vec<SkippedLine>,
+    /// SHA-256 (lower-case hex) of exactly the bytes parsed, when they were read from a file by
+    /// [`HandLog::from_path`] (a log that grows while it is converted is hashed as it was read).
+    pub sha256: Option<String>,
 }
 
 /// The header line of a hand log.
@@ -236,13 +255,83 @@ fn quote_nonfinite_tokens(line: &str) -> Option<String> {
     Some(out)
 }
 
+/// A JSON value whose objects never hold a key twice. serde_json keeps the last of two equal
+/// keys, so `{"handedness":"right", ..., "handedness":"left"}` would silently be a left hand;
+/// deserializing through this type refuses it instead (at any depth).
+struct UniqueKeys(Value);
+
+const DUPLICATE_KEY: &str = "duplicate key";
+
+impl<'de> serde::Deserialize<'de> for UniqueKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(UniqueKeysVisitor).map(UniqueKeys)
+    }
+}
+
+struct UniqueKeysVisitor;
+
+impl<'de> serde::de::Visitor<'de> for UniqueKeysVisitor {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("a JSON value")
+    }
+    fn visit_bool<E>(self, b: bool) -> Result<Value, E> {
+        Ok(Value::Bool(b))
+    }
+    fn visit_i64<E>(self, n: i64) -> Result<Value, E> {
+        Ok(Value::from(n))
+    }
+    fn visit_u64<E>(self, n: u64) -> Result<Value, E> {
+        Ok(Value::from(n))
+    }
+    fn visit_f64<E>(self, x: f64) -> Result<Value, E> {
+        Ok(serde_json::Number::from_f64(x).map_or(Value::Null, Value::Number))
+    }
+    fn visit_str<E>(self, s: &str) -> Result<Value, E> {
+        Ok(Value::String(s.to_owned()))
+    }
+    fn visit_string<E>(self, s: String) -> Result<Value, E> {
+        Ok(Value::String(s))
+    }
+    fn visit_unit<E>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+    fn visit_none<E>(self) -> Result<Value, E> {
+        Ok(Value::Null)
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Value, A::Error> {
+        let mut v = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(64));
+        while let Some(UniqueKeys(x)) = seq.next_element()? {
+            v.push(x);
+        }
+        Ok(Value::Array(v))
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Value, A::Error> {
+        let mut m = Map::new();
+        while let Some(k) = map.next_key::<String>()? {
+            if m.contains_key(&k) {
+                return Err(serde::de::Error::custom(format!("{DUPLICATE_KEY} \"{k}\"")));
+            }
+            let UniqueKeys(x) = map.next_value()?;
+            m.insert(k, x);
+        }
+        Ok(Value::Object(m))
+    }
+}
+
 fn parse_json_line(line: &str) -> Result<Value, String> {
     let quoted = quote_nonfinite_tokens(line);
     let text = quoted.as_deref().unwrap_or(line);
-    serde_json::from_str::<Value>(text).map_err(|e| {
+    serde_json::from_str::<UniqueKeys>(text).map(|u| u.0).map_err(|e| {
         let msg = e.to_string();
         if msg.contains("number out of range") {
             "non-finite value: a number overflows to infinity".to_string()
+        } else if let Some(rest) = msg.strip_prefix(DUPLICATE_KEY) {
+            // "duplicate key \"t\" at line 1 column 40": JSON allows it, but which value counts
+            // is up to the reader; a hand log must say one thing.
+            let key = rest.split(" at line ").next().unwrap_or(rest).trim();
+            format!("{DUPLICATE_KEY} {key} (column {}): each field may appear once", e.column())
         } else {
             format!("invalid JSON: {msg}")
         }
@@ -279,8 +368,13 @@ fn parse_header(file: &str, text: Option<&str>) -> Result<HandLogHeader, HandLog
     let Some(line) = text else {
         return Err(e("missing header: the file is empty".into()));
     };
-    let v =
-        parse_json_line(line).map_err(|r| e(format!("missing header: line 1 is not a JSON object ({r})")))?;
+    let v = parse_json_line(line).map_err(|r| {
+        if r.starts_with(DUPLICATE_KEY) {
+            e(format!("header: {r}"))
+        } else {
+            e(format!("missing header: line 1 is not a JSON object ({r})"))
+        }
+    })?;
     let Value::Object(m) = v else {
         return Err(e(format!("missing header: line 1 is {}, not a JSON object", type_name(&v))));
     };
@@ -399,7 +493,8 @@ fn parse_frame(line: &str, layout: HandLayout, prev_t: Option<f64>) -> Result<Ha
         }
         let mut q = [0.0; 3];
         for (c, val) in xyz.iter().enumerate() {
-            q[c] = finite(val, &|| format!("joint {j} coordinate {}", ["x", "y", "z"][c]))?;
+            let what = || format!("joint {j} coordinate {}", ["x", "y", "z"][c]);
+            q[c] = coordinate_in_range(finite(val, &what)?, &what)?;
         }
         out.push(q);
     }
@@ -511,15 +606,19 @@ impl HandLog {
     /// Parse a hand-log file; errors name the path as given.
     ///
     /// # Errors
-    /// [`HandLogError`]; an unreadable file or non-UTF-8 text is reported at line 1 / the line of
-    /// the first bad byte.
+    /// [`HandLogError`]; an unreadable file, something that is not a regular file (a named pipe
+    /// would block: see [`crate::read_input`]) or non-UTF-8 text is reported at line 1 / the line
+    /// of the first bad byte.
     pub fn from_path(
         path: impl AsRef<Path>,
         mode: ParseMode,
     ) -> Result<(HandLog, ParseReport), HandLogError> {
         let path = path.as_ref();
         let name = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|e| err(&name, 1, format!("cannot read: {e}")))?;
+        let bytes = crate::files::read_regular(path).map_err(|e| match e {
+            crate::files::ReadFail::NotRegular(reason) => err(&name, 1, reason),
+            crate::files::ReadFail::Io(e) => err(&name, 1, format!("cannot read: {e}")),
+        })?;
         let text = match std::str::from_utf8(&bytes) {
             Ok(t) => t,
             Err(u) => {
@@ -534,7 +633,9 @@ impl HandLog {
                 return Err(err(&name, line, "not UTF-8 text"));
             }
         };
-        HandLog::parse_str(text, &name, mode)
+        let (log, mut report) = HandLog::parse_str(text, &name, mode)?;
+        report.sha256 = Some(crate::sha256_hex(&bytes));
+        Ok((log, report))
     }
 
     /// The log with every joint position converted into the robot Base frame through a ur3-kin
@@ -605,6 +706,12 @@ impl HandLog {
             }
             if let Some(j) = f.joints.iter().position(|p| p.iter().any(|x| !x.is_finite())) {
                 return bad(format!("non-finite value in joint {j}"));
+            }
+            for (j, p) in f.joints.iter().enumerate() {
+                for (c, &x) in p.iter().enumerate() {
+                    coordinate_in_range(x, &|| format!("joint {j} coordinate {}", ["x", "y", "z"][c]))
+                        .map_err(|r| err(name, line, r))?;
+                }
             }
             if let Some(o) = &f.orientations {
                 if o.len() != n {

@@ -18,8 +18,10 @@
 //! {"t":0.0133,"tracked":true,"joints":[[x,y,z], ...],"orientations":[[x,y,z,w], ...]}
 //! ```
 //!
-//! `t` in seconds, non-decreasing; `joints` has exactly `layout.joint_count()` entries;
-//! `orientations` is optional. Blank lines are ignored. Errors are [`HandLogError`], displayed
+//! `t` in seconds, non-decreasing; `joints` has exactly `layout.joint_count()` entries, each
+//! coordinate at most [`MAX_COORD_M`] (10 km) from the origin; `orientations` is optional. A key
+//! may appear only once in an object (JSON leaves duplicates to the reader: here they are an
+//! error, not "the last one wins"). Blank lines are ignored. Errors are [`HandLogError`], displayed
 //! `file:line: reason` (1-based lines): missing/unknown header or header field, unknown layout,
 //! space, handedness or units, wrong joint count, NaN/±Infinity (also Python's bare `NaN` tokens),
 //! time going backwards, a truncated last line (no final newline and not valid JSON).
@@ -53,6 +55,7 @@
 //! [`load_dataset`] turn demos into flat arrays.
 
 mod arrays;
+mod files;
 mod handlog;
 mod meta;
 mod reader;
@@ -63,11 +66,12 @@ pub mod schemas;
 mod writer;
 
 pub use arrays::{HandArrays, NdArray, shape_text};
+pub use files::read_input;
 pub use handlog::{
-    HANDLOG_FORMAT, HANDLOG_VERSION, HandFrame, HandLog, HandLogError, HandLogHeader, ParseMode, ParseReport,
-    SkippedLine, frame_json,
+    HANDLOG_FORMAT, HANDLOG_VERSION, HandFrame, HandLog, HandLogError, HandLogHeader, MAX_COORD_M, ParseMode,
+    ParseReport, SkippedLine, frame_json,
 };
-pub use meta::{DEFAULT_ENTITY_COLOR, EPISODE_META_KEYS, value_text};
+pub use meta::{DEFAULT_ENTITY_COLOR, EPISODE_META_KEYS, check_episode_record, value_text};
 pub use reader::{Dataset, Episode, demo_files, load_dataset, read_demo, read_demo_bytes};
 pub use salvage::{
     ChunkCheck, RecoveredMessage, SalvageReport, Salvaged, VerifyReport, salvage, salvage_bytes, salvage_to,

@@ -9,12 +9,13 @@ use serde_json::{Map, Value};
 use ur3_kin::{HandLayout, Handedness, Space};
 
 /// The keys of an episode-metadata object, in documentation order.
-pub const EPISODE_META_KEYS: [&str; 10] = [
+pub const EPISODE_META_KEYS: [&str; 11] = [
     "episode",
     "task",
     "seed",
     "robot_model",
     "source_handlog",
+    "source_handlog_sha256",
     "gesture_model",
     "control_dt",
     "hand",
@@ -179,6 +180,7 @@ impl EpisodeMeta {
                 "seed" => meta.seed = typed(v, &what)?,
                 "robot_model" => meta.robot_model = typed(v, &what)?,
                 "source_handlog" => meta.source_handlog = Some(typed(v, &what)?),
+                "source_handlog_sha256" => meta.source_handlog_sha256 = Some(typed(v, &what)?),
                 "gesture_model" => meta.gesture_model = typed(v, &what)?,
                 "control_dt" => meta.control_dt = typed(v, &what)?,
                 "hand" => meta.hand = Some(HandLogHeader::from_fields(v)?),
@@ -197,3 +199,49 @@ impl EpisodeMeta {
         Ok(meta)
     }
 }
+
+/// Check the values of a demo's `episode_start` / `episode` metadata record that readers rely on
+/// (an exporter takes its frame rate from `control_dt` and its success flag from `success`):
+/// `success` and `terminated` are `true` or `false`; `episode`, `seed`, `length`, `obs_dim`,
+/// `act_dim` and `format_version` are non-negative integers; `control_dt` and `total_reward` are
+/// finite numbers (`control_dt` ≥ 0); `format` is [`crate::DEMO_FORMAT`]. Absent keys are not
+/// checked (an unfinished demo has no `success`). [`crate::read_demo`] refuses a record that
+/// fails and [`crate::verify`] lists it as a problem, so loading and inspecting agree.
+///
+/// # Errors
+/// The first bad value, in words: `success is "tpue", not true or false`.
+pub fn check_episode_record(md: &std::collections::BTreeMap<String, String>) -> Result<(), String> {
+    for key in ["success", "terminated"] {
+        if let Some(v) = md.get(key)
+            && v != "true"
+            && v != "false"
+        {
+            return Err(format!("{key} is {v:?}, not true or false"));
+        }
+    }
+    for key in ["episode", "seed", "length", "obs_dim", "act_dim", "format_version"] {
+        if let Some(v) = md.get(key)
+            && v.parse::<u64>().is_err()
+        {
+            return Err(format!("{key} is {v:?}, not a non-negative integer"));
+        }
+    }
+    for key in ["control_dt", "total_reward"] {
+        if let Some(v) = md.get(key) {
+            let ok = v.parse::<f64>().is_ok_and(|x| x.is_finite() && (key != "control_dt" || x >= 0.0));
+            if !ok {
+                let want = if key == "control_dt" { "a finite number ≥ 0" } else { "a finite number" };
+                return Err(format!("{key} is {v:?}, not {want}"));
+            }
+        }
+    }
+    if let Some(v) = md.get("format")
+        && v != crate::DEMO_FORMAT
+    {
+        return Err(format!("format is {v:?}, not {:?}", crate::DEMO_FORMAT));
+    }
+    Ok(())
+}
+
+/// The metadata records whose values [`check_episode_record`] checks.
+pub const CHECKED_RECORDS: [&str; 2] = ["episode_start", "episode"];

@@ -77,12 +77,24 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
         end_meta: None,
         salvage_meta: None,
         saw_footer: false,
+        messages: 0,
         next_step: 0,
         jumps: Vec::new(),
     };
-    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
-    if buf.len() < 2 * MAGIC.len() || &buf[..MAGIC.len()] != MAGIC {
-        return Err(fmt_err(name, "not an MCAP file (bad magic)"));
+    const MAGIC: &[u8] = crate::scan::MAGIC;
+    match crate::scan::file_start(buf) {
+        _ if buf.len() < 2 * MAGIC.len() => return Err(fmt_err(name, "not an MCAP file (bad magic)")),
+        crate::scan::Start::Magic => {}
+        crate::scan::Start::DamagedMagic => {
+            return Err(fmt_err(
+                name,
+                format!(
+                    "damaged MCAP ({}); `salvage_to` recovers its complete messages",
+                    crate::scan::damaged_magic_text(buf)
+                ),
+            ));
+        }
+        crate::scan::Start::NotMcap => return Err(fmt_err(name, "not an MCAP file (bad magic)")),
     }
     let damaged = |e: String| {
         fmt_err(
@@ -117,6 +129,7 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
                     if op == mcap::records::op::MESSAGE {
                         let (ch, data) =
                             crate::scan::message_parts(body).ok_or("message record too short")?;
+                        st.messages += 1;
                         if st.step_channels.contains(&ch) {
                             return st.step(data).map_err(|e| {
                                 let m = e.to_string();
@@ -141,8 +154,23 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
             mcap::records::op::MESSAGE => {
                 let (ch, data) = crate::scan::message_parts(body)
                     .ok_or_else(|| damaged("message record too short".into()))?;
+                st.messages += 1;
                 if st.step_channels.contains(&ch) {
                     st.step(data)?;
+                }
+            }
+            mcap::records::op::DATA_END if body.len() == 4 => {
+                // The CRC of every byte before this record: metadata records, message indexes
+                // and chunk headers have no CRC of their own (a flipped bit in `control_dt` shows
+                // only here).
+                let crc = u32::from_le_bytes(body.try_into().expect("4 bytes"));
+                let record_start = start - 9;
+                if crc != 0 && crc32fast::hash(&buf[..record_start]) != crc {
+                    return Err(damaged(
+                        "data section CRC mismatch: bytes outside the chunks' own CRCs (metadata, \
+                         message indexes, chunk headers) are damaged"
+                            .into(),
+                    ));
                 }
             }
             mcap::records::op::FOOTER => {
@@ -166,6 +194,15 @@ pub fn read_demo_bytes(buf: &[u8], name: &Path) -> Result<Episode, DemoError> {
             "incomplete MCAP (no footer); `salvage_to` recovers its complete messages",
         ));
     }
+    let (summary_problem, summary_count) = crate::scan::summary_check(buf);
+    if let Some(p) = summary_problem {
+        return Err(damaged(format!("summary not usable: {p}")));
+    }
+    if let Some(n) = summary_count
+        && n != st.messages
+    {
+        return Err(damaged(format!("summary counts {n} messages, the chunks hold {}", st.messages)));
+    }
     if st.step_channels.is_empty() {
         return Err(fmt_err(name, format!("no {TOPIC_STEP} channel: not a mimicrete demo")));
     }
@@ -188,6 +225,8 @@ struct ReadState<'p> {
     /// The last `salvage` metadata record (written by [`crate::salvage_to`]).
     salvage_meta: Option<BTreeMap<String, String>>,
     saw_footer: bool,
+    /// Message records seen (all channels), to compare with the summary's statistics.
+    messages: u64,
     next_step: u64,
     /// Steps skipped: `(row, expected step, step found)`.
     jumps: Vec<(usize, u64, u64)>,
@@ -212,12 +251,16 @@ impl ReadState<'_> {
                     self.step_channels.push(c.id);
                 }
             }
-            Record::Metadata(m) => match m.name.as_str() {
-                "episode" => self.end_meta = Some(m.metadata),
-                "episode_start" => self.start_meta = Some(m.metadata),
-                "salvage" => self.salvage_meta = Some(m.metadata),
-                _ => {}
-            },
+            Record::Metadata(m) if crate::meta::CHECKED_RECORDS.contains(&m.name.as_str()) => {
+                crate::meta::check_episode_record(&m.metadata).map_err(|e| {
+                    fmt_err(self.name, format!("metadata record \"{}\": {e}; the file is damaged", m.name))
+                })?;
+                match m.name.as_str() {
+                    "episode" => self.end_meta = Some(m.metadata),
+                    _ => self.start_meta = Some(m.metadata),
+                }
+            }
+            Record::Metadata(m) if m.name == "salvage" => self.salvage_meta = Some(m.metadata),
             Record::Footer(_) => self.saw_footer = true,
             _ => {}
         }
@@ -300,11 +343,14 @@ impl ReadState<'_> {
 /// [`DemoError::Io`] if it cannot be read, else as [`read_demo_bytes`].
 pub fn read_demo(path: impl AsRef<Path>) -> Result<Episode, DemoError> {
     let path = path.as_ref();
-    let buf = std::fs::read(path).map_err(|e| DemoError::Io { path: path.to_path_buf(), source: e })?;
+    let buf = crate::read_input(path)?;
     read_demo_bytes(&buf, path)
 }
 
-/// The `*.mcap` files of a directory, sorted by name (`*.mcap.partial` files are not listed).
+/// The `*.mcap` entries of a directory, sorted by name (`*.mcap.partial` files are not listed).
+/// Every entry with the name is listed, whatever it is: a dangling symbolic link or a named pipe
+/// called `x.mcap` is then refused by name when it is read ([`crate::read_input`]) instead of
+/// being left out without a word.
 ///
 /// # Errors
 /// [`DemoError::Io`] if the directory cannot be listed.
@@ -315,7 +361,7 @@ pub fn demo_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, DemoError> {
     for entry in rd {
         let entry = entry.map_err(|e| DemoError::Io { path: dir.to_path_buf(), source: e })?;
         let p = entry.path();
-        if p.is_file() && p.extension().is_some_and(|x| x == "mcap") {
+        if p.extension().is_some_and(|x| x == "mcap") {
             out.push(p);
         }
     }

@@ -10,7 +10,7 @@
 //! declares the lost step ranges (`step_gaps`), so that [`crate::read_demo`] accepts it.
 
 use crate::DemoError;
-use crate::scan::{FileMap, MAGIC};
+use crate::scan::{FileMap, Start};
 use crate::schemas;
 use crate::writer::{DEMO_FORMAT, TOPIC_EVENTS, TOPIC_HAND, TOPIC_SCENE, TOPIC_STEP, TOPIC_TF};
 use mcap::records::Record;
@@ -105,6 +105,8 @@ pub struct SalvageReport {
     pub complete: bool,
     /// Why reading stopped early or skipped bytes, if it did (the first such reason).
     pub stopped_because: Option<String>,
+    /// The leading magic was damaged (a few bits; the rest of the file was read as MCAP).
+    pub magic_damaged: bool,
 }
 
 #[derive(Clone)]
@@ -323,14 +325,10 @@ pub(crate) fn parse_gaps(s: &str) -> Option<Vec<(u64, u64)>> {
 /// Recover everything intact from the bytes of a (possibly cut or damaged) MCAP file.
 ///
 /// # Errors
-/// [`DemoError::Format`] when the bytes do not start with the MCAP magic.
+/// [`DemoError::Format`] when the bytes do not start as MCAP (a
+/// leading magic with a bit or two flipped is read on and reported as `magic_damaged`).
 pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
-    if buf.len() < MAGIC.len() || &buf[..MAGIC.len()] != MAGIC {
-        return Err(DemoError::Format {
-            path: name.to_path_buf(),
-            reason: "not an MCAP file (bad magic)".into(),
-        });
-    }
+    let start = mcap_start(buf, name)?;
     let m = crate::scan::map_file(buf);
     let mut schemas = BTreeMap::new();
     let mut channels = BTreeMap::new();
@@ -348,7 +346,11 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
             add_schema_or_channel(r, &mut schemas, &mut channels, &mut order);
         }
     }
-    let mut report = SalvageReport { bytes_total: buf.len() as u64, ..Default::default() };
+    let mut report = SalvageReport {
+        bytes_total: buf.len() as u64,
+        magic_damaged: start == Start::DamagedMagic,
+        ..Default::default()
+    };
     // A demo whose chunk 0 (schemas, channels) is lost and that has no intact summary: its
     // channels are the writer's fixed layout.
     let needs_layout = !channels.values().any(|c: &ChannelInfo| c.topic == TOPIC_STEP)
@@ -487,17 +489,16 @@ impl VerifyReport {
 /// is complete.
 ///
 /// # Errors
-/// [`DemoError::Format`] when the bytes do not start with the MCAP magic.
+/// [`DemoError::Format`] when the bytes do not start as MCAP (a damaged leading magic is a
+/// problem of the report instead).
 pub fn verify_bytes(buf: &[u8], name: &Path) -> Result<VerifyReport, DemoError> {
-    if buf.len() < MAGIC.len() || &buf[..MAGIC.len()] != MAGIC {
-        return Err(DemoError::Format {
-            path: name.to_path_buf(),
-            reason: "not an MCAP file (bad magic)".into(),
-        });
-    }
+    let start = mcap_start(buf, name)?;
     let m = crate::scan::map_file(buf);
     let chunks = chunk_checks(&m);
     let mut problems = Vec::new();
+    if start == Start::DamagedMagic {
+        problems.push(crate::scan::damaged_magic_text(buf));
+    }
     let secs = |t: u64| t as f64 / 1e9;
     let mut lost = Some(0u64);
     let mut ok = 0u64;
@@ -546,6 +547,14 @@ pub fn verify_bytes(buf: &[u8], name: &Path) -> Result<VerifyReport, DemoError> 
             problems.push(format!("summary counts {} messages, the chunks hold {ok}", st.message_count));
         }
     }
+    for (offset, r) in &m.records {
+        if let Record::Metadata(md) = r
+            && crate::meta::CHECKED_RECORDS.contains(&md.name.as_str())
+            && let Err(e) = crate::meta::check_episode_record(&md.metadata)
+        {
+            problems.push(format!("metadata record \"{}\" at byte {offset}: {e}", md.name));
+        }
+    }
     Ok(VerifyReport {
         bytes: buf.len() as u64,
         complete,
@@ -559,13 +568,23 @@ pub fn verify_bytes(buf: &[u8], name: &Path) -> Result<VerifyReport, DemoError> 
     })
 }
 
+/// How `buf` starts, or [`DemoError::Format`] when it is not MCAP at all.
+fn mcap_start(buf: &[u8], name: &Path) -> Result<Start, DemoError> {
+    match crate::scan::file_start(buf) {
+        Start::NotMcap => {
+            Err(DemoError::Format { path: name.to_path_buf(), reason: "not an MCAP file (bad magic)".into() })
+        }
+        s => Ok(s),
+    }
+}
+
 /// [`verify_bytes`] of a file.
 ///
 /// # Errors
 /// [`DemoError::Io`] if it cannot be read; [`DemoError::Format`] if it is not MCAP at all.
 pub fn verify(path: impl AsRef<Path>) -> Result<VerifyReport, DemoError> {
     let path = path.as_ref();
-    let buf = std::fs::read(path).map_err(|e| DemoError::Io { path: path.to_path_buf(), source: e })?;
+    let buf = crate::read_input(path)?;
     verify_bytes(&buf, path)
 }
 
@@ -575,7 +594,7 @@ pub fn verify(path: impl AsRef<Path>) -> Result<VerifyReport, DemoError> {
 /// [`DemoError::Io`] if the file cannot be read; [`DemoError::Format`] if it is not MCAP at all.
 pub fn salvage(path: impl AsRef<Path>) -> Result<(Vec<RecoveredMessage>, SalvageReport), DemoError> {
     let path = path.as_ref();
-    let buf = std::fs::read(path).map_err(|e| DemoError::Io { path: path.to_path_buf(), source: e })?;
+    let buf = crate::read_input(path)?;
     let s = salvage_bytes(&buf, path)?;
     Ok((s.messages, s.report))
 }
@@ -592,7 +611,7 @@ pub fn salvage(path: impl AsRef<Path>) -> Result<(Vec<RecoveredMessage>, Salvage
 /// reader would refuse; [`DemoError::Mcap`]/[`DemoError::Io`] when writing fails.
 pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Result<SalvageReport, DemoError> {
     let (path_in, path_out) = (path_in.as_ref(), path_out.as_ref());
-    let buf = std::fs::read(path_in).map_err(|e| DemoError::Io { path: path_in.to_path_buf(), source: e })?;
+    let buf = crate::read_input(path_in)?;
     let s = salvage_bytes(&buf, path_in)?;
     if !s.channels.values().any(|c| c.topic == TOPIC_STEP) {
         return Err(DemoError::Format {

@@ -188,6 +188,45 @@ pub fn is_parsed_kind(op: u8) -> bool {
 /// The MCAP magic, at both ends of a file.
 pub const MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
+/// How a file starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// With the MCAP magic.
+    Magic,
+    /// With the MCAP magic damaged (at most two of its bytes differ) but the rest says MCAP: a
+    /// whole Header record follows it, or the file ends with the magic.
+    DamagedMagic,
+    /// Not as an MCAP file.
+    NotMcap,
+}
+
+/// Whether `buf` starts as an MCAP file (see [`Start`]): one flipped bit in the leading magic
+/// should not hide every intact chunk behind it.
+pub fn file_start(buf: &[u8]) -> Start {
+    let n = MAGIC.len();
+    if buf.len() < n {
+        return Start::NotMcap;
+    }
+    if &buf[..n] == MAGIC {
+        return Start::Magic;
+    }
+    let differing = buf[..n].iter().zip(MAGIC).filter(|(a, b)| a != b).count();
+    let header_follows = matches!(frame(buf, n, buf.len()), Ok((op, start, end))
+        if op == mcap::records::op::HEADER && exact(op, &buf[start..end]));
+    let ends_as_mcap = buf.len() >= 2 * n && &buf[buf.len() - n..] == MAGIC;
+    if differing <= 2 && (header_follows || ends_as_mcap) { Start::DamagedMagic } else { Start::NotMcap }
+}
+
+/// Text of a problem with the leading magic (for [`Start::DamagedMagic`]).
+pub fn damaged_magic_text(buf: &[u8]) -> String {
+    let hex = |b: &[u8]| b.iter().map(|x| format!("{x:02x}")).collect::<Vec<_>>().join(" ");
+    format!(
+        "the leading magic is damaged (bytes 0..8 are {}, MCAP's are {})",
+        hex(&buf[..MAGIC.len().min(buf.len())]),
+        hex(MAGIC)
+    )
+}
+
 /// Whether a record body is consumed exactly by its fields, as every MCAP v0 writer writes them: a
 /// bit flip in a record's length would otherwise shift the framing silently (a Header whose
 /// length grew swallowing the chunks after it, found by the `salvage_damage` fuzz target).
@@ -380,6 +419,18 @@ pub struct FileMap {
 }
 
 const FOOTER_LEN: usize = 9 + 20;
+const NO_SUMMARY: &str = "the file has no summary section";
+const NO_SUMMARY_CRC: &str = "the summary has no CRC";
+
+/// What is wrong with the summary section of a file that has a footer, if it is damaged
+/// (a CRC mismatch, a record that does not parse, a footer pointing outside the file); a file
+/// without a summary or whose summary has no CRC is not damaged. The statistics' message count,
+/// when the summary is intact.
+pub fn summary_check(buf: &[u8]) -> (Option<String>, Option<u64>) {
+    let (_, info, problem) = read_summary(buf);
+    let problem = problem.filter(|p| p != NO_SUMMARY && p != NO_SUMMARY_CRC);
+    (problem, info.and_then(|i| i.statistics).map(|st| st.message_count))
+}
 
 /// Read the footer and, if intact, the summary section.
 fn read_summary(buf: &[u8]) -> (bool, Option<SummaryInfo>, Option<String>) {
@@ -399,7 +450,7 @@ fn read_summary(buf: &[u8]) -> (bool, Option<SummaryInfo>, Option<String>) {
     let summary_start = u64::from_le_bytes(f[0..8].try_into().expect("8 bytes"));
     let crc = u32::from_le_bytes(f[16..20].try_into().expect("4 bytes"));
     if summary_start == 0 {
-        return (true, None, Some("the file has no summary section".into()));
+        return (true, None, Some(NO_SUMMARY.into()));
     }
     if summary_start < MAGIC.len() as u64 || summary_start > fpos as u64 {
         return (
@@ -411,7 +462,7 @@ fn read_summary(buf: &[u8]) -> (bool, Option<SummaryInfo>, Option<String>) {
     let s = summary_start as usize;
     if crc == 0 {
         // Without a CRC nothing in the summary can be trusted to point at the right bytes.
-        return (true, None, Some("the summary has no CRC".into()));
+        return (true, None, Some(NO_SUMMARY_CRC.into()));
     }
     let got = crc32fast::hash(&buf[s..fpos + 9 + 16]);
     if got != crc {

@@ -150,8 +150,13 @@ pub struct EpisodeMeta {
     pub seed: u64,
     /// Robot model name known to `ur3_kin::UrModel::by_name` (`"ur3"`).
     pub robot_model: String,
-    /// Source hand log, if any; its SHA-256 is computed when recording starts.
+    /// Source hand log, if any; its SHA-256 is computed when recording starts unless
+    /// `source_handlog_sha256` gives it.
     pub source_handlog: Option<PathBuf>,
+    /// SHA-256 (64 lower-case hex digits) of the source hand log's bytes as they were parsed
+    /// ([`crate::ParseReport::sha256`]). A converter passes it so that the hash covers exactly
+    /// the bytes converted, even when the file grows (or is replaced) after it was read.
+    pub source_handlog_sha256: Option<String>,
     /// The hand log's header (layout, space, handedness), if hand frames are recorded.
     pub hand: Option<HandLogHeader>,
     /// Name/version of the gesture model used (`"svm-suction-v1"`), free text.
@@ -173,6 +178,7 @@ impl Default for EpisodeMeta {
             seed: 0,
             robot_model: "ur3".into(),
             source_handlog: None,
+            source_handlog_sha256: None,
             hand: None,
             gesture_model: String::new(),
             control_dt: 0.0,
@@ -243,7 +249,9 @@ impl Default for WriterOptions {
 /// What [`DemoWriter::finish`] wrote.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct WriteStats {
-    /// Final path of the file.
+    /// Final path of the file (serialized as text, bytes that are not UTF-8 replaced: serde
+    /// refuses such a path, and the demo is already in place when the stats are made).
+    #[serde(serialize_with = "path_as_text")]
     pub path: PathBuf,
     /// Steps written.
     pub steps: u64,
@@ -497,6 +505,10 @@ pub fn log_time_ns(t: f64) -> Result<u64, DemoError> {
     Ok((t * 1e9).round() as u64)
 }
 
+fn path_as_text<S: serde::Serializer>(p: &Path, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&p.to_string_lossy())
+}
+
 /// Lower-case hex of a SHA-256 digest.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
@@ -574,12 +586,20 @@ impl DemoWriter {
         for e in &meta.scene {
             check_entity(e)?;
         }
-        let handlog_sha256 = match &meta.source_handlog {
-            Some(p) => {
-                let bytes = std::fs::read(p).map_err(|e| DemoError::Io { path: p.clone(), source: e })?;
+        let handlog_sha256 = match (&meta.source_handlog_sha256, &meta.source_handlog) {
+            (Some(h), _) => {
+                if h.len() != 64 || !h.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
+                    return Err(DemoError::Invalid(format!(
+                        "source_handlog_sha256 must be 64 lower-case hex digits, got {h:?}"
+                    )));
+                }
+                Some(h.clone())
+            }
+            (None, Some(p)) => {
+                let bytes = crate::read_input(p)?;
                 Some(sha256_hex(&bytes))
             }
-            None => None,
+            (None, None) => None,
         };
         let partial = partial_path(&final_path);
         let file = File::create(&partial).map_err(|e| DemoError::Io { path: partial.clone(), source: e })?;

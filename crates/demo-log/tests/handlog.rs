@@ -317,7 +317,14 @@ fn arb_log() -> impl Strategy<Value = HandLog> {
     (layout, 0usize..12, any::<bool>(), prop::option::of(any::<u64>())).prop_flat_map(
         |(layout, n, left, seed)| {
             let n_j = layout.joint_count();
-            let coord = prop_oneof![-10.0f64..10.0, Just(0.0), Just(-0.0), Just(1e-300), Just(f64::MAX)];
+            let coord = prop_oneof![
+                -10.0f64..10.0,
+                Just(0.0),
+                Just(-0.0),
+                Just(1e-300),
+                Just(demo_log::MAX_COORD_M),
+                Just(-demo_log::MAX_COORD_M)
+            ];
             let frame = (
                 0.0f64..1.0,
                 any::<bool>(),

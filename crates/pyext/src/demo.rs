@@ -250,10 +250,18 @@ fn demo_salvage_to<'py>(py: Python<'py>, path_in: PathBuf, path_out: PathBuf) ->
     to_py(py, &rep)
 }
 
+/// The `*.mcap` entries of a directory, sorted (`demo_log::demo_files`: whatever they are, so
+/// that one that cannot be read is refused by name, not skipped).
+#[pyfunction]
+fn demo_files(path: PathBuf) -> PyResult<Vec<String>> {
+    let f = demo_log::demo_files(&path).map_err(demo_err)?;
+    Ok(f.iter().map(|p| p.display().to_string()).collect())
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDemoWriter>()?;
     add_functions!(m => demo_parse_handlog, demo_parse_handlog_str, demo_write_handlog, demo_read, demo_load,
-        demo_salvage, demo_salvage_to, demo_verify);
+        demo_salvage, demo_salvage_to, demo_verify, demo_files);
     m.add("DEMO_FORMAT_VERSION", demo_log::DEMO_FORMAT_VERSION)?;
     m.add("HANDLOG_VERSION", demo_log::HANDLOG_VERSION)?;
     Ok(())

@@ -40,8 +40,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Run ``mimicrete convert``; prints per-file outcomes and a summary. Exit 1 when any log
-    failed."""
+    """Run ``mimicrete convert``; prints per-file outcomes and a summary. Every log is tried;
+    exit 2 when logs were refused as bad input (malformed, not a regular file, for another task:
+    each named on its own line), 1 when any other failure (a disk error) stopped one."""
     from mimicrete.teleop import convert as cv
 
     logs = cv.find_logs(args.source)
@@ -82,8 +83,10 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
         raise UsageError(f"--out {out}: {e.strerror or e}") from None
     results = []
     failed = 0
+    other_failures = 0
     mode = "lenient" if args.lenient else "strict"
     for i, path in enumerate(tqdm(logs, desc="convert", unit="log", disable=args.no_progress)):
+        name = cv.path_text(path)
         try:
             log = cv.load_log(path, mode)
             res = cv.convert_log(
@@ -91,7 +94,12 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
             )
         except (LogFormatError, cv.ConvertError, ValueError, OSError) as e:
             failed += 1
-            tqdm.write(f"mimicrete convert: error: {e}", file=sys.stderr)
+            other_failures += not isinstance(e, (LogFormatError, cv.ConvertError))
+            msg = str(e)
+            tqdm.write(
+                f"mimicrete convert: error: {msg if name in msg else f'{name}: {msg}'}",
+                file=sys.stderr,
+            )
             continue
         results.append(res)
         c = res.counts
@@ -99,7 +107,7 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
         if args.lenient:
             skipped = f", {log.report.get('invalid_skipped', 0)} bad lines skipped"
         tqdm.write(
-            f"{path.name}: {res.steps} steps, "
+            f"{cv.path_text(path.name)}: {res.steps} steps, "
             f"{'installed' if res.installed else 'NOT installed'}"
             f"{', picked' if res.picked else ''}{', fell' if res.fell else ''}; frames "
             f"{c.frames} (untracked {c.untracked}, degenerate {c.degenerate}{skipped}), "
@@ -108,4 +116,6 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
     n_ok = sum(r.installed for r in results)
     share = f" ({100.0 * n_ok / len(results):.1f} %)" if results else ""
     print(f"{len(results)} demos in {args.out}: {n_ok} installed{share}, {failed} logs failed")
-    return 0 if failed == 0 else 1
+    if failed == 0:
+        return 0
+    return 1 if other_failures else 2

@@ -106,13 +106,17 @@ class DemoSet:
 
 
 def demo_files(demos_dir: str | os.PathLike[str]) -> list[Path]:
-    """The ``*.mcap`` files of a directory, sorted by name (``*.partial`` never match)."""
+    """The ``*.mcap`` entries of a directory, sorted by name (``*.partial`` never match), as
+    :func:`mimicrete.demos.files` lists them: one that cannot be read (a dangling symbolic link)
+    is refused when it is read, not left out."""
+    from mimicrete import demos
+
     d = Path(demos_dir)
     if not d.exists():
         raise ExportError(f"{d}: no such directory")
     if not d.is_dir():
         raise ExportError(f"{d}: not a directory (give the folder of the demos)")
-    files = sorted(p for p in d.glob("*.mcap") if p.is_file())
+    files = demos.files(d)
     if not files:
         raise ExportError(f"{d}: no *.mcap demos")
     return files

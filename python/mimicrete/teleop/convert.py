@@ -108,6 +108,13 @@ def parse_calibration(d: Any, file: str, line: int | None, field: str) -> Calibr
     return Calibration(rot, tr, scale, space)
 
 
+def path_text(path: str | os.PathLike[str]) -> str:
+    """A file name as text that can be printed and stored (JSON, MCAP metadata): bytes that are
+    not UTF-8 (``take\\xff.jsonl`` on disk) are shown as ``\\xff`` instead of breaking every
+    message and record that names the file."""
+    return os.fsencode(path).decode("utf-8", "backslashreplace")
+
+
 def load_log(path: str | os.PathLike[str], mode: str = "strict") -> HandLogData:
     """Parse a hand log for conversion (:func:`mimicrete.hands.parse`), with at least one
     frame. Raises ``mimicrete.LogFormatError`` (``file:line: reason``)."""
@@ -200,7 +207,9 @@ def convert_log(
     ending in ``.mcap``, a directory to write :func:`demo_name` into, or ``None``: simulate only).
 
     ``log`` is a hand-log path (parsed by :func:`load_log`) or an already parsed
-    :class:`mimicrete.hands.HandLogData`; ``source`` names it (messages, metadata).
+    :class:`mimicrete.hands.HandLogData`; ``source`` names it (messages, metadata, as
+    :func:`path_text`). The demo's ``source_handlog_sha256`` is the hash of the bytes the parser
+    read (``log.report["sha256"]``), so it covers exactly what was converted.
 
     Raises:
         ConvertError: the log is for another task, or the robot never followed the hand.
@@ -208,7 +217,8 @@ def convert_log(
     if not isinstance(log, HandLogData):
         source = source if source is not None else log
         log = load_log(log)
-    source = os.fspath(source) if source is not None else "handlog"
+    source_path = os.fspath(source) if source is not None else "handlog"
+    source = path_text(source_path)
     _require_frames(log, source)
     spec = tasks.get(task)
     logged = log.header.get("task")
@@ -228,7 +238,7 @@ def convert_log(
     if out is not None:
         out_path = Path(out)
         if out_path.suffix != ".mcap":
-            out_path = out_path / demo_name(source)
+            out_path = out_path / demo_name(source_path)
     with _Lock(out_path) if out_path is not None else _nullcontext():
         sink = None
         rewards: list[float] = []
@@ -246,6 +256,9 @@ def convert_log(
                     handedness=log.header["handedness"],
                     extra={"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
                 )
+                sha = log.report.get("sha256")
+                if sha:  # the bytes parsed, not the file as it is now (it may have grown)
+                    meta["source_handlog_sha256"] = sha
                 sink = DemoSink(out_path, meta)
             session = Session(
                 spec.name,
