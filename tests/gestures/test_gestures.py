@@ -54,9 +54,12 @@ def test_hand_dimensions_and_gesture_geometry():
     assert np.linalg.norm(pinch[5] - pinch[10]) < 1e-3
     assert np.linalg.norm(open_[5] - open_[10]) > 0.06
     assert np.linalg.norm(pinch[10] - pinch[1]) < 0.15 < np.linalg.norm(pinch[15] - pinch[1])
-    # curled fingers come within 9 cm of the wrist; pointing keeps the index out
+    # curled fingers come within 9 cm of the wrist (a fist: all four); pointing keeps the index out
     for tip in (15, 20, 25):
         assert np.linalg.norm(fist[tip] - fist[1]) < 0.09
+    real_fist = hm.hand_joints_local(hm.GESTURE_SHAPES["fist"])
+    for tip in (10, 15, 20, 25):
+        assert np.linalg.norm(real_fist[tip] - real_fist[1]) < 0.09
     assert np.linalg.norm(point[10] - point[1]) > 0.16
     assert np.linalg.norm(point[15] - point[1]) < 0.09
     # fingers curl toward the palm (-Z for a right hand), the left hand toward +Z

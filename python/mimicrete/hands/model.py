@@ -128,6 +128,8 @@ def _shape_rows(params: np.ndarray) -> np.ndarray:
 #: * ``tightening`` — the pinch with the other three fingers curled (the gripping half of the
 #:   tuple is the pinch, the screwing half the closed fingers).
 #: * ``loosening`` — the pinch with middle and ring curled and the little finger straight.
+#: * ``fist`` — every finger curled, the thumb over the middle phalanges: no class of the shipped
+#:   models (it was ``closing`` before they learnt the pinch); the left hand's discard gesture.
 GESTURE_SHAPES: dict[str, HandShape] = {
     "closing": HandShape(
         curl=(0.65, 0.2, 0.2, 0.25),
@@ -158,6 +160,9 @@ GESTURE_SHAPES: dict[str, HandShape] = {
         spread=0.3,
         pinch=1.0,
         index_flat=0.6,
+    ),
+    "fist": HandShape(
+        curl=(0.95, 0.97, 0.97, 0.95), thumb_curl=0.75, thumb_opposition=0.85, spread=0.05
     ),
 }
 
