@@ -10,9 +10,34 @@ server), ``demos`` (MCAP demonstrations), ``learn`` (BC + GAIL + PPO trainer, ev
 
 from __future__ import annotations
 
+import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _started_as_the_cli() -> bool:
+    """True while this package is imported by the ``mimicrete`` command (the console script or
+    ``python -m mimicrete``), before any of the command's code runs."""
+    argv = getattr(_sys, "orig_argv", [])
+    return (len(argv) >= 3 and argv[1] == "-m" and argv[2] == "mimicrete") or (
+        len(argv) >= 2 and _os.path.basename(argv[1]) == "mimicrete"
+    )
+
+
+if _started_as_the_cli() and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
+    # Ctrl-C during the imports below (gymnasium takes a while) ends the command quietly, exit
+    # 130; `mimicrete.cli.main` takes over from here (KeyboardInterrupt once the command runs)
+    def _interrupted(signum: int, frame: object) -> None:
+        try:
+            _os.write(2, b"mimicrete: interrupted\n")
+        finally:
+            _os._exit(130)
+
+    _signal.signal(_signal.SIGINT, _interrupted)
+
 # `envs` registers mimicrete/TileSuction-v0, BlockGrip-v0 and Screw-v0 with gymnasium on import.
-from mimicrete import _native, envs  # noqa: F401
-from mimicrete._native import IkError, LogFormatError, MimicreteError, SimError
+from mimicrete import _native, envs  # noqa: E402, F401
+from mimicrete._native import IkError, LogFormatError, MimicreteError, SimError  # noqa: E402
 
 __version__: str = _native.__version__
 

@@ -214,6 +214,11 @@ class _SimConstants(TypedDict):
     HOME_Q: list[float]
     tasks: dict[str, _TaskDims]
 
+class _Start(TypedDict):
+    object_pose: list[float]
+    target_offset: list[float]
+    pad_offset: list[float]
+
 @final
 class SimEnv:
     """One simulated environment: ``SimEnv(task, seed=0)``."""
@@ -224,8 +229,27 @@ class SimEnv:
     obs_frame_dim: Final[int]
     act_dim: Final[int]
     def __new__(cls, task: str, seed: int = 0) -> SimEnv: ...
-    def reset(self, seed: int | None = None) -> _F32:
-        """Start an episode (None: next seed from the env's RNG) → obs (obs_dim,)."""
+    def reset(
+        self,
+        seed: int | None = None,
+        object_pose: list[float] | None = None,
+        target_offset: list[float] | None = None,
+        pad_offset: list[float] | None = None,
+    ) -> _F32:
+        """Start an episode (None: next seed from the env's RNG) → obs (obs_dim,); at
+        ``object_pose`` [x, y, yaw] with the target (and pad) moved by ``target_offset`` when
+        given (ValueError naming the field for a start off the table, on the pad, out of reach)."""
+    def start(self) -> _Start:
+        """Where the running episode started."""
+    def set_variation(
+        self,
+        starts: str | None = None,
+        towards_wide: float | None = None,
+        object_x: tuple[float, float] | None = None,
+        target_jitter: float = 0.0,
+        robust: bool = False,
+    ) -> None:
+        """How episodes start from the next reset (see ``SimVecEnv.set_variation``)."""
     def step(self, action: ArrayLike) -> tuple[_F32, float, bool, bool, _StepInfo]:
         """action (act_dim,) → (obs, reward, terminated, truncated, info)."""
     def observation(self) -> _F32:
@@ -236,7 +260,7 @@ class SimEnv:
         """Scene items: name, frame, kind (box | cylinder | capsule) and its sizes, translation,
         rotation [x, y, z, w], rgba."""
     def scene_entities(self) -> list[dict[str, Any]]:
-        """``scene_entities(task, seed)`` of the current episode."""
+        """The Foxglove scene entities of the current episode (its pad, target and plate)."""
     def scene_frames(self) -> dict[str, list[float]]:
         """``scene_frames`` of the current state (links at the joints, ``tile`` at the object)."""
     def set_joints(self, q: _F64) -> None:
@@ -270,25 +294,57 @@ class SimVecEnv:
         """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
     def state(self) -> dict[str, Any]:
         """``{"base_seed": int, "episodes": uint64 (num_envs,), "seeds": uint64 (num_envs,),
-        "actions": [float32 (k_i, act_dim)]}``: the running episodes' seeds and actions, what
+        "starts": float32 (num_envs, 7), "actions": [float32 (k_i, act_dim)]}``: the running
+        episodes' seeds, starts (x, y, yaw, target dx, dy, pad dx, dy) and actions, what
         ``restore`` replays."""
     def restore(
-        self, base_seed: int, episodes: list[int], seeds: list[int], actions: list[ArrayLike]
+        self,
+        base_seed: int,
+        episodes: list[int],
+        seeds: list[int],
+        actions: list[ArrayLike],
+        starts: list[list[float]] | None = None,
     ) -> _F32:
-        """Rebuild every env from ``state()``'s parts → obs (num_envs, obs_dim) as when taken."""
+        """Rebuild every env from ``state()``'s parts → obs (num_envs, obs_dim) as when taken
+        (``starts`` None: a state from before starts were saved, the paper's start of each seed)."""
     def set_variation(
         self,
+        starts: str | None = None,
+        towards_wide: float | None = None,
         object_x: tuple[float, float] | None = None,
         target_jitter: float = 0.0,
         robust: bool = False,
     ) -> None:
-        """How episodes start from the next reset: the object's x uniform in ``object_x`` (m;
-        None: the paper's [0, 0.15]) and the target moved by up to ``target_jitter`` m in x and
-        y; ``robust=True``: x in [-0.075, 0.225], jitter 0.02. ValueError out of range."""
-    def reset_replay(self, i: int, seed: int, actions: ArrayLike) -> _F32:
-        """Reset env i to episode ``seed`` and replay ``actions`` (k, act_dim) in it (a recorded
-        episode's first k steps); the other envs do not move → env i's observation (obs_dim,).
-        Raises ValueError if the replayed episode would end, for a bad index or shape."""
+        """How episodes start from the next reset: ``starts`` names one ("training" = the
+        paper's, "robust", "wide"); ``towards_wide`` in [0, 1] goes that far from the paper's to
+        the wide starts; else the object's x uniform in ``object_x`` (m; None: the paper's
+        [0, 0.15]) and the target moved by up to ``target_jitter`` m in x and y; ``robust=True``:
+        x in [-0.075, 0.225], jitter 0.02. ValueError out of range."""
+    def reset_starts(
+        self,
+        seed: int,
+        object_poses: list[list[float]],
+        target_offsets: list[list[float]] | None = None,
+        pad_offsets: list[list[float]] | None = None,
+    ) -> _F32:
+        """Reset every env with base seed ``seed``, env i at ``object_poses[i]`` [x, y, yaw] with
+        its target (and pad) moved by ``target_offsets[i]`` → obs (num_envs, obs_dim). All starts
+        are checked first (ValueError "env i: <field> …"); later episodes draw from the variation."""
+    def reset_replay(
+        self,
+        i: int,
+        seed: int,
+        actions: ArrayLike,
+        object_pose: list[float] | None = None,
+        target_offset: list[float] | None = None,
+        pad_offset: list[float] | None = None,
+    ) -> _F32:
+        """Reset env i to episode ``seed`` (at ``object_pose`` when given, else the paper's start
+        of ``seed``) and replay ``actions`` (k, act_dim) in it (a recorded episode's first k
+        steps); the other envs do not move → env i's observation (obs_dim,). Raises ValueError
+        if the replayed episode would end, for a bad index, shape or start."""
+    def start(self, i: int) -> _Start:
+        """Where env i's running episode started."""
     def step(
         self, actions: ArrayLike
     ) -> tuple[_F32, _F32, _Bool, _Bool, _F32, _Bool, _Bool, _Bool, _Bool]:

@@ -31,6 +31,14 @@ follows the same trajectories, auto-resets included, as a fresh one (gymnasium's
 ``reset()`` without a seed draws the next base from the env's RNG (itself seeded by the last seed).
 ``state()`` / ``restore(state)`` save and rebuild the envs mid-episode exactly (the running
 episodes' actions are replayed; the simulator is deterministic): what a trainer checkpoints.
+
+Starts: episodes start as the paper's do (tile x uniform in [0, 0.15] m, the target fixed) unless
+``sim.set_variation(starts="wide")`` (or ``"robust"``) widens them; tile-sim's ``starts`` module
+documents the three. An explicit start: ``reset(options={"object_pose": [x, y, yaw],
+"target_offset": [dx, dy]})`` (m, rad, Base frame; the pad moves with the target), on the vector
+env one list per env. A start off the table, on the pad or out of reach is refused with a
+``ValueError`` naming the field. ``info["start"]`` (single env) and ``sim.start(i)`` say where an
+episode started.
 """
 
 from __future__ import annotations
@@ -99,6 +107,47 @@ def _count(value: Any, what: str) -> int:
     return n
 
 
+START_KEYS = ("object_pose", "target_offset", "pad_offset")
+_START_LENS = {"object_pose": 3, "target_offset": 2, "pad_offset": 2}
+
+
+def _numbers(value: Any, what: str, n: int) -> list[float]:
+    """``value`` as ``n`` finite floats, or a ValueError naming ``what``."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be {n} numbers, got {value!r}") from None
+    if a.shape != (n,):
+        raise ValueError(f"{what} must be {n} numbers, got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} must be finite, got {value!r}")
+    return [float(v) for v in a]
+
+
+def start_options(options: dict[str, Any] | None, num_envs: int | None = None) -> dict[str, Any]:
+    """The explicit start in reset ``options`` as keyword arguments of the simulator's reset
+    (``object_pose``, ``target_offset``, ``pad_offset``; per env lists when ``num_envs`` is
+    given), ``{}`` when there is none. Shapes are checked here, naming the field; the
+    simulator checks the table, the pad and the reach."""
+    if not options or all(options.get(k) is None for k in START_KEYS):
+        return {}
+    if options.get("object_pose") is None:
+        raise ValueError("target_offset / pad_offset need an object_pose [x, y, yaw]")
+    out: dict[str, Any] = {}
+    for key in START_KEYS:
+        v = options.get(key)
+        if v is None:
+            continue
+        n = _START_LENS[key]
+        if num_envs is None:
+            out[key] = _numbers(v, key, n)
+            continue
+        if not isinstance(v, (list, tuple, np.ndarray)) or len(v) != num_envs:
+            raise ValueError(f"{key} must be a list of {num_envs} entries (one per env), got {v!r}")
+        out[key + "s"] = [_numbers(e, f"{key}[{i}]", n) for i, e in enumerate(v)]
+    return out
+
+
 def _spaces(task: str) -> tuple[spaces.Box, spaces.Box]:
     t = tasks.get(task)
     obs = spaces.Box(-np.inf, np.inf, shape=(t.obs_dim,), dtype=np.float32)
@@ -138,9 +187,15 @@ class MimicreteEnv(gym.Env):
             episode_seed = int(options["episode_seed"])
             if not 0 <= episode_seed < 2**64:
                 raise ValueError(f"episode_seed must be a u64, got {episode_seed}")
-        obs = self._sim.reset(episode_seed)
+        obs = self._sim.reset(episode_seed, **start_options(options))
         self._scene = self._sim.scene()
-        info = {"episode_seed": episode_seed, "picked": False, "installed": False, "fell": False}
+        info = {
+            "episode_seed": episode_seed,
+            "start": self._sim.start(),
+            "picked": False,
+            "installed": False,
+            "fell": False,
+        }
         return obs, info
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -212,6 +267,7 @@ class MimicreteVecEnv(VectorEnv):
             if m.shape != (self.num_envs,):
                 raise ValueError(f"reset_mask must have shape ({self.num_envs},), got {m.shape}")
             return self._sim.reset_mask(m), {}
+        starts = start_options(options, self.num_envs)
         if isinstance(seed, (list, tuple, np.ndarray)):
             seeds = [_seed(s, "seed list entry") for s in seed]
             if len(seeds) != self.num_envs or any(s != seeds[0] + i for i, s in enumerate(seeds)):
@@ -222,11 +278,14 @@ class MimicreteVecEnv(VectorEnv):
             self._rng = np.random.default_rng(base)
         else:
             base = int(self._rng.integers(0, 2**62))
+        if starts:
+            return self._sim.reset_starts(base, **starts), {}
         return self._sim.reset(base), {}
 
     def state(self) -> dict[str, Any]:
         """Plain data (ints, numpy arrays) that :meth:`restore` rebuilds this env from exactly:
-        base seed, each env's episode count and the actions of its running episode, and the
+        base seed, each env's episode count, where and with which actions its running episode
+        started and went (``starts``: rows of x, y, yaw, target dx, dy, pad dx, dy), and the
         RNG that seedless ``reset()`` draws from. Teleports through ``sim`` are not included."""
         st = self._sim.state()
         st["rng"] = self._rng.bit_generator.state
@@ -240,18 +299,26 @@ class MimicreteVecEnv(VectorEnv):
             [int(e) for e in state["episodes"]],
             [int(x) for x in state["seeds"]],
             [np.asarray(a, np.float32) for a in state["actions"]],
+            None
+            if state.get("starts") is None
+            else np.asarray(state["starts"], np.float32).tolist(),
         )
         self._rng = np.random.default_rng()
         self._rng.bit_generator.state = state["rng"]
         return obs
 
-    def reset_replay(self, i: int, seed: int, actions: Any) -> np.ndarray:
+    def reset_replay(
+        self, i: int, seed: int, actions: Any, start: dict[str, Any] | None = None
+    ) -> np.ndarray:
         """Reset env ``i`` alone to episode ``seed`` and replay ``actions`` (k, act_dim) in it: the
-        state a recorded episode (a demo: its seed and actions) had after k steps. The other envs
-        do not move. Returns env ``i``'s observation (obs_dim,). Raises ``ValueError`` when the
-        episode would end inside the replay or ``i`` is out of range."""
+        state a recorded episode (a demo: its seed and actions) had after k steps. The episode
+        starts at ``start`` (``{"object_pose": …, "target_offset": …}``, a demo's recorded start)
+        or, without one, at the paper's start of ``seed`` (where demos are recorded), whatever
+        variation the env draws from. The other envs do not move. Returns env ``i``'s
+        observation (obs_dim,). Raises ``ValueError`` when the episode would end inside the
+        replay, the start is refused or ``i`` is out of range."""
         a = np.asarray(actions, dtype=np.float32).reshape(-1, self.single_action_space.shape[0])
-        return self._sim.reset_replay(int(i), int(seed), a)
+        return self._sim.reset_replay(int(i), int(seed), a, **start_options(start))
 
     def step(
         self, actions: Any

@@ -240,6 +240,23 @@ fn reachable(p: Vector3<f64>, tcp_z: f64) -> bool {
     })
 }
 
+/// How far from the base axis (m) the arm reaches a TCP at height `z` in the direction of
+/// `p` with the flange down (bisection of [`reachable`] without the margin), for messages.
+fn reach_along(p: Vector3<f64>, tcp_z: f64) -> f64 {
+    let radial = Vector3::new(p.x, p.y, 0.0);
+    let dir = if radial.norm() > 1e-9 { radial / radial.norm() } else { Vector3::x() };
+    let ok = |r: f64| ik_dls(&tool0_for_tcp(dir * r + Vector3::new(0.0, 0.0, p.z), tcp_z), &HOME_Q).is_some();
+    let (mut lo, mut hi) = (0.2, 1.0);
+    if !ok(lo) {
+        return 0.0;
+    }
+    for _ in 0..30 {
+        let mid = 0.5 * (lo + hi);
+        if ok(mid) { lo = mid } else { hi = mid }
+    }
+    lo
+}
+
 impl Start {
     /// The object's centre (Base frame) at this start: on the table, or caught on the bolt (Screw).
     pub fn object_centre(&self, task: Task) -> Vector {
@@ -312,21 +329,30 @@ impl Start {
                 ));
             }
         }
-        let reach = |p: Vector| {
-            let tcp_z = if task == Task::TileSuction { world::CUP_TCP_Z } else { world::GRIP_TCP_Z } as f64;
-            reachable(Vector3::new(p.x as f64, p.y as f64, p.z as f64), tcp_z)
+        let tcp_z = if task == Task::TileSuction { world::CUP_TCP_Z } else { world::GRIP_TCP_Z } as f64;
+        let v3 = |p: Vector| Vector3::new(p.x as f64, p.y as f64, p.z as f64);
+        let why = |p: Vector3<f64>| {
+            let (r, limit) = (p.xy().norm(), reach_along(p, tcp_z));
+            if r + REACH_MARGIN < limit {
+                format!(
+                    "{r:.3} m from the base axis is too close to the base for the flange to point down there (with {REACH_MARGIN} m to spare)"
+                )
+            } else {
+                format!(
+                    "{r:.3} m from the base axis; the UR3 reaches {limit:.3} m that way with the flange down, and starts keep {REACH_MARGIN} m inside its reach"
+                )
+            }
         };
-        let grasp = self.object_centre(task) + Vector::new(0.0, 0.0, footprint_top(task));
-        if !reach(grasp) {
-            return bad(format!(
-                "object_pose ({x}, {y}) m is out of reach: the UR3 (reach {:.3} m from the shoulder) cannot take it with the flange down and {REACH_MARGIN} m to spare",
-                ur3_kin::UR3.reach()
-            ));
+        let grasp = v3(self.object_centre(task) + Vector::new(0.0, 0.0, footprint_top(task)));
+        if !reachable(grasp, tcp_z) {
+            return bad(format!("object_pose ({x}, {y}) m is out of reach: {}", why(grasp)));
         }
-        if task != Task::Screw && !reach(self.target(task)) {
+        let target = v3(self.target(task));
+        if task != Task::Screw && !reachable(target, tcp_z) {
             return bad(format!(
-                "target_offset {:?} puts the target out of reach of the UR3 with the flange down and {REACH_MARGIN} m to spare",
-                self.target_offset
+                "target_offset {:?} puts the target out of reach: {}",
+                self.target_offset,
+                why(target)
             ));
         }
         Ok(())

@@ -13,8 +13,14 @@ failure exits 1 with its message; Ctrl-C exits 130. ``--debug`` shows the traceb
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import io
+import os
+import signal
 import sys
+import threading
+from typing import Any
 
 # subcommand -> (module in this package, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -77,22 +83,116 @@ def user_errors() -> tuple[type[BaseException], ...]:
     return (UsageError, LogFormatError, FileNotFoundError, IsADirectoryError, NotADirectoryError)
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    mod = importlib.import_module(args._module)
+#: characters of an error message printed (a message quoting a huge value is cut)
+MAX_MESSAGE = 600
+
+
+def bounded(message: str, limit: int = MAX_MESSAGE) -> str:
+    """``message`` on one line, at most ``limit`` characters (the cut is said)."""
+    one = " ".join(message.split("\n")) if "\n" in message else message
+    if len(one) <= limit:
+        return one
+    return f"{one[: limit - 40]}... ({len(one) - limit + 40} more characters)"
+
+
+def _quiet_interrupt(signum: int, frame: object) -> None:
+    """Ctrl-C while the command starts or ends (imports, parsing, --help, the interpreter's
+    exit): nothing to clean up, so exit 130 at once, without a traceback."""
     try:
+        os.write(2, b"mimicrete: interrupted\n")
+    finally:
+        os._exit(130)
+
+
+class _Stdout(io.TextIOBase):
+    """``sys.stdout`` that survives its reader going away (``mimicrete convert DIR | head -1``):
+    once the pipe is closed, output goes to /dev/null and the command carries on to the end, so a
+    closed stdout never stops the work half way."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.closed_pipe = False
+
+    def _drop(self) -> None:
+        if not self.closed_pipe:
+            self.closed_pipe = True
+            try:  # the interpreter's own final flush of fd 1 must not fail either
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, self.inner.fileno())
+                os.close(devnull)
+            except (OSError, ValueError, io.UnsupportedOperation):
+                pass
+
+    def write(self, s: str) -> int:
+        if not self.closed_pipe:
+            try:
+                return self.inner.write(s)
+            except BrokenPipeError:
+                self._drop()
+        return len(s)
+
+    def flush(self) -> None:
+        if not self.closed_pipe:
+            try:
+                self.inner.flush()
+            except BrokenPipeError:
+                self._drop()
+
+    def isatty(self) -> bool:
+        return not self.closed_pipe and self.inner.isatty()
+
+    def fileno(self) -> int:
+        return self.inner.fileno()
+
+    @property
+    def encoding(self) -> str:  # type: ignore[override]
+        return getattr(self.inner, "encoding", "utf-8")
+
+    def writable(self) -> bool:
+        return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The program (``argv`` None: ``sys.argv``; the console script and ``python -m
+    mimicrete``) or one command called from Python (``argv`` given, signals left alone)."""
+    entry = argv is None and threading.current_thread() is threading.main_thread()
+    if entry:
+        signal.signal(signal.SIGINT, _quiet_interrupt)
+    old_stdout = sys.stdout
+    guard = _Stdout(old_stdout) if old_stdout is not None else None
+    if guard is not None:
+        sys.stdout = guard
+    try:
+        return _main(argv, entry)
+    finally:
+        if guard is not None and sys.stdout is guard:
+            with contextlib.suppress(Exception):
+                guard.flush()
+            sys.stdout = old_stdout
+        if entry:  # the interpreter's exit (joining threads, flushing) is quiet on Ctrl-C too
+            signal.signal(signal.SIGINT, _quiet_interrupt)
+
+
+def _main(argv: list[str] | None, entry: bool) -> int:
+    command = "(starting)"
+    args: argparse.Namespace | None = None
+    try:
+        args = build_parser().parse_args(argv)
+        command = args.command
+        mod = importlib.import_module(args._module)
+        if entry:  # from here on Ctrl-C is a KeyboardInterrupt: the command cleans up
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         return int(mod.main(args) or 0)
     except KeyboardInterrupt:
-        print(f"mimicrete {args.command}: interrupted", file=sys.stderr)
+        if entry:
+            signal.signal(signal.SIGINT, _quiet_interrupt)
+        print(f"mimicrete {command}: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # `mimicrete inspect ... | head`
-        sys.stderr.close()
-        return 0
     except Exception as e:
-        if args.debug:
+        if args is None or args.debug:  # the parser itself failed: a bug, show it
             raise
         code = 2 if isinstance(e, user_errors()) else 1
-        print(f"mimicrete {args.command}: error: {e}", file=sys.stderr)
+        print(f"mimicrete {command}: error: {bounded(str(e))}", file=sys.stderr)
         return code
 
 

@@ -1,8 +1,8 @@
-"""`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--robust] [--video N]`: the paper's
-Table 5 row for a trained run, written to ``RUN_DIR/eval.json`` (``eval_stochastic.json`` for the
-sampled policy, ``eval_robust*.json`` from the wider starts), and videos of the first N evaluation
-episodes in ``RUN_DIR/videos/``. Parses the flags and calls ``mimicrete.learn.evaluate_run`` and
-``mimicrete.learn.video.record_run_videos``."""
+"""`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--starts training|robust|wide|FILE.jsonl]
+[--video N]`: the paper's Table 5 row for a trained run, written to ``RUN_DIR/eval.json``
+(``eval_stochastic.json`` for the sampled policy, ``eval_<starts>*.json`` from other starts),
+and videos of the first N evaluation episodes in ``RUN_DIR/videos/``. Parses the flags and calls
+``mimicrete.learn.evaluate_run`` and ``mimicrete.learn.video.record_run_videos``."""
 
 from __future__ import annotations
 
@@ -28,6 +28,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="start episodes wider than in training: the tile's x range widened by half on each "
         "side ([-0.075, 0.225] m) and the target moved by up to 2 cm; writes "
         "RUN_DIR/eval_robust.json (eval_robust_stochastic.json with --stochastic)",
+    )
+    parser.add_argument(
+        "--starts",
+        default="training",
+        metavar="training|robust|wide|FILE.jsonl",
+        help="where episodes start: training (the paper's, default), robust (as --robust), wide "
+        "(the object over 0.25 x 0.10 m of table, turned up to 30 degrees, the target and its pad "
+        "moved up to 4 cm; writes eval_wide.json), or a file of explicit starts, one JSON object "
+        'a line: {"object_pose": [x, y, yaw], "target_offset": [dx, dy]} (m, rad; one episode per '
+        "line, --episodes ignored; writes eval_starts-<stem>.json)",
     )
     parser.add_argument(
         "--video",
@@ -61,18 +71,25 @@ def main(args: argparse.Namespace) -> int:
     from mimicrete.learn.run_files import PolicyFileError, load_policy
 
     torch.set_num_threads(1)
+    from mimicrete.learn import starts as starts_mod
+
+    if args.robust and args.starts != "training":
+        raise UsageError("--robust and --starts: give one of them")
     try:
         fmt = None
+        env_id = load_policy(run_dir)[1].env_settings.env_id
+        starts = starts_mod.resolve("robust" if args.robust else args.starts, env_id)
         if args.video:  # what would stop the videos, before the evaluation runs
             fmt = video.resolve_format(args.video_format)
             video.check_renderable(load_policy(run_dir)[1].env_settings.env_id)
         res = learn.evaluate_run(
-            run_dir, args.episodes, args.seed, stochastic=args.stochastic, robust=args.robust
+            run_dir, args.episodes, args.seed, stochastic=args.stochastic, starts=starts
         )
     except (PolicyFileError, video.VideoError, ValueError) as e:
         raise UsageError(str(e)) from None
     print(learn.format_row(run_dir.name, res))
-    print(f"wrote {run_dir / learn.evaluate.eval_file(args.stochastic, args.robust)}")
+    print(f"starts: {res['starts']}, {res['episodes']} episodes, {res['policy']} policy")
+    print(f"wrote {run_dir / learn.evaluate.eval_file(args.stochastic, starts=starts)}")
     if fmt is not None:
         try:
             episodes = video.record_run_videos(run_dir, args.video, args.seed, fmt)

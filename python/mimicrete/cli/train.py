@@ -73,9 +73,15 @@ def main(args: argparse.Namespace) -> int:
 
     if args.eval_episodes < 0:
         raise UsageError(f"--eval-episodes: 0 or more, got {args.eval_episodes}")
+    config_file = args.config
+    if args.resume and config_file is None and args.run_dir:
+        # a run continues with the config it was trained with (not the default one)
+        resolved = Path(args.run_dir) / "resolved_config.yaml"
+        if resolved.is_file():
+            config_file = str(resolved)
     try:
         cfg, cfg_path = config.resolve(
-            args.config,
+            config_file,
             overrides=args.set,
             seed=args.seed,
             num_envs=args.num_envs,

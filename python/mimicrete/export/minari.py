@@ -42,9 +42,10 @@ def default_dataset_id(ds: DemoSet) -> str:
 
 @contextlib.contextmanager
 def _datasets_root(root: Path) -> Iterator[None]:
-    """Minari finds its datasets through ``MINARI_DATASETS_PATH``; point it at ``root``."""
+    """Minari finds its datasets through ``MINARI_DATASETS_PATH``; point it at ``root``, made
+    absolute (Minari joins a relative root onto paths it already joined it to)."""
     old = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(root)
+    os.environ["MINARI_DATASETS_PATH"] = os.path.abspath(root)
     try:
         yield
     finally:

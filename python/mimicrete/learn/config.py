@@ -28,6 +28,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import reprlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -215,56 +216,65 @@ def _num(x: float | None) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)
 
 
-POSITIVE_INT = Range(1)
 NON_NEGATIVE = Range(0)
 POSITIVE = Range(0, lo_open=True)
 UNIT = Range(0, 1)
+
+
+def _ints(lo: int, hi: int) -> Range:
+    return Range(lo, hi)
+
+
+# Every integer field has a finite range: the upper bounds are far above any real run, and low
+# enough that a typo cannot allocate the machine's memory away or overflow torch's C++ integers.
+STEPS = _ints(1, 10**12)  # env steps
+COUNT = _ints(1, 10**6)  # episodes, summaries, windows
 #: (dataclass, field) -> allowed values; every numeric field of the schema is listed
 RANGES: dict[tuple[type, str], Range] = {
-    (Hyperparameters, "batch_size"): POSITIVE_INT,
-    (Hyperparameters, "buffer_size"): POSITIVE_INT,
+    (Hyperparameters, "batch_size"): _ints(1, 10**7),
+    (Hyperparameters, "buffer_size"): _ints(1, 10**8),
     (Hyperparameters, "learning_rate"): POSITIVE,
     (Hyperparameters, "beta"): NON_NEGATIVE,
     (Hyperparameters, "epsilon"): Range(0, 1, lo_open=True, hi_open=True),
     (Hyperparameters, "lambd"): UNIT,
-    (Hyperparameters, "num_epoch"): POSITIVE_INT,
-    (NetworkSettings, "hidden_units"): POSITIVE_INT,
-    (NetworkSettings, "num_layers"): POSITIVE_INT,
+    (Hyperparameters, "num_epoch"): _ints(1, 10**4),
+    (NetworkSettings, "hidden_units"): _ints(1, 8192),
+    (NetworkSettings, "num_layers"): _ints(1, 64),
     (ExtrinsicSettings, "gamma"): UNIT,
     (ExtrinsicSettings, "strength"): NON_NEGATIVE,
     (GailSettings, "gamma"): UNIT,
     (GailSettings, "strength"): NON_NEGATIVE,
     (GailSettings, "learning_rate"): POSITIVE,
     (BehavioralCloningSettings, "strength"): NON_NEGATIVE,
-    (BehavioralCloningSettings, "steps"): NON_NEGATIVE,
-    (BehavioralCloningSettings, "batch_size"): POSITIVE_INT,
-    (BehavioralCloningSettings, "num_epoch"): POSITIVE_INT,
-    (BehavioralCloningSettings, "samples_per_update"): NON_NEGATIVE,
-    (BehavioralCloningSettings, "pretrain_steps"): NON_NEGATIVE,
-    (BehavioralCloningSettings, "pretrain_passes"): NON_NEGATIVE,
+    (BehavioralCloningSettings, "steps"): _ints(0, 10**12),
+    (BehavioralCloningSettings, "batch_size"): _ints(1, 10**7),
+    (BehavioralCloningSettings, "num_epoch"): _ints(1, 10**4),
+    (BehavioralCloningSettings, "samples_per_update"): _ints(0, 10**8),
+    (BehavioralCloningSettings, "pretrain_steps"): _ints(0, 10**9),
+    (BehavioralCloningSettings, "pretrain_passes"): Range(0, 10**6),
     (BehavioralCloningSettings, "ee_class_balance"): UNIT,
     (DemoCurriculumSettings, "reset_prob"): UNIT,
     (DemoCurriculumSettings, "step_fraction"): Range(0, 1, lo_open=True),
-    (DemoCurriculumSettings, "window"): POSITIVE_INT,
+    (DemoCurriculumSettings, "window"): COUNT,
     (DemoCurriculumSettings, "threshold"): UNIT,
-    (DemoCurriculumSettings, "horizon_ratio"): NON_NEGATIVE,
-    (DemoCurriculumSettings, "min_horizon"): POSITIVE_INT,
+    (DemoCurriculumSettings, "horizon_ratio"): Range(0, 10**6),
+    (DemoCurriculumSettings, "min_horizon"): COUNT,
     (DemoCurriculumSettings, "old_start_prob"): UNIT,
-    (DemoCurriculumSettings, "max_demos"): POSITIVE_INT,
-    (BehaviorConfig, "max_steps"): POSITIVE_INT,
-    (BehaviorConfig, "time_horizon"): POSITIVE_INT,
-    (BehaviorConfig, "summary_freq"): POSITIVE_INT,
-    (BehaviorConfig, "checkpoint_interval"): POSITIVE_INT,
-    (BehaviorConfig, "keep_checkpoints"): POSITIVE_INT,
-    (BehaviorConfig, "demo_episodes"): POSITIVE_INT,
+    (DemoCurriculumSettings, "max_demos"): COUNT,
+    (BehaviorConfig, "max_steps"): STEPS,
+    (BehaviorConfig, "time_horizon"): COUNT,
+    (BehaviorConfig, "summary_freq"): STEPS,
+    (BehaviorConfig, "checkpoint_interval"): STEPS,
+    (BehaviorConfig, "keep_checkpoints"): _ints(1, 10**4),
+    (BehaviorConfig, "demo_episodes"): COUNT,
     (BehaviorConfig, "demo_drop_idle"): Range(0, 1, hi_open=True),
     (BehaviorConfig, "init_std"): Range(0, 1, lo_open=True),
-    (EnvSettings, "num_envs"): POSITIVE_INT,
+    (EnvSettings, "num_envs"): _ints(1, 4096),
     (EnvSettings, "seed"): Range(0, 2**32, hi_open=True),
-    (TorchSettings, "num_threads"): POSITIVE_INT,
+    (TorchSettings, "num_threads"): _ints(1, 1024),
     (ConvergenceSettings, "installed_rate"): UNIT,
-    (ConvergenceSettings, "summaries"): POSITIVE_INT,
-    (ConvergenceSettings, "min_episodes"): POSITIVE_INT,
+    (ConvergenceSettings, "summaries"): COUNT,
+    (ConvergenceSettings, "min_episodes"): _ints(1, 10**9),
 }
 DEVICES = ("cpu",)
 
@@ -288,7 +298,8 @@ def _build(cls: type, data: Any, where: str) -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = set(data) - set(fields)
     if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(fields)}")
+        shown = short_repr(sorted(str(k)[:80] for k in unknown))
+        raise ConfigError(f"{where}: unknown key(s) {shown}; allowed: {sorted(fields)}")
     kwargs: dict[str, Any] = {}
     hints = {
         "hyperparameters": Hyperparameters,
@@ -302,26 +313,54 @@ def _build(cls: type, data: Any, where: str) -> Any:
     }
     for key, value in data.items():
         sub = hints.get(key)
-        keep_default = key in ("hyperparameters", "network_settings")
-        if sub is not None and (value is not None or keep_default):
+        optional = "None" in str(fields[key].type)
+        # a null section that may not be absent (reward_signals, hyperparameters, ...): defaults
+        if sub is not None and (value is not None or not optional):
             kwargs[key] = _build(sub, value, f"{where}.{key}")
         else:
-            kwargs[key] = _coerce(fields[key], value, f"{where}.{key}")
             rng = RANGES.get((cls, key))
+            kwargs[key] = _coerce(fields[key], value, f"{where}.{key}", rng)
             if rng is not None and kwargs[key] is not None and kwargs[key] not in rng:
                 raise ConfigError(
-                    f"{where}.{key}: {kwargs[key]!r} is out of range (allowed: {rng})"
+                    f"{where}.{key}: {short_repr(kwargs[key])} is out of range (allowed: {rng})"
                 )
     return cls(**kwargs)
 
 
-def _coerce(f: dataclasses.Field, value: Any, where: str) -> Any:
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxdict, _REPR.maxlist, _REPR.maxtuple = 2, 4, 4, 4
+_REPR.maxstring, _REPR.maxlong, _REPR.maxother = 60, 40, 60
+
+
+def short_repr(value: Any) -> str:
+    """``repr(value)`` cut to a few dozen characters (a value can be an alias bomb)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
+        return f"an integer of about {int(value.bit_length() * 0.30103)} digits"
+    return _REPR.repr(value)
+
+
+def _coerce(f: dataclasses.Field, value: Any, where: str, rng: Range | None = None) -> Any:
     t = str(f.type)
     if value is None:
-        return None
+        if "None" in t:
+            return None
+        kind = {
+            "int": "an integer",
+            "float": "a number",
+            "bool": "true/false",
+            "str": "a string",
+        }.get(t.split(" ")[0], "a value")
+        raise ConfigError(f"{where}: expected {kind}, got null")
     if t.startswith("int"):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or int(value) != value:
-            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        if isinstance(value, float) and not math.isfinite(value):
+            allowed = f" (allowed: {rng})" if rng is not None else ""
+            raise ConfigError(f"{where}: {value!r} is out of range{allowed}")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or (isinstance(value, float) and not value.is_integer())
+        ):
+            raise ConfigError(f"{where}: expected an integer, got {short_repr(value)}")
         return int(value)
     if t.startswith("float"):
         if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
@@ -330,15 +369,24 @@ def _coerce(f: dataclasses.Field, value: Any, where: str) -> Any:
             except ValueError:
                 pass
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{where}: expected a number, got {value!r}")
-        return float(value)
+            raise ConfigError(f"{where}: expected a number, got {short_repr(value)}")
+        try:
+            return float(value)
+        except OverflowError:  # an integer beyond any float
+            raise ConfigError(
+                f"{where}: {short_repr(value)} is out of range (allowed: {rng})"
+            ) from None
     if t.startswith("bool"):
         if not isinstance(value, bool):
-            raise ConfigError(f"{where}: expected true/false, got {value!r}")
+            raise ConfigError(f"{where}: expected true/false, got {short_repr(value)}")
         return value
     if t.startswith("str"):
         if not isinstance(value, str):
-            raise ConfigError(f"{where}: expected a string, got {value!r}")
+            raise ConfigError(f"{where}: expected a string, got {short_repr(value)}")
+        if len(value) > MAX_STRING:
+            raise ConfigError(
+                f"{where}: a string of {len(value)} characters (at most {MAX_STRING})"
+            )
         return value
     return value
 
@@ -347,11 +395,13 @@ def _validate(cfg: TrainerConfig) -> None:
     b = cfg.behavior
     h = b.hyperparameters
     if b.trainer_type != "ppo":
-        raise ConfigError(f"trainer_type {b.trainer_type!r}: only 'ppo' is implemented")
+        raise ConfigError(f"trainer_type {short_repr(b.trainer_type)}: only 'ppo' is implemented")
     for name in ("learning_rate_schedule", "beta_schedule", "epsilon_schedule"):
         v = getattr(h, name)
         if v is not None and v not in ("linear", "constant"):
-            raise ConfigError(f"hyperparameters.{name}: 'linear' or 'constant', got {v!r}")
+            raise ConfigError(
+                f"hyperparameters.{name}: 'linear' or 'constant', got {short_repr(v)}"
+            )
     if h.batch_size <= 0 or h.buffer_size < h.batch_size:
         raise ConfigError("need 0 < batch_size <= buffer_size")
     if b.reward_signals.extrinsic is None and b.reward_signals.gail is None:
@@ -372,8 +422,8 @@ def _validate(cfg: TrainerConfig) -> None:
         raise ConfigError(f"demo_drop_idle: a fraction in [0, 1), got {b.demo_drop_idle}")
     if cfg.torch_settings.device not in DEVICES:
         raise ConfigError(
-            f"torch_settings.device: {cfg.torch_settings.device!r} is not supported; the trainer "
-            f"runs on {' or '.join(DEVICES)}"
+            f"torch_settings.device: {short_repr(cfg.torch_settings.device)} is not supported; "
+            f"the trainer runs on {' or '.join(DEVICES)}"
         )
     if cfg.env_settings.num_envs <= 0 or h.buffer_size % cfg.env_settings.num_envs:
         raise ConfigError("env_settings.num_envs must divide hyperparameters.buffer_size")
@@ -384,7 +434,9 @@ def from_dict(data: dict[str, Any]) -> TrainerConfig:
         raise ConfigError("a config needs a top-level 'behaviors' mapping")
     unknown = set(data) - {"behaviors", "env_settings", "torch_settings"}
     if unknown:
-        raise ConfigError(f"unknown top-level key(s) {sorted(unknown)}")
+        raise ConfigError(
+            f"unknown top-level key(s) {short_repr(sorted(str(k)[:80] for k in unknown))}"
+        )
     behaviors = data["behaviors"]
     if not isinstance(behaviors, dict) or len(behaviors) != 1:
         raise ConfigError("'behaviors' must hold exactly one behavior")
@@ -408,14 +460,88 @@ def _yaml_problem(e: yaml.YAMLError) -> str:
     return str(getattr(e, "problem", None) or e).splitlines()[0]
 
 
+#: what a config file may be: a few KiB in practice
+MAX_CONFIG_BYTES = 1 << 20
+#: YAML nodes once aliases are expanded (a config has a few hundred; an alias bomb billions)
+MAX_YAML_NODES = 100_000
+#: nesting of mappings and sequences (a config has 5 levels)
+MAX_YAML_DEPTH = 32
+#: characters of a string field (paths, names)
+MAX_STRING = 4096
+
+
+def parse_yaml(text: str, where: str) -> Any:
+    """``yaml.safe_load(text)`` within bounds: at most :data:`MAX_YAML_NODES` nodes with every
+    alias counted at the size it expands to, at most :data:`MAX_YAML_DEPTH` levels deep. The
+    event stream is checked first (PyYAML's parser is not recursive, its composer is), so an
+    alias bomb or a deeply nested file is refused before anything is built. Errors are a
+    :class:`ConfigError` starting with ``where`` (and the line:column)."""
+    stack: list[list[Any]] = []  # per open collection: [anchor, expanded size, start mark]
+    anchors: dict[str, int] = {}
+
+    def add(n: int, mark: Any) -> None:
+        if stack:
+            stack[-1][1] += n
+            if stack[-1][1] > MAX_YAML_NODES:
+                raise ConfigError(
+                    f"{where}{_mark(mark)}: more than {MAX_YAML_NODES} values once aliases are "
+                    "expanded (an alias bomb?)"
+                )
+
+    try:
+        for ev in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                if len(stack) >= MAX_YAML_DEPTH:
+                    raise ConfigError(
+                        f"{where}{_mark(ev.start_mark)}: nested more than {MAX_YAML_DEPTH} "
+                        "levels deep"
+                    )
+                stack.append([ev.anchor, 1, ev.start_mark])
+            elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                anchor, size, _ = stack.pop()
+                if anchor is not None:
+                    anchors[anchor] = size
+                add(size, ev.start_mark)
+            elif isinstance(ev, yaml.ScalarEvent):
+                if ev.anchor is not None:
+                    anchors[ev.anchor] = 1
+                add(1, ev.start_mark)
+            elif isinstance(ev, yaml.AliasEvent):
+                add(anchors.get(ev.anchor, 1), ev.start_mark)
+        return yaml.load(text, Loader=yaml.SafeLoader)  # noqa: S506 (the safe loader)
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{where}{_yaml_where(e)}: not valid YAML ({_yaml_problem(e)})") from None
+    except (ValueError, RecursionError, OverflowError) as e:  # an int of > 4300 digits, ...
+        if isinstance(e, ConfigError):
+            raise
+        why = str(e).splitlines()[0][:160] if str(e) else type(e).__name__
+        raise ConfigError(f"{where}: not a usable YAML value ({why})") from None
+
+
+def _mark(mark: Any) -> str:
+    return f":{mark.line + 1}:{mark.column + 1}" if mark is not None else ""
+
+
+def read_config_text(path: str | Path) -> str:
+    """The text of a config file: at most :data:`MAX_CONFIG_BYTES`, UTF-8 (errors name the
+    file and, for a bad byte, where it is)."""
+    with open(path, "rb") as f:
+        raw = f.read(MAX_CONFIG_BYTES + 1)
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(
+            f"{path}: larger than {MAX_CONFIG_BYTES // 1024} KiB; a config is a small YAML file"
+        )
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw.count(b"\n", 0, e.start) + 1
+        raise ConfigError(
+            f"{path}:{line}: not UTF-8 text (byte {raw[e.start]:#04x} at offset {e.start})"
+        ) from None
+
+
 def load(path: str | Path) -> TrainerConfig:
-    with open(path, encoding="utf-8") as f:
-        try:
-            data = yaml.safe_load(f)
-        except yaml.YAMLError as e:
-            raise ConfigError(
-                f"{path}{_yaml_where(e)}: not valid YAML ({_yaml_problem(e)})"
-            ) from None
+    data = parse_yaml(read_config_text(path), str(path))
     try:
         return from_dict(data)
     except ConfigError as e:
@@ -428,7 +554,7 @@ def with_overrides(cfg: TrainerConfig, overrides: list[str]) -> TrainerConfig:
     data = cfg.to_dict()
     for item in overrides:
         if "=" not in item:
-            raise ConfigError(f"override {item!r}: expected KEY=VALUE")
+            raise ConfigError(f"override {short_repr(item)}: expected KEY=VALUE")
         key, raw = item.split("=", 1)
         parts = key.strip().split(".")
         if parts[0] == "behavior":
@@ -437,17 +563,66 @@ def with_overrides(cfg: TrainerConfig, overrides: list[str]) -> TrainerConfig:
         for p in parts[:-1]:
             node = node.setdefault(p, {})
             if not isinstance(node, dict):
-                raise ConfigError(f"override {item!r}: {p} is not a mapping")
-        try:
-            node[parts[-1]] = yaml.safe_load(raw)
-        except yaml.YAMLError as e:
-            raise ConfigError(f"override {item!r}: not a YAML value ({_yaml_problem(e)})") from None
+                raise ConfigError(f"override {short_repr(item)}: {p[:80]} is not a mapping")
+        if len(raw) > MAX_CONFIG_BYTES:
+            raise ConfigError(f"override {key.strip()[:80]}: a value of {len(raw)} characters")
+        node[parts[-1]] = parse_yaml(raw, f"override {short_repr(item)}")
     return from_dict(data)
 
 
 def save(cfg: TrainerConfig, path: str | Path) -> None:
-    with open(path, "w", encoding="utf-8") as f:
-        yaml.safe_dump(cfg.to_dict(), f, sort_keys=False)
+    """``resolved_config.yaml`` and the like, written whole or not at all."""
+    from mimicrete.safe_io import atomic_write
+
+    atomic_write(path, yaml.safe_dump(cfg.to_dict(), sort_keys=False))
+
+
+#: dotted keys (``behavior.`` for ``behaviors.<name>.``) a resumed run may change: the budget
+#: (the schedules follow it), when checkpoints are written and kept, the early stop, the threads
+#: (the same numbers either way); anything else shapes the run and is refused on ``--resume``
+RESUME_MAY_CHANGE: tuple[str, ...] = (
+    "behavior.max_steps",
+    "behavior.checkpoint_interval",
+    "behavior.keep_checkpoints",
+    "behavior.stop_on_convergence",
+    "torch_settings.num_threads",
+    "torch_settings.overlap_gail",
+)
+
+
+def _flat(cfg: TrainerConfig) -> dict[str, Any]:
+    out: dict[str, Any] = {"behavior_name": cfg.behavior_name}
+
+    def walk(prefix: str, node: Any) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                walk(f"{prefix}.{k}", v)
+        else:
+            out[prefix] = node
+
+    d = cfg.to_dict()
+    walk("behavior", d["behaviors"][cfg.behavior_name])
+    walk("env_settings", d["env_settings"])
+    walk("torch_settings", d["torch_settings"])
+    return out
+
+
+def resume_changes(trained: dict[str, Any] | TrainerConfig, cfg: TrainerConfig) -> list[str]:
+    """``key old -> new`` for every field that differs between the config a run was trained with
+    (a checkpoint's ``config``) and ``cfg``, leaving out :data:`RESUME_MAY_CHANGE`."""
+    if not isinstance(trained, TrainerConfig):
+        try:
+            trained = from_dict(trained)
+        except ConfigError as e:
+            return [f"the checkpoint's config is not readable ({str(e)[:160]})"]
+    a, b = _flat(trained), _flat(cfg)
+    out = []
+    for key in sorted(set(a) | set(b)):
+        if any(key == k or key.startswith(k + ".") for k in RESUME_MAY_CHANGE):
+            continue
+        if a.get(key) != b.get(key):
+            out.append(f"{key} {short_repr(a.get(key))} -> {short_repr(b.get(key))}")
+    return out
 
 
 # ----------------------------------------------------------------------------------------------
@@ -500,7 +675,9 @@ def resolve(
         try:
             cfg = with_overrides(cfg, ov)
         except ConfigError as e:
-            raise ConfigError(f"{cfg_path} with {' '.join(ov)}: {e}") from None
+            shown = " ".join(short_repr(o) if len(o) > 80 else o for o in ov[:8])
+            more = f" (and {len(ov) - 8} more)" if len(ov) > 8 else ""
+            raise ConfigError(f"{cfg_path} with {shown}{more}: {e}") from None
     return cfg, cfg_path
 
 

@@ -28,6 +28,27 @@ class LoadedDemos:
 
     arrays: dict[str, np.ndarray]
     skipped: list[str] = field(default_factory=list)  # "file: reason" of each bad file skipped
+    #: (file, the simulator task its metadata names, or None) of each loaded MCAP demo
+    tasks: list[tuple[str, str | None]] = field(default_factory=list)
+
+    def check_task(self, sim: str, path: str | os.PathLike[str]) -> None:
+        """:class:`DemoError` naming the first demo file recorded on another task than ``sim``
+        (``TileSuction``, ``BlockGrip``, ``Screw``): its sizes may match, its meaning does not."""
+        from mimicrete import tasks
+
+        for file, task in self.tasks:
+            if task is None:
+                continue
+            try:
+                theirs = tasks.get(task).sim
+            except ValueError:
+                theirs = task
+            if theirs != sim:
+                others = sum(1 for _, t in self.tasks if t is not None and t != task)
+                raise DemoError(
+                    f"{file}: a demo of task {theirs}, the config trains {sim} (demo path "
+                    f"{path}; {len(self.tasks) - others} of {len(self.tasks)} files are {theirs})"
+                )
 
 
 def load_demos(
@@ -48,13 +69,14 @@ def read_demos(
     skipped: list[str] = []
     if p.suffix == ".npz":
         d = _npz_arrays(p)
+        file_tasks: list[tuple[str, str | None]] = []
     else:
         if not p.exists():
             raise FileNotFoundError(
                 f"demo path {p} does not exist (make demos with `mimicrete synth-hands` and "
                 "`mimicrete convert`, or `make demos`, or pass --demos DIR)"
             )
-        d, skipped = _mcap_arrays(p, skip_bad)
+        d, skipped, file_tasks = _mcap_read(p, skip_bad)
     ep = np.asarray(d["episode"])
     if episodes is not None:
         uniq = np.unique(ep)
@@ -62,7 +84,7 @@ def read_demos(
             raise ConfigError(f"{path}: {len(uniq)} demo episodes, the config asks for {episodes}")
         keep = np.isin(ep, uniq[:episodes])
         d = {k: np.asarray(v)[keep] for k, v in d.items()}
-    return LoadedDemos(d, skipped)
+    return LoadedDemos(d, skipped, [] if p.suffix == ".npz" else file_tasks)
 
 
 def _npz_arrays(p: Path) -> dict[str, np.ndarray]:
@@ -77,27 +99,46 @@ def _npz_arrays(p: Path) -> dict[str, np.ndarray]:
     return d
 
 
+def _file_tasks(loaded: Any) -> list[tuple[str, str | None]]:
+    files = list(getattr(loaded, "files", []) or [])
+    metas = list(getattr(loaded, "metas", []) or [])
+    return [(f, (m or {}).get("task") or None) for f, m in zip(files, metas, strict=False)]
+
+
 def _mcap_arrays(p: Path, skip_bad: bool) -> tuple[dict[str, np.ndarray], list[str]]:
+    """The demo arrays of an MCAP file or directory and the bad files skipped."""
+    d, skipped, _ = _mcap_read(p, skip_bad)
+    return d, skipped
+
+
+def _mcap_read(
+    p: Path, skip_bad: bool
+) -> tuple[dict[str, np.ndarray], list[str], list[tuple[str, str | None]]]:
+    """:func:`_mcap_arrays` and the task of each file loaded."""
     from mimicrete import LogFormatError, demos
 
     try:
-        return demo_arrays(demos.load(str(p))), []
+        loaded = demos.load(str(p))
+        return demo_arrays(loaded), [], _file_tasks(loaded)
     except (LogFormatError, OSError) as e:
         if not skip_bad or not p.is_dir():
             hint = " (--skip-bad-demos trains on the other files)" if p.is_dir() else ""
             raise DemoError(f"{e}{hint}") from e
     # one file at a time, leaving out the bad ones; episodes renumbered in file order
-    parts, skipped = [], []
+    parts, skipped, file_tasks = [], [], []
     for f in sorted(p.glob("*.mcap")):
         try:
-            parts.append(demo_arrays(demos.load(str(f))))
+            loaded = demos.load(str(f))
         except (LogFormatError, OSError) as e:
             skipped.append(str(e))
+            continue
+        parts.append(demo_arrays(loaded))
+        file_tasks += _file_tasks(loaded)
     if not parts:
         raise DemoError(f"{p}: no loadable demo file ({len(skipped)} bad)")
     for i, part in enumerate(parts):
         part["episode"] = np.full_like(part["episode"], i)
-    return {k: np.concatenate([q[k] for q in parts]) for k in DEMO_KEYS}, skipped
+    return {k: np.concatenate([q[k] for q in parts]) for k in DEMO_KEYS}, skipped, file_tasks
 
 
 def demo_arrays(loaded: Any) -> dict[str, np.ndarray]:

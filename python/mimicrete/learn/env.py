@@ -30,6 +30,19 @@ def make_env(env_id: str, num_envs: int, seed: int) -> Any:
     return envs.make_vec(env_id, num_envs=num_envs, seed=seed)
 
 
+def sim_task_of(env_id: str) -> str | None:
+    """The simulator task (``TileSuction``, ``BlockGrip``, ``Screw``) an env id runs; None for the
+    toy env."""
+    if env_id.startswith(TOY_PREFIX):
+        return None
+    from mimicrete import tasks
+
+    try:
+        return tasks.get(env_id).sim
+    except ValueError:
+        return None
+
+
 def command_branches(env: Any) -> int:
     """The number of command branches of a vector env's action (act_dim - :data:`N_CONT`)."""
     act_dim = int(env.single_action_space.shape[0])

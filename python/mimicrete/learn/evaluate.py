@@ -9,9 +9,13 @@ eval seed, so a stochastic evaluation is reproducible too. It is written to
 ``eval_stochastic.json`` beside the deterministic ``eval.json``. With ``robust`` the episodes start
 wider than in training (tile-sim's ``Variation::robust``: the tile's x range widened by half on
 each side, [-0.075, 0.225] m, and the target moved by up to ±2 cm in x and y), written to
-``eval_robust.json`` (``eval_robust_stochastic.json``). To avoid favouring short episodes,
-``episodes`` is split evenly over the envs and each env contributes exactly its first
-``episodes / num_envs`` episodes. ``evaluate_run`` writes ``eval.json`` into the run dir.
+``eval_robust.json`` (``eval_robust_stochastic.json``). ``starts`` names any of the start sets of
+:mod:`mimicrete.learn.starts` (``training``, ``robust``, ``wide``: written to ``eval_wide.json``)
+or gives a :class:`~mimicrete.learn.starts.StartList` read from a file (one episode per start,
+``eval_starts-<file stem>.json``). To avoid favouring short episodes, ``episodes`` is split
+evenly over the envs and each env contributes exactly its first ``episodes / num_envs``
+episodes. ``evaluate_run`` writes ``eval.json`` into the run dir; every result says which
+starts it used.
 """
 
 from __future__ import annotations
@@ -26,7 +30,8 @@ import torch
 from .env import make_env
 from .episodes import Episode, EpisodeStats, EpisodeTracker
 from .networks import Actor, env_action
-from .run_files import load_policy
+from .run_files import atomic_write, load_policy
+from .starts import StartList, label
 
 __all__ = ["eval_file", "evaluate_run", "format_row", "load_policy", "run_episodes"]
 
@@ -35,9 +40,34 @@ def _num_envs_for(episodes: int, cap: int = 32) -> int:
     return max(d for d in range(1, min(cap, episodes) + 1) if episodes % d == 0)
 
 
-def eval_file(stochastic: bool, robust: bool = False) -> str:
+def eval_file(stochastic: bool, robust: bool = False, starts: str | StartList = "training") -> str:
     """The file an evaluation writes into the run dir."""
-    return "eval" + ("_robust" if robust else "") + ("_stochastic" if stochastic else "") + ".json"
+    if robust:
+        starts = "robust"
+    if isinstance(starts, StartList):
+        part = f"_starts-{starts.path.stem}"
+    else:
+        part = "" if starts == "training" else f"_{starts}"
+    return "eval" + part + ("_stochastic" if stochastic else "") + ".json"
+
+
+def _policy_action(actor: Actor, obs: np.ndarray, stochastic: bool) -> np.ndarray:
+    o = torch.from_numpy(obs)
+    if stochastic:
+        u, k, _ = actor.sample(o)
+        return env_action(u, k).numpy()
+    return actor.deterministic(o).numpy()
+
+
+def _stats(results: list[Episode]) -> dict[str, float]:
+    st = EpisodeStats.of(results)
+    return {
+        "episodes": st.episodes,
+        "picked_rate": st.picked_rate,
+        "installed_rate": st.installed_rate,
+        "mean_episode_length": st.mean_length,
+        "mean_cumulative_reward": st.mean_return,
+    }
 
 
 @torch.no_grad()
@@ -49,14 +79,52 @@ def run_episodes(
     max_envs: int = 32,
     stochastic: bool = False,
     robust: bool = False,
+    starts: str | StartList = "training",
 ) -> dict[str, float]:
     """Mean statistics of ``episodes`` episodes of ``actor``, deterministic or sampled, from the
-    training's starts or the robust ones."""
+    named ``starts`` (``robust=True`` is ``starts="robust"``) or, for a :class:`StartList`, one
+    episode from each of its starts (``episodes`` is then ignored)."""
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     with torch.random.fork_rng():
         torch.manual_seed(seed)
-        return _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic, robust)
+        if isinstance(starts, StartList):
+            return _run_listed(actor, env_id, starts, seed, max_envs, stochastic)
+        name = "robust" if robust else starts
+        return _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic, name)
+
+
+def _run_listed(
+    actor: Actor, env_id: str, starts: StartList, seed: int, max_envs: int, stochastic: bool
+) -> dict[str, float]:
+    """One episode from each listed start, in batches of up to ``max_envs`` envs (a batch's
+    spare envs repeat its first start and are not counted)."""
+    todo = list(starts.starts)
+    n = min(max_envs, len(todo))
+    env = make_env(env_id, n, seed)
+    results: list[Episode] = []
+    for b in range(0, len(todo), n):
+        batch = todo[b : b + n]
+        padded = batch + [batch[0]] * (n - len(batch))
+        options = {
+            "object_pose": [st["object_pose"] for st in padded],
+            "target_offset": [st.get("target_offset", [0.0, 0.0]) for st in padded],
+        }
+        obs, _ = env.reset(seed=seed + b, options=options)
+        obs = np.asarray(obs, np.float32)
+        tracker = EpisodeTracker(n)
+        done = np.zeros(n, bool)
+        done[len(batch) :] = True
+        while not done.all():
+            obs, r, term, trunc, infos = env.step(_policy_action(actor, obs, stochastic))
+            obs = np.asarray(obs, np.float32)
+            r = np.asarray(r, np.float32)
+            for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
+                if not done[i]:
+                    results.append(ep)
+                    done[i] = True
+    env.close()
+    return _stats(results)
 
 
 def _run_episodes(
@@ -66,30 +134,24 @@ def _run_episodes(
     seed: int,
     max_envs: int,
     stochastic: bool,
-    robust: bool,
+    starts: str,
 ) -> dict[str, float]:
     n = _num_envs_for(episodes, max_envs)
     per_env = episodes // n
     env = make_env(env_id, n, seed)
-    if robust:
+    if starts != "training":
         sim = getattr(env, "sim", None)
         if sim is None:
             env.close()
-            raise ValueError(f"a robust evaluation needs the simulator's env, not {env_id}")
-        sim.set_variation(robust=True)
+            raise ValueError(f"starts {starts!r} need the simulator's env, not {env_id}")
+        sim.set_variation(starts=starts)
     obs, _ = env.reset(seed=seed)
     obs = np.asarray(obs, np.float32)
     tracker = EpisodeTracker(n)
     done_count = np.zeros(n, np.int64)
     results: list[Episode] = []
     while (done_count < per_env).any():
-        o = torch.from_numpy(obs)
-        if stochastic:
-            u, k, _ = actor.sample(o)
-            act = env_action(u, k).numpy()
-        else:
-            act = actor.deterministic(o).numpy()
-        obs, r, term, trunc, infos = env.step(act)
+        obs, r, term, trunc, infos = env.step(_policy_action(actor, obs, stochastic))
         obs = np.asarray(obs, np.float32)
         r = np.asarray(r, np.float32)
         for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
@@ -97,14 +159,7 @@ def _run_episodes(
                 results.append(ep)
                 done_count[i] += 1
     env.close()
-    st = EpisodeStats.of(results)
-    return {
-        "episodes": st.episodes,
-        "picked_rate": st.picked_rate,
-        "installed_rate": st.installed_rate,
-        "mean_episode_length": st.mean_length,
-        "mean_cumulative_reward": st.mean_return,
-    }
+    return _stats(results)
 
 
 def evaluate_run(
@@ -113,24 +168,29 @@ def evaluate_run(
     seed: int | None = None,
     stochastic: bool = False,
     robust: bool = False,
+    starts: str | StartList = "training",
 ) -> dict[str, Any]:
     """Evaluate ``run_dir/policy.pt`` on ``episodes`` episodes; writes and returns ``eval.json``
-    (or :func:`eval_file`'s name for ``stochastic`` / ``robust``)."""
+    (or :func:`eval_file`'s name for ``stochastic`` / ``robust`` / ``starts``)."""
     run_dir = Path(run_dir)
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     actor, cfg = load_policy(run_dir)
     s = cfg.env_settings.seed + 10_000 if seed is None else seed
     env_id = cfg.env_settings.env_id
-    res = run_episodes(actor, env_id, episodes, s, stochastic=stochastic, robust=robust)
+    if robust:
+        starts = "robust"
+    res = run_episodes(actor, env_id, episodes, s, stochastic=stochastic, starts=starts)
     res = {
         **res,
         "seed": s,
         "env_id": env_id,
         "policy": "stochastic" if stochastic else "deterministic",
-        "starts": "robust" if robust else "training",
+        "starts": label(starts),
     }
-    (run_dir / eval_file(stochastic, robust)).write_text(json.dumps(res, indent=1))
+    if isinstance(starts, StartList):
+        res["starts_sha256"] = starts.sha256
+    atomic_write(run_dir / eval_file(stochastic, starts=starts), json.dumps(res, indent=1))
     return res
 
 

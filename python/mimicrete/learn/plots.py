@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -36,11 +37,11 @@ def learning_curves(run_dir: Path, out_dir: Path | None = None) -> list[Path]:
             a.set_title(f"{run_dir.name}: {label}")
             a.grid(alpha=0.3)
         fig.tight_layout()
-        fig.savefig(out_dir / fname, dpi=110)
+        _save(fig, out_dir / fname)
         plt.close(fig)
         paths.append(out_dir / fname)
     fig_all.tight_layout()
-    fig_all.savefig(out_dir / "learning_curves.png", dpi=110)
+    _save(fig_all, out_dir / "learning_curves.png")
     plt.close(fig_all)
     paths.append(out_dir / "learning_curves.png")
     return paths
@@ -57,6 +58,14 @@ def compare(run_dirs: list[Path], out: Path, tag: str = "Environment/Installed R
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    _save(fig, Path(out))
     plt.close(fig)
     return out
+
+
+def _save(fig: Any, path: Path) -> None:
+    """A PNG written whole or not at all."""
+    from mimicrete.safe_io import atomic_output
+
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")

@@ -16,9 +16,9 @@ torch is imported inside the functions that need it, so reading scalars (the rep
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
-import os
 import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -94,29 +94,48 @@ class RunDirError(ValueError):
 WALL_CLOCK_TAGS: tuple[str, ...] = ("Environment/Steps Per Second", "Environment/Elapsed Seconds")
 
 
-def prepare_run_dir(run_dir: Path, *, resume: bool, force: bool) -> None:
-    """Make ``run_dir``. One that already holds a run is refused unless ``resume`` (continue it)
-    or ``force`` (its run files are deleted first), so an old run's checkpoints never come back
-    into a new one."""
-    run_dir.mkdir(parents=True, exist_ok=True)
+LOCK_NAME = ".lock"
+
+
+def run_dir_lock(run_dir: Path) -> Any:
+    """The lock of a run dir (``run_dir/.lock``): one process trains in it at a time; a lock
+    left by a killed process is taken over (:class:`mimicrete.safe_io.FileLock`)."""
+    from mimicrete.safe_io import FileLock
+
+    return FileLock(Path(run_dir) / LOCK_NAME, "this run directory", RunDirError)
+
+
+def check_run_dir(run_dir: Path, *, resume: bool, force: bool) -> list[str]:
+    """What :func:`prepare_run_dir` would do, without doing it: the run entries of ``run_dir``
+    that ``force`` will delete. A dir that holds a run is refused unless ``resume`` (continue it)
+    or ``force``, so an old run's checkpoints never come back into a new one."""
     present = [e for e in RUN_ENTRIES if (run_dir / e).exists()]
     if resume:
         if latest_checkpoint(run_dir) is None:
             raise RunDirError(f"--resume: no checkpoint in {run_dir / CHECKPOINTS}")
-        return
-    if not present:
-        return
-    if not force:
+        return []
+    if present and not force:
         raise RunDirError(
             f"{run_dir} holds another run ({', '.join(present)}): --resume continues it, "
             "--force replaces it, or choose another --run-dir"
         )
-    for e in present:
+    return present
+
+
+def clear_run_entries(run_dir: Path, entries: list[str]) -> None:
+    for e in entries:
         p = run_dir / e
         if p.is_dir():
             shutil.rmtree(p)
         else:
-            p.unlink()
+            p.unlink(missing_ok=True)
+
+
+def prepare_run_dir(run_dir: Path, *, resume: bool, force: bool) -> None:
+    """Make ``run_dir`` ready: :func:`check_run_dir`, then the old run's files deleted with
+    ``force``."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    clear_run_entries(run_dir, check_run_dir(run_dir, resume=resume, force=force))
 
 
 def read_run_info(run_dir: Path) -> dict[str, Any]:
@@ -133,9 +152,10 @@ def write_run_info(run_dir: Path, info: dict[str, Any]) -> None:
 
 
 def atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    """``path`` written whole or not at all (:func:`mimicrete.safe_io.atomic_write`)."""
+    from mimicrete.safe_io import atomic_write as write
+
+    write(path, text)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -155,8 +175,7 @@ class ScalarLog:
         if resume_step is not None and self.csv_path.exists():
             self._keep_rows_up_to(resume_step)
         else:
-            with open(self.csv_path, "w", newline="") as f:
-                csv.writer(f).writerow(["step", *TAGS])
+            atomic_write(self.csv_path, _csv_line(["step", *TAGS]))
         self.tb = SummaryWriter(str(run_dir / "tensorboard"))
 
     def _keep_rows_up_to(self, step: int) -> None:
@@ -170,23 +189,27 @@ class ScalarLog:
                 continue  # a row cut by a crash mid-write
             if s <= step:
                 kept[s] = row  # a step written twice by an older version: its last row
-        tmp = self.csv_path.with_name(CSV_NAME + ".tmp")
-        with open(tmp, "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["step", *TAGS])
-            for s in sorted(kept):
-                w.writerow([s, *[kept[s].get(t) or "" for t in TAGS]])
-        os.replace(tmp, self.csv_path)
+        lines = [_csv_line(["step", *TAGS])]
+        for s in sorted(kept):
+            lines.append(_csv_line([s, *[kept[s].get(t) or "" for t in TAGS]]))
+        atomic_write(self.csv_path, "".join(lines))
 
     def write(self, step: int, row: dict[str, float]) -> None:
+        from mimicrete.safe_io import append_text
+
         for k, v in row.items():
             self.tb.add_scalar(k, v, step)
         self.tb.flush()
-        with open(self.csv_path, "a", newline="") as f:
-            csv.writer(f).writerow([step, *[_fmt(row.get(t)) for t in TAGS]])
+        append_text(self.csv_path, _csv_line([step, *[_fmt(row.get(t)) for t in TAGS]]))
 
     def close(self) -> None:
         self.tb.close()
+
+
+def _csv_line(cells: list[Any]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf).writerow(cells)
+    return buf.getvalue()
 
 
 def _fmt(v: float | None) -> str:
@@ -228,23 +251,27 @@ def read_scalars(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 # ----------------------------------------------------------------------------------------------
 
 
+def checkpoints(run_dir: Path) -> list[Path]:
+    """``checkpoints/step_*.pt`` of a run, oldest first."""
+    return sorted((Path(run_dir) / CHECKPOINTS).glob("step_*.pt"))
+
+
 def latest_checkpoint(run_dir: Path) -> Path | None:
-    ckpts = sorted((Path(run_dir) / CHECKPOINTS).glob("step_*.pt"))
+    ckpts = checkpoints(run_dir)
     return ckpts[-1] if ckpts else None
 
 
 def save_checkpoint(run_dir: Path, step: int, state: dict[str, Any], keep: int) -> Path:
-    """``checkpoints/step_<step>.pt``, written atomically; all but the last ``keep`` checkpoints
-    are deleted. (No ONNX per checkpoint: torch's dynamo exporter takes seconds, and only the
-    final ``policy.onnx`` is read; export any checkpoint with :func:`export_onnx` if needed.)"""
-    import torch
+    """``checkpoints/step_<step>.pt``, written whole or not at all; all but the last ``keep``
+    checkpoints are deleted. (No ONNX per checkpoint: torch's dynamo exporter takes seconds,
+    and only the final ``policy.onnx`` is read; export any checkpoint with :func:`export_onnx`
+    if needed.)"""
+    from mimicrete.safe_io import torch_save
 
     ck_dir = run_dir / CHECKPOINTS
     ck_dir.mkdir(parents=True, exist_ok=True)
     path = ck_dir / f"step_{step:09d}.pt"
-    tmp = path.with_suffix(".tmp")
-    torch.save(state, tmp)
-    os.replace(tmp, path)
+    torch_save(state, path)
     ckpts = sorted(ck_dir.glob("step_*.pt"))
     for old in ckpts[: max(0, len(ckpts) - max(1, keep))]:
         old.unlink()
@@ -252,18 +279,72 @@ def save_checkpoint(run_dir: Path, step: int, state: dict[str, Any], keep: int) 
     return path
 
 
+class CheckpointError(RunDirError):
+    """A checkpoint that cannot be read (names the file and why)."""
+
+    def __init__(self, message: str, why: str = "") -> None:
+        super().__init__(message)
+        self.why = why or message
+
+
+#: what every trainer checkpoint holds (a file without them is not one)
+CHECKPOINT_KEYS = ("actor", "critic", "opt", "step", "update_idx", "config")
+
+
 def load_checkpoint(path: Path) -> dict[str, Any]:
+    """A trainer checkpoint; :class:`CheckpointError` naming the file when it is damaged, cut or
+    not a checkpoint."""
+    import pickle
+    import zipfile
+
     import torch
 
-    return torch.load(path, weights_only=False)
+    path = Path(path)
+    try:
+        s = torch.load(path, weights_only=False)
+    except (
+        pickle.UnpicklingError, EOFError, RuntimeError, ValueError, KeyError, TypeError,
+        AttributeError, ImportError, IndexError, zipfile.BadZipFile, UnicodeDecodeError,
+    ) as e:  # fmt: skip
+        why = f"damaged ({type(e).__name__}: {(str(e).splitlines() or [''])[0][:120]})"
+        raise CheckpointError(f"{path}: {why}", why) from e
+    if not isinstance(s, dict) or any(k not in s for k in CHECKPOINT_KEYS):
+        raise CheckpointError(f"{path}: not a trainer checkpoint", "not a trainer checkpoint")
+    return s
+
+
+def load_latest_intact(run_dir: Path, log: Any = None) -> tuple[Path, dict[str, Any]]:
+    """The newest checkpoint of ``run_dir`` that loads, and its state. Damaged newer ones are
+    reported through ``log`` (one line each, naming the file) and passed over; when none loads,
+    :class:`CheckpointError` lists them."""
+    bad: list[CheckpointError] = []
+    names: list[str] = []
+    for path in reversed(checkpoints(run_dir)):
+        try:
+            s = load_checkpoint(path)
+        except CheckpointError as e:
+            bad.append(e)
+            names.append(path.name)
+            continue
+        for e in bad:
+            if log is not None:
+                log(f"{e}; resuming from the one before it, {path.name}")
+        return path, s
+    ck_dir = Path(run_dir) / CHECKPOINTS
+    if not bad:
+        raise RunDirError(f"--resume: no checkpoint in {ck_dir}")
+    shown = "; ".join(f"{n}: {e.why[:80]}" for n, e in zip(names[:3], bad, strict=False))
+    more = f"; and {len(bad) - 3} more" if len(bad) > 3 else ""
+    raise CheckpointError(f"--resume: no intact checkpoint in {ck_dir} ({shown}{more})")
 
 
 def save_policy(run_dir: Path, actor: Actor, obs_dim: int, step: int, cfg: TrainerConfig) -> None:
-    """The final policy: ``policy.onnx`` and ``policy.pt`` (actor weights, obs size, config)."""
-    import torch
+    """The final policy: ``policy.onnx`` and ``policy.pt`` (actor weights, obs size, config),
+    each written whole or not at all."""
+    from mimicrete.safe_io import torch_save
 
     export_onnx(actor, obs_dim, run_dir / "policy.onnx")
-    torch.save(
+    torch_save(
         {"actor": actor.state_dict(), "obs_dim": obs_dim, "step": step, "config": cfg.to_dict()},
         run_dir / "policy.pt",
     )
@@ -359,7 +440,6 @@ def export_onnx(actor: Actor, obs_dim: int, path: Path) -> None:
         registration.setLevel(level)
     if program is None or program.model_proto is None:
         raise RuntimeError("torch.onnx.export returned no model")
-    data = program.model_proto.SerializeToString()
-    tmp = path.with_suffix(".onnx.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    from mimicrete.safe_io import atomic_write as write
+
+    write(path, program.model_proto.SerializeToString())

@@ -56,7 +56,7 @@ from .bc import BehavioralCloning
 from .buffer import Rollout, Signal, UpdateBuffer, gae, horizon_cuts
 from .curriculum import ReverseCurriculum, demo_tracks
 from .demo_data import drop_idle_steps, read_demos
-from .env import N_CONT, command_branches, final_obs_of, make_env
+from .env import N_CONT, command_branches, final_obs_of, make_env, sim_task_of
 from .episodes import Episode, EpisodeStats, EpisodeTracker
 from .gail import Gail, signal_terminated
 from .networks import Actor, Critic, env_action
@@ -136,6 +136,9 @@ class Trainer:
             if not path:
                 raise config_mod.ConfigError("gail/behavioral_cloning need a demo_path or --demos")
             loaded = read_demos(path, self.b.demo_episodes, skip_bad=skip_bad_demos)
+            sim = sim_task_of(cfg.env_settings.env_id)
+            if sim is not None:
+                loaded.check_task(sim, path)
             self.demo_files_skipped = loaded.skipped
             self.demo_steps_loaded = len(loaded.arrays["actions"])
             self.demos = drop_idle_steps(loaded.arrays, self.b.demo_drop_idle)

@@ -19,6 +19,7 @@ frames, size).
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from functools import lru_cache
@@ -137,8 +138,12 @@ def draw_status(
 
 
 class _Writer:
+    """One video, written under a hidden temporary name and renamed once complete (a failure or
+    an interruption leaves no partial video under the final name)."""
+
     def __init__(self, path: Path, fmt: str, fps: int):
-        self.path, self.fmt, self.fps = path, fmt, fps
+        self.final, self.fmt, self.fps = path, fmt, fps
+        self.path = path.with_name(f".{path.name}.partial")
         self.frames: list[np.ndarray] = []
         self._gen: Any = None
 
@@ -159,16 +164,27 @@ class _Writer:
                 quality=7,
                 macro_block_size=16,
                 ffmpeg_log_level="error",
-                output_params=["-movflags", "+faststart"],
+                output_params=["-movflags", "+faststart", "-f", "mp4"],
             )
             self._gen.send(None)
         self._gen.send(np.ascontiguousarray(frame))
 
     def close(self) -> None:
-        if self.fmt == "gif":
-            write_gif(self.path, self.frames, self.fps)
-        elif self._gen is not None:
-            self._gen.close()
+        from mimicrete.safe_io import write_error
+
+        try:
+            if self.fmt == "gif":
+                write_gif(self.path, self.frames, self.fps)
+            elif self._gen is not None:
+                self._gen.close()
+            if self.path.exists():
+                os.replace(self.path, self.final)
+        except OSError as e:
+            self.path.unlink(missing_ok=True)
+            raise write_error(self.final, e) from e
+        except BaseException:
+            self.path.unlink(missing_ok=True)
+            raise
 
 
 def write_gif(
@@ -188,6 +204,7 @@ def write_gif(
     ]
     images[0].save(
         path,
+        format="GIF",
         save_all=True,
         append_images=images[1:],
         duration=[round(1000 / fps)] * (len(images) - 1) + [round(1000 * max(hold_last, 1 / fps))],
@@ -306,5 +323,7 @@ def record_run_videos(
         "fps": envs.MimicreteEnv.metadata["render_fps"],
         "episodes": [asdict(e) for e in done],
     }
-    (out / "episodes.json").write_text(json.dumps(info, indent=1))
+    from mimicrete.safe_io import atomic_write
+
+    atomic_write(out / "episodes.json", json.dumps(info, indent=1))
     return done
