@@ -125,7 +125,8 @@ def test_inspect_refuses_a_fifo(tmp_path, flags):
     p = run("inspect", *flags, str(tmp_path / "x.mcap"), timeout=HANG_S)
     no_traceback(p)
     assert p.returncode == 1
-    assert f"{tmp_path / 'x.mcap'}: not a regular file (a named pipe)" in p.stdout
+    said = json.loads(p.stdout)["error"] if "--json" in flags else p.stdout
+    assert f"{tmp_path / 'x.mcap'}: not a regular file (a named pipe)" in said
 
 
 def test_load_refuses_a_fifo_among_demos(tmp_path, demo_dir):

@@ -329,7 +329,7 @@ def main(args: argparse.Namespace) -> int:
             try:
                 rep = verify(f)
             except (LogFormatError, OSError) as e:
-                print(f"error: {e}")
+                print(json.dumps({"path": str(f), "error": str(e)}) if args.json else f"error: {e}")
                 status = 1
                 continue
         info: dict[str, Any] | None = None
