@@ -111,6 +111,10 @@ class DemoCurriculumSettings:
     min_horizon: int = 30  # ... plus this many steps
     old_start_prob: float = 0.3  # share of demo starts at a start already passed
     max_demos: int | None = None  # walk back at most this many demos (the first ones); BC uses all
+    forward_to: str | None = None  # "wide": then widen the env's own starts to tile-sim's wide ones
+    forward_step: float = 0.1  # scale step of the forward curriculum (0 = paper's, 1 = wide)
+    forward_window: int = 32  # own-start episodes judged at a scale
+    forward_threshold: float = 0.9  # installed share of the window that widens the starts
 
 
 @dataclass
@@ -261,6 +265,9 @@ RANGES: dict[tuple[type, str], Range] = {
     (DemoCurriculumSettings, "min_horizon"): COUNT,
     (DemoCurriculumSettings, "old_start_prob"): UNIT,
     (DemoCurriculumSettings, "max_demos"): COUNT,
+    (DemoCurriculumSettings, "forward_step"): Range(0, 1, lo_open=True),
+    (DemoCurriculumSettings, "forward_window"): COUNT,
+    (DemoCurriculumSettings, "forward_threshold"): UNIT,
     (BehaviorConfig, "max_steps"): STEPS,
     (BehaviorConfig, "time_horizon"): COUNT,
     (BehaviorConfig, "summary_freq"): STEPS,
@@ -396,6 +403,11 @@ def _validate(cfg: TrainerConfig) -> None:
     h = b.hyperparameters
     if b.trainer_type != "ppo":
         raise ConfigError(f"trainer_type {short_repr(b.trainer_type)}: only 'ppo' is implemented")
+    dc = b.demo_curriculum
+    if dc is not None and dc.forward_to not in (None, "wide"):
+        raise ConfigError(
+            f"demo_curriculum.forward_to: 'wide' or unset, got {short_repr(dc.forward_to)}"
+        )
     for name in ("learning_rate_schedule", "beta_schedule", "epsilon_schedule"):
         v = getattr(h, name)
         if v is not None and v not in ("linear", "constant"):

@@ -27,6 +27,14 @@ episodes, so a stuck policy does not spend 700 steps there. Those episodes are c
 own starts, the one the evaluation measures. Nothing here is read at test time: evaluation and
 the exported policy see only observations.
 
+**Forward curriculum** (``forward_to: wide``; RFCL's forward half). Demos are recorded where a
+person records them, at the paper's starts; a policy should work wherever the tile lies. Once
+every demo is solved, the env's own starts widen step by step from the paper's (scale 0) to the
+wide ones (scale 1, tile-sim's ``Variation::towards_wide``): when at least ``forward_threshold``
+of the last ``forward_window`` episodes from the env's own starts installed, the scale grows by
+``forward_step``. The episodes the scale is judged on started after it was set.
+``Curriculum/Forward Scale`` logs it.
+
 Replayed steps are simulator work but not agent steps: they are not in the rollout and do not
 count towards ``max_steps`` (RFCL sets states directly); ``Curriculum/Replayed Steps`` logs them.
 """
@@ -110,6 +118,12 @@ class ReverseCurriculum:
         self.env_frontier = np.zeros(num_envs, bool)  # started at its demo's current start
         self.replayed_steps = 0
         self.episodes_done: list[bool] = []  # curriculum episodes finished since the last summary
+        self.forward_scale = 0.0  # how far the env's own starts have widened (forward_to)
+        self.forward_results: deque[bool] = deque(maxlen=settings.forward_window)
+        self.env_scale = np.zeros(
+            num_envs
+        )  # the scale each env's running own-start episode began at
+        self._applied_scale: float | None = None  # the scale last set on the env (None: not yet)
 
     # -- state of the curriculum -------------------------------------------------------------
 
@@ -149,6 +163,26 @@ class ReverseCurriculum:
             self.stage[d] += 1
             res.clear()
 
+    def record_own(self, i: int, installed: bool) -> None:
+        """An episode of env ``i`` from the env's own start ended: judge the forward scale on it
+        (if it started at the current scale and every demo is solved)."""
+        if self.s.forward_to is None or self.unsolved or self.forward_scale >= 1.0:
+            return
+        if self.env_scale[i] != self.forward_scale:
+            return
+        res = self.forward_results
+        res.append(bool(installed))
+        if len(res) == res.maxlen and np.mean(res) >= self.s.forward_threshold:
+            self.forward_scale = min(1.0, round(self.forward_scale + self.s.forward_step, 6))
+            res.clear()
+
+    def _apply_scale(self, env: Any) -> None:
+        """Set the env's start variation to the forward scale, when it changed."""
+        if self.s.forward_to is None or self._applied_scale == self.forward_scale:
+            return
+        env.sim.set_variation(towards_wide=self.forward_scale)
+        self._applied_scale = self.forward_scale
+
     # -- per env ------------------------------------------------------------------------------
 
     def forget_envs(self) -> None:
@@ -172,14 +206,19 @@ class ReverseCurriculum:
     def restart(self, env: Any, ended: np.ndarray, need_reset: np.ndarray, obs: np.ndarray) -> None:
         """Start the next episode of every ``ended`` env: from a demo (replayed; ``obs`` row
         replaced) or from the env's own start (already auto-reset, unless ``need_reset``: then
-        reset through the reset mask). ``obs`` is updated in place."""
+        reset through the reset mask). ``obs`` is updated in place. With a forward curriculum, an
+        auto-reset episode that began before the scale last grew is restarted at the new scale."""
+        before = self._applied_scale
+        self._apply_scale(env)
+        rescale = before is not None and before != self._applied_scale
         own_reset = np.zeros(len(ended), bool)
         for i in np.flatnonzero(ended):
             d = self.choose()
             self.env_steps[i] = 0
             self.env_demo[i] = d
             if d < 0:
-                own_reset[i] = need_reset[i]
+                own_reset[i] = need_reset[i] or rescale
+                self.env_scale[i] = self.forward_scale
                 continue
             tr, s = self.tracks[d], self.start(d)
             self.env_frontier[i] = True
@@ -201,6 +240,8 @@ class ReverseCurriculum:
             "Curriculum/Demos Solved": float(len(self.tracks) - len(self.unsolved)),
             "Curriculum/Replayed Steps": float(self.replayed_steps),
         }
+        if self.s.forward_to is not None:
+            row["Curriculum/Forward Scale"] = self.forward_scale
         if self.episodes_done:
             row["Curriculum/Installed Rate"] = float(np.mean(self.episodes_done))
             row["Curriculum/Episodes"] = float(len(self.episodes_done))
@@ -220,6 +261,9 @@ class ReverseCurriculum:
             "env_horizon": self.env_horizon.copy(),
             "env_frontier": self.env_frontier.copy(),
             "episodes_done": list(self.episodes_done),
+            "forward_scale": self.forward_scale,
+            "forward_results": list(self.forward_results),
+            "env_scale": self.env_scale.copy(),
         }
 
     def load_state_dict(self, s: dict[str, Any]) -> None:
@@ -237,3 +281,9 @@ class ReverseCurriculum:
         self.env_horizon[:] = s["env_horizon"]
         self.env_frontier[:] = s["env_frontier"]
         self.episodes_done = [bool(x) for x in s["episodes_done"]]
+        self.forward_scale = float(s.get("forward_scale", 0.0))
+        self.forward_results.clear()
+        self.forward_results.extend(bool(x) for x in s.get("forward_results", []))
+        if "env_scale" in s:
+            self.env_scale[:] = s["env_scale"]
+        self._applied_scale = None  # the restored env draws from the paper's starts: set it again

@@ -289,6 +289,8 @@ class Trainer:
                 d = -1 if self.curriculum is None else int(self.curriculum.env_demo[i])
                 if d < 0:
                     self._window.append(ep)
+                    if self.curriculum is not None:
+                        self.curriculum.record_own(i, ep.installed)
                 else:
                     assert self.curriculum is not None
                     self.curriculum.record(d, ep.installed, bool(self.curriculum.env_frontier[i]))
