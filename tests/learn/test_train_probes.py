@@ -318,8 +318,8 @@ def _int_fields() -> list[tuple[type, str, str]]:
 INT_FIELDS = _int_fields()
 
 
-def test_the_schema_has_24_integer_fields_each_with_a_finite_range():
-    assert len(INT_FIELDS) == 24
+def test_every_integer_field_of_the_schema_has_a_finite_range():
+    assert len(INT_FIELDS) >= 24  # the 24 of the issue, and any added since
     for cls, name, key in INT_FIELDS:
         rng = config.RANGES.get((cls, name))
         assert rng is not None and rng.lo is not None and rng.hi is not None, key
