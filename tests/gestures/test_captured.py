@@ -142,3 +142,28 @@ def test_old_seven_number_shapes_still_build():
         hm.hand_joints_local(s, anatomy=np.zeros(hm.N_ANATOMY)), hm.hand_joints_local(s)
     )
     assert layouts.to_layout(hm.hand_joints_local(s), "webxr").shape == (25, 3)
+
+
+def test_keypoint_check_reads_the_public_csv_format(tmp_path):
+    """The 2-D check's mechanics on rows in the public keypoint.csv form (wrist-relative image
+    points / max |v|; 0 Open, 1 Close, 2 Pointer), made here from the hand model seen by a
+    camera: open hands and points read right, the fists are only counted."""
+    rng = np.random.default_rng(8)
+    rows = []
+    for label, shape in ((0, "opening"), (1, "fist"), (2, "fixed")):
+        for _ in range(40):
+            j = hm.hand_joints(
+                hm.jitter_shape(hm.GESTURE_SHAPES[shape], rng, 0.03),
+                hm.rotation_matrix([0, 0, 1], rng.uniform(-0.5, 0.5))
+                @ hm.rotation_matrix([0, 1, 0], rng.uniform(-0.5, 0.5)),
+                np.zeros(3),
+            )
+            pix = layouts.to_layout(j, "mediapipe")[:, :2] * np.array([1.0, -1.0])
+            rel = (pix - pix[0]).ravel()
+            rows.append(",".join([str(label), *(f"{v:.6f}" for v in rel / np.abs(rel).max())]))
+    path = tmp_path / "keypoint.csv"
+    path.write_text("\ufeff" + "\n".join(rows) + "\n")
+    got = cap.keypoint_check(path, per_class=150)
+    assert set(got["per_class"]) == {"opening", "fixed"}
+    assert got["per_class"]["opening"] > 0.8 and got["per_class"]["fixed"] > 0.8
+    assert sum(got["counts"][1].values()) == 40 and 0.8 < got["synthetic_heldout"] <= 1.0

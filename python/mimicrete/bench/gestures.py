@@ -6,7 +6,9 @@ First, per-frame accuracy of the shipped models on hands we did not make
 point poses, moved and turned, both hands, half with tracking jitter (3 classes, 600 frames), and
 the 5 screwing shapes spliced from those captured fingers (1,000 frames). Measured: 100 % / 100 %
 (the models shipped before: 62.5 % / 40 %). Needs ``web/node_modules`` (``make bench`` installs
-it).
+it). With ``MIMICRETE_KEYPOINT_CSV=path/to/keypoint.csv`` (the public MediaPipe webcam set of
+Kazuhito00/hand-gesture-recognition-using-mediapipe, not shipped) also
+:func:`mimicrete.gestures.captured.keypoint_check`.
 
 Then the comparison below.
 
@@ -35,10 +37,12 @@ the per-frame SVM stays the default for both tasks (:data:`mimicrete.gestures.DE
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Any
 
 from mimicrete import gestures as gest
+from mimicrete.gestures import captured as cap
 from mimicrete.gestures import metrics as mt
 from mimicrete.gestures import sequences as sq
 from mimicrete.gestures import shipped
@@ -58,6 +62,14 @@ def captured() -> None:
         if wrong:
             print(f"   misread: {wrong}")
         print(f"   data: {res['data']}")
+    kp = os.environ.get("MIMICRETE_KEYPOINT_CSV")
+    if kp:  # the public MediaPipe webcam set (not shipped): a 2-D check of the synthetic hands
+        r = cap.keypoint_check(kp)
+        per = ", ".join(f"{c} {100 * a:.1f} %" for c, a in r["per_class"].items())
+        print(
+            f"2-D SVM on synthetic hands seen by a webcam, on {kp}: {per} (synthetic held-out "
+            f"{100 * r['synthetic_heldout']:.1f} %); its fists read as {r['counts'][1]}"
+        )
 
 
 def _cost_us(model: Any, seq: sq.GestureSequence, n: int = 400) -> float:

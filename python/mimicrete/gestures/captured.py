@@ -18,6 +18,8 @@ These shapes are what the shipped models are *tested* on (:mod:`mimicrete.bench.
   with the joint rotations the headset measured) is taken from one captured pose and re-attached
   to the palm of another, as :data:`SCREW_SPLICES` says, so every joint-to-joint angle in a
   finger is a captured one.
+* :func:`keypoint_check`: real webcam hands in 2-D (a public MediaPipe ``keypoint.csv``, not
+  shipped): how well the synthetic hands, seen by a camera, stand for them.
 """
 
 from __future__ import annotations
@@ -229,12 +231,88 @@ __all__ = [
     "SCREW_SPLICES",
     "WEBXR_JOINTS",
     "CapturedDataMissing",
+    "KEYPOINT_CLASSES",
     "captured_set",
     "grip_captured_set",
     "iwer_dir",
     "iwer_matrices",
     "iwer_pose",
+    "keypoint_check",
     "quest_noise",
     "screw_captured_set",
     "splice",
 ]
+
+
+# ----------------------------------------------------------------------------------------------
+# Real webcam hands (2-D): a check of the synthetic hands, not of the 3-D models
+# ----------------------------------------------------------------------------------------------
+
+#: Labels of the public MediaPipe ``keypoint.csv`` of Kazuhito00/hand-gesture-recognition-using-
+#: mediapipe (``model/keypoint_classifier/``; 4,450 webcam frames) → our 3-class names; its
+#: ``Close`` (a fist) is no class of ours and is only reported.
+KEYPOINT_CLASSES: dict[int, str | None] = {0: "opening", 1: None, 2: "fixed"}
+
+
+def _webcam_view(rng: np.random.Generator) -> np.ndarray:
+    """A hand held up before a webcam: fingers roughly up the image (±1 rad), tipped ±0.6 rad,
+    palm, back or edge toward the camera."""
+    from mimicrete.hands.model import rotation_matrix
+
+    return (
+        rotation_matrix([0, 0, 1], rng.uniform(-1.0, 1.0))
+        @ rotation_matrix([1, 0, 0], rng.uniform(-0.6, 0.6))
+        @ rotation_matrix([0, 1, 0], rng.uniform(-np.pi, np.pi))
+    )
+
+
+def keypoint_check(path: str | Path, per_class: int = 600, seed: int = 0) -> dict:
+    """How well the synthetic hands stand for real ones, on 2-D webcam landmarks we did not make.
+
+    A 2-D RBF SVM is fitted on the built-in synthetic 3-class hands
+    (:func:`~mimicrete.gestures.data.sample_gesture_hand`) seen by a webcam (orthographic, image
+    ``y`` down, half mirrored as a left hand or a selfie view) and scored on the rows of the
+    public ``keypoint.csv`` at ``path`` (:data:`KEYPOINT_CLASSES`). The file is not shipped.
+
+    Returns:
+        ``{"synthetic_heldout", "per_class": {label: accuracy}, "open_pointer", "counts"}``.
+    """
+    from mimicrete.hands import layouts
+    from mimicrete.hands.model import hand_frame
+
+    from .data import sample_gesture_hand
+    from .features import features_2d
+    from .model import fit
+
+    rng = np.random.default_rng([seed, 0x2D])
+    classes = ("closing", "opening", "fixed")
+    feats, labels = [], []
+    for label in classes:
+        for _ in range(per_class):
+            j, hand = sample_gesture_hand(label, rng, classes=classes)
+            rot, origin = hand_frame(j[1], j[7], j[12])
+            local = (layouts.to_layout(j, "mediapipe") - origin) @ rot
+            if hand == "left":
+                local[:, 2] *= -1.0  # the right hand's shape
+            pts = local @ _webcam_view(rng).T
+            img = np.stack([pts[:, 0], -pts[:, 1]], axis=1)
+            if rng.random() < 0.5:
+                img[:, 0] *= -1.0
+            feats.append(features_2d(img))
+            labels.append(label)
+    grid = {"svc__C": [1.0, 10.0], "svc__gamma": ["scale", 0.03]}
+    pipe, info, _ = fit(np.array(feats), np.array(labels), test_size=0.2, seed=seed, grid=grid)
+    rows = np.loadtxt(path, delimiter=",", encoding="utf-8-sig", ndmin=2)
+    kp = rows[:, 0].astype(int)
+    pred = pipe.predict(features_2d(rows[:, 1:].reshape(-1, 21, 2)))
+    out: dict = {"synthetic_heldout": info["test_accuracy"], "per_class": {}, "counts": {}}
+    ok = []
+    for k, want in KEYPOINT_CLASSES.items():
+        sel = kp == k
+        got, n = np.unique(pred[sel], return_counts=True)
+        out["counts"][k] = {str(g): int(c) for g, c in zip(got, n, strict=True)}
+        if want is not None and sel.any():
+            out["per_class"][want] = float(np.mean(pred[sel] == want))
+            ok.append(pred[sel] == want)
+    out["open_pointer"] = float(np.mean(np.concatenate(ok))) if ok else float("nan")
+    return out
