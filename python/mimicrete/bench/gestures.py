@@ -27,12 +27,13 @@ metrics (:mod:`mimicrete.gestures.metrics`) raw, after the session's smoother (7
 votes: ``smoothed``) and after a lighter one (3 frames, 2 votes: ``light``); also the cost of one
 ``predict_margin`` call.
 
-Measured (6 held-out seeds × (episodes + drills), 84 true changes per task): raw, the temporal
-model never flickers (0 vs 0.49 /s grip, 0.66 /s screw per-frame) and is right on 99.99-100 % of
-held frames (per-frame 99.6-99.7 %); after the session's 7/5 smoother both have 0 flicker,
-latency 44 ms median / 56 ms p90 and accuracy within 0.15 points; a 3/2 vote on the per-frame
-model also gives 0 flicker at 11 / 22 ms. Its per-frame cost is 2-4× the per-frame model's. So
-the per-frame SVM stays the default for both tasks (:data:`mimicrete.gestures.DEFAULT_KIND`).
+Measured (6 held-out seeds × (episodes + drills), 84 true changes per task; with the pinch,
+open hand and point of issue 23): raw, the temporal model never flickers (0 vs 0.45 /s grip,
+0.58 /s screw per-frame) and is right on 100 % of held frames (per-frame 99.7 %); after the
+session's 7/5 smoother both have 0 flicker, latency 44 ms median / 56-67 ms p90 and accuracy
+within 0.15 points; a 3/2 vote on the per-frame model also gives 0 flicker at 11 / 22-33 ms.
+Its per-frame cost is 2-4× the per-frame model's. So the per-frame SVM stays the default for
+both tasks (:data:`mimicrete.gestures.DEFAULT_KIND`).
 """
 
 from __future__ import annotations
