@@ -51,7 +51,7 @@ def set_starts(vec, starts: str) -> None:
         return
     if starts == "wide":
         try:
-            sim.set_variation(starts="wide")  # the lead's wide starts (issue 22)
+            sim.set_variation(starts="wide")
         except TypeError:
             raise SystemExit("no wide starts in this simulator yet") from None
         return
