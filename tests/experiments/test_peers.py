@@ -88,7 +88,7 @@ def test_pipeline_end_to_end(one_demo, tmp_path):
         assert 1 <= r["mean_episode_length"] <= 40 and r["max_steps"] == 40
         assert r["train_wall_s"] > 0 and r["lerobot"] == "0.4.4"
         assert r["policy_type"] == r["method"]
-        assert r["starts"] in f.name and r["seed"] == 10_000
+        assert r["starts"] in f.name and r["eval_seed"] == 10_000 and r["seed"] == 0
     # a second run reuses everything (no training, no evaluation)
     t1 = time.perf_counter()
     assert _run(one_demo, tmp_path / "act", ["act"]) == 0

@@ -381,6 +381,7 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
                 max_steps=args.eval_max_steps,
             )  # fmt: skip
             for starts, res in zip(todo, results, strict=True):
+                res["eval_seed"] = res.pop("seed")
                 res = {**{k: v for k, v in rec.items() if k != "command"}, **res}
                 res["train_command"] = rec["command"]
                 res["lerobot"] = res.pop("lerobot_version", None)
