@@ -142,6 +142,13 @@ def test_the_lock_is_reentrant_in_a_process_and_exclusive_between_processes(tmp_
         assert r.returncode == 1 and "LockBusyError" in r.stderr and "the thing" in r.stderr
         assert f"process {os.getpid()}" in r.stderr
     assert not path.exists()
+    same = FileLock(path, "x")
+    same.acquire()
+    same.acquire()
+    same.release()
+    assert path.exists()  # still held once
+    same.release()
+    assert not path.exists()
     with pytest.raises(LockBusyError):
         holder = hold_lock(path)
         try:

@@ -237,6 +237,7 @@ class FileLock:
         self.what = what
         self.error = error
         self._key: str | None = None
+        self._depth = 0  # acquisitions through this object not yet released
 
     def acquire(self) -> FileLock:
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -245,6 +246,7 @@ class FileLock:
             if key in _held:
                 _held[key][1] += 1
                 self._key = key
+                self._depth += 1
                 return self
             while True:
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
@@ -285,13 +287,16 @@ class FileLock:
                 raise
             _held[key] = [fd, 1]
             self._key = key
+            self._depth += 1
         return self
 
     def release(self) -> None:
         key = self._key
-        if key is None:
+        if key is None or self._depth == 0:
             return
-        self._key = None
+        self._depth -= 1
+        if self._depth == 0:
+            self._key = None
         with _held_guard:
             entry = _held.get(key)
             if entry is None:
