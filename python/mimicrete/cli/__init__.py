@@ -155,7 +155,11 @@ class _Stdout(io.TextIOBase):
 def main(argv: list[str] | None = None) -> int:
     """The program (``argv`` None: ``sys.argv``; the console script and ``python -m
     mimicrete``) or one command called from Python (``argv`` given, signals left alone)."""
-    entry = argv is None and threading.current_thread() is threading.main_thread()
+    entry = (
+        argv is None
+        and threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN  # started with Ctrl-C off
+    )
     if entry:
         signal.signal(signal.SIGINT, _quiet_interrupt)
     old_stdout = sys.stdout
