@@ -257,9 +257,9 @@ def test_left_hand_starts_stops_and_discards_without_controllers(tmp_path):
     k = hold(None, 0.3, k)
     k = hold(_left("pinch"), 1.2, k)
     assert live.recording
-    k = hold(_left("closing"), 1.0, k)
+    k = hold(_left("fist"), 1.0, k)
     assert live.recording  # a fist must be held 1.5 s
-    k = hold(_left("closing"), 0.7, k)
+    k = hold(_left("fist"), 0.7, k)
     assert not live.recording and live.last_result == "discarded"
     assert len(list((tmp_path / "out").glob("*.mcap*"))) == 1  # the stopped one only
 

@@ -65,6 +65,7 @@ TAGS = [
     "Curriculum/Installed Rate",
     "Curriculum/Episodes",
     "Curriculum/Replayed Steps",  # simulator steps spent replaying demos (not agent steps)
+    "Curriculum/Forward Scale",  # how far the own starts have widened (0 = paper, 1 = wide)
     "Environment/Elapsed Seconds",  # wall clock since this process started training
 ]
 
