@@ -7,9 +7,22 @@ and writes plots, all in runs/group3-seed0/. On a fresh checkout there are no de
 makes them first (a scripted person's hand logs in data/hands/suction, turned into MCAP demos by
 the teleoperation path, exactly as `make demos`) and says so."""
 
+import os
+import signal
 import sys
 
-from mimicrete.cli import main
+
+def _interrupted(signum, frame):  # Ctrl-C while the imports run: quiet, exit 130
+    try:
+        os.write(2, b"mimicrete train: interrupted\n")
+    finally:
+        os._exit(130)
+
+
+if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _interrupted)  # mimicrete.cli.main takes over once it runs
+
+from mimicrete.cli import main  # noqa: E402
 
 if __name__ == "__main__":
-    sys.exit(main(["train", "--make-demos", "--stop-on-convergence", *sys.argv[1:]]))
+    sys.exit(main(["train", "--make-demos", "--stop-on-convergence", *sys.argv[1:]], program=True))

@@ -184,9 +184,17 @@ def test_inspect_piped_into_head_is_quiet(demo_dir):
     assert len(r.stdout.splitlines()) == 1 and r.stderr == ""
 
 
-@pytest.mark.parametrize("delay", [0.2, 0.35, 0.5, 0.7, 0.9, 1.2])
-def test_ctrl_c_during_train_help_never_prints_a_traceback(delay):
-    p = subprocess.Popen([sys.executable, "-m", "mimicrete", "train", "--help"],
+TRAIN_PY = str(Path(cli.__file__).parents[3] / "train.py")
+
+
+@pytest.mark.parametrize(
+    ("how", "delay"),
+    [*[("-m", d) for d in (0.2, 0.35, 0.5, 0.7, 0.9, 1.2)],
+     *[("train.py", d) for d in (0.25, 0.5, 0.8)]],
+)  # fmt: skip
+def test_ctrl_c_during_train_help_never_prints_a_traceback(how, delay):
+    cmd = ["-m", "mimicrete", "train"] if how == "-m" else [TRAIN_PY]
+    p = subprocess.Popen([sys.executable, *cmd, "--help"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          env=cli_env())  # fmt: skip
     time.sleep(delay)

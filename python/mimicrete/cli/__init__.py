@@ -152,11 +152,12 @@ class _Stdout(io.TextIOBase):
         return True
 
 
-def main(argv: list[str] | None = None) -> int:
-    """The program (``argv`` None: ``sys.argv``; the console script and ``python -m
-    mimicrete``) or one command called from Python (``argv`` given, signals left alone)."""
+def main(argv: list[str] | None = None, *, program: bool | None = None) -> int:
+    """The program (``argv`` None: ``sys.argv``; the console script, ``python -m mimicrete``,
+    ``python train.py`` with ``program=True``) or one command called from Python (``argv``
+    given: SIGINT's handler is left alone)."""
     entry = (
-        argv is None
+        (program if program is not None else argv is None)
         and threading.current_thread() is threading.main_thread()
         and signal.getsignal(signal.SIGINT) is not signal.SIG_IGN  # started with Ctrl-C off
     )
