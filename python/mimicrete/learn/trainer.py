@@ -136,9 +136,6 @@ class Trainer:
             if not path:
                 raise config_mod.ConfigError("gail/behavioral_cloning need a demo_path or --demos")
             loaded = read_demos(path, self.b.demo_episodes, skip_bad=skip_bad_demos)
-            sim = sim_task_of(cfg.env_settings.env_id)
-            if sim is not None:
-                loaded.check_task(sim, path)
             self.demo_files_skipped = loaded.skipped
             self.demo_steps_loaded = len(loaded.arrays["actions"])
             self.demos = drop_idle_steps(loaded.arrays, self.b.demo_drop_idle)
@@ -148,6 +145,9 @@ class Trainer:
                     f"{path}: demo actions of {act_dim} dims, {cfg.env_settings.env_id} takes "
                     f"{N_CONT + self.n_branches} (demos of another task?)"
                 )
+            sim = sim_task_of(cfg.env_settings.env_id)
+            if sim is not None:  # the sizes can match across tasks (grip and suction do)
+                loaded.check_task(sim, path)
         self.gail: Gail | None = None
         if rs.gail is not None:
             assert self.demos is not None
