@@ -424,7 +424,7 @@ class _DemoDataset(TypedDict):
     terminated: _Bool
     truncated: _Bool
     episode: NDArray[np.int64]
-    files: list[str]
+    files: list[Path]
     metas: list[dict[str, str]]
 
 class _SalvagedMessage(TypedDict):
@@ -570,5 +570,5 @@ def demo_salvage_to(path_in: _StrPath, path_out: _StrPath) -> _SalvageReport:
 def demo_verify(path: _StrPath) -> _VerifyReport:
     """Check every chunk's CRC, the data-section and summary CRCs and completeness."""
 
-def demo_files(path: _StrPath) -> list[str]:
+def demo_files(path: _StrPath) -> list[Path]:
     """The *.mcap entries of a directory, sorted by name, whatever they are."""

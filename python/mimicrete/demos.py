@@ -120,7 +120,7 @@ def load(path_or_dir: str | os.PathLike[str]) -> Demos:
         terminated=d["terminated"],
         truncated=d["truncated"],
         episode=d["episode"],
-        files=list(d["files"]),
+        files=[os.fspath(f) for f in d["files"]],
         metas=list(d["metas"]),
     )
 

@@ -221,7 +221,9 @@ fn demo_load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Dict<'py>> {
     let d = py.detach(|| demo_log::load_dataset(&path)).map_err(demo_err)?;
     let (obs, actions) = (matrix(py, d.obs, d.obs_dim)?, matrix(py, d.actions, d.act_dim)?);
     let episode = vector(py, d.episode.iter().map(|&e| i64::from(e)).collect());
-    let files: Vec<String> = d.files.iter().map(|f| f.display().to_string()).collect();
+    // Paths, not text: a file name that is not UTF-8 must still name the file (Python: `str`
+    // with surrogate escapes, via `os.fspath`).
+    let files = d.files;
     Ok(dict!(py; "obs" => obs, "actions" => actions, "rewards" => vector(py, d.rewards),
         "terminated" => vector(py, d.terminated), "truncated" => vector(py, d.truncated),
         "episode" => episode, "files" => files, "metas" => d.metas))
@@ -253,9 +255,8 @@ fn demo_salvage_to<'py>(py: Python<'py>, path_in: PathBuf, path_out: PathBuf) ->
 /// The `*.mcap` entries of a directory, sorted (`demo_log::demo_files`: whatever they are, so
 /// that one that cannot be read is refused by name, not skipped).
 #[pyfunction]
-fn demo_files(path: PathBuf) -> PyResult<Vec<String>> {
-    let f = demo_log::demo_files(&path).map_err(demo_err)?;
-    Ok(f.iter().map(|p| p.display().to_string()).collect())
+fn demo_files(path: PathBuf) -> PyResult<Vec<PathBuf>> {
+    demo_log::demo_files(&path).map_err(demo_err)
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
