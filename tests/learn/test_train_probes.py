@@ -87,9 +87,9 @@ def leftovers(d: Path) -> list[str]:
 
 @pytest.fixture(scope="module")
 def grip_demos(tmp_path_factory) -> Path:
-    """Two BlockGrip demos made through the real path (synth-hands + convert)."""
+    """A BlockGrip demo made through the real path (synth-hands + convert)."""
     d = tmp_path_factory.mktemp("grip")
-    r = run_cli("synth-hands", "--task", "grip", "--episodes", "2", "--out", str(d / "hands"))
+    r = run_cli("synth-hands", "--task", "grip", "--episodes", "1", "--out", str(d / "hands"))
     assert r.returncode == 0, r.stderr
     r = run_cli("convert", str(d / "hands"), "--task", "grip", "--out", str(d / "demos"),
                 "--no-progress")  # fmt: skip
@@ -100,7 +100,7 @@ def grip_demos(tmp_path_factory) -> Path:
 SUCTION_SMALL = [
     "--set", "behavior.hyperparameters.buffer_size=256", "--set",
     "behavior.hyperparameters.batch_size=128", "--set", "behavior.network_settings.hidden_units=16",
-    "--set", "behavior.demo_episodes=2", "--num-envs", "4",
+    "--set", "behavior.demo_episodes=1", "--num-envs", "4",
 ]  # fmt: skip
 
 
@@ -326,7 +326,7 @@ def test_every_integer_field_of_the_schema_has_a_finite_range():
         assert rng.hi <= 2**40, key  # fits every C++ integer torch and the simulator use
 
 
-BAD_INTS = [".nan", ".inf", "-.inf", "18446744073709551617", "1.0e+30"]
+BAD_INTS = [".nan", ".inf", "-.inf", "18446744073709551617"]
 
 
 @pytest.mark.parametrize("value", BAD_INTS)
