@@ -31,7 +31,9 @@ table replaces the one between the ``<!-- peers:table -->`` markers there.
 
 Start sets (``--starts``): ``training`` (the env's own starts, as the demos were recorded),
 ``robust`` (``SimVecEnv.set_variation(robust=True)``: tile x in [-0.075, 0.225] m, target moved
-by up to 2 cm) and ``wide`` (the env's wide start distribution, where the simulator has one).
+by up to 2 cm) and ``wide`` (``set_variation(starts="wide")``, as ``mimicrete eval --starts wide``:
+tile x in [0.035, 0.285] m, y in [0.26, 0.36] m, turned by up to 30 degrees, target and pad moved
+by up to 4 cm).
 Finished steps are not redone: a dataset, a training or a result that exists is reused (delete it
 to redo it).
 """
@@ -548,7 +550,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--demos", default="demos/suction", help="MCAP demos (`make demos`)")
     r.add_argument("--counts", type=int, nargs="+", default=list(DEFAULT_COUNTS))
     r.add_argument("--methods", nargs="+", choices=METHODS, default=list(METHODS))
-    r.add_argument("--starts", nargs="+", choices=STARTS, default=["training", "robust"])
+    r.add_argument("--starts", nargs="+", choices=STARTS, default=list(STARTS))
     r.add_argument("--act-steps", type=int, default=DEFAULT_STEPS["act"])
     r.add_argument("--diffusion-steps", type=int, default=DEFAULT_STEPS["diffusion"])
     r.add_argument("--batch-size", type=int, default=8, help="lerobot's default (8)")
