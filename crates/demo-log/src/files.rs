@@ -93,11 +93,13 @@ pub(crate) fn read_regular(path: &Path) -> Result<Vec<u8>, ReadFail> {
     Ok(buf)
 }
 
-/// [`read_regular`] with the failure as a [`crate::DemoError`] naming `path`.
+/// The whole content of the regular file at `path` (a symbolic link is followed), checked before
+/// and after it is opened as the module docs say; the failure as a [`crate::DemoError`] naming
+/// `path`.
 ///
 /// # Errors
-/// [`crate::DemoError::Format`] for something that is not a regular file,
-/// [`crate::DemoError::Io`] when the OS refuses.
+/// [`crate::DemoError::Format`] for something that is not a regular file (a named pipe, socket,
+/// device or directory, a dangling symbolic link), [`crate::DemoError::Io`] when the OS refuses.
 pub fn read_input(path: impl AsRef<Path>) -> Result<Vec<u8>, crate::DemoError> {
     let path = path.as_ref();
     read_regular(path).map_err(|e| e.into_demo(path))

@@ -83,7 +83,7 @@ impl ParseMode {
         }
     }
 
-    /// [`ParseMode::from_name`], or [`DemoError::Invalid`] naming the two modes.
+    /// [`ParseMode::from_name`], or [`crate::DemoError::Invalid`] naming the two modes.
     ///
     /// # Errors
     /// Any other name.
