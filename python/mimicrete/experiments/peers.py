@@ -87,6 +87,12 @@ ENV_STATE_PREFIXES = ("t.target_", "t.tile_", "t.block_", "t.nut_")
 TABLE_BEGIN = "<!-- peers:table -->"
 TABLE_END = "<!-- /peers:table -->"
 FIGURE = "peers_vs_demos.png"
+#: line styles of the figure: a hollow large marker under a small filled one, so that two methods
+#: at the same value both show
+STYLE: dict[str, dict[str, Any]] = {
+    "act": {"marker": "o", "markersize": 10, "markerfacecolor": "none", "lw": 2.5},
+    "diffusion": {"marker": "s", "markersize": 4, "ls": "--", "lw": 1.2},
+}
 
 
 class PeersError(RuntimeError):
@@ -446,7 +452,11 @@ def table(rows: list[dict[str, Any]]) -> str:
     head = ["method", "demos"]
     for s in starts:
         head += [f"installed ({s})", f"picked ({s})", f"length ({s})"]
-    head += ["steps × batch (epochs)", "training wall clock (CPU)", "evaluation wall clock"]
+    head += [
+        "steps × batch (epochs)",
+        "training wall clock (CPU)",
+        f"evaluation wall clock ({' / '.join(starts)})",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for m, n in keys:
         any_r = next(by[(m, n, s)] for s in starts if (m, n, s) in by)
@@ -461,8 +471,8 @@ def table(rows: list[dict[str, Any]]) -> str:
                     _pct(r["picked_rate"]),
                     f"{r['mean_episode_length']:.0f}",
                 ]
-        evals = " + ".join(
-            f"{by[(m, n, s)]['eval_wall_s']:.0f} s" for s in starts if (m, n, s) in by
+        evals = " / ".join(
+            f"{by[(m, n, s)]['eval_wall_s']:.0f} s" if (m, n, s) in by else "–" for s in starts
         )
         cells += [
             f"{any_r['steps']} × {any_r['batch_size']} ({any_r['epochs']:g})",
@@ -498,7 +508,7 @@ def figure(rows: list[dict[str, Any]], path: Path) -> Path:
             )
             if pts:
                 xs, ys = zip(*pts, strict=True)
-                ax.plot(xs, [100 * y for y in ys], marker="o", label=LABELS.get(m, m))
+                ax.plot(xs, [100 * y for y in ys], label=LABELS.get(m, m), **STYLE.get(m, {}))
         ax.set_xscale("log")
         ax.set_xticks(counts, [str(c) for c in counts])
         ax.minorticks_off()
