@@ -1,5 +1,6 @@
-// The wire format of /work PROTOCOL.md version 1 (docs/formats.md once merged): hand frames out
-// (binary, little-endian, 632 bytes), JSON messages in. No DOM, no three.js: unit-testable.
+// The wire format of the live teleoperation protocol, version 1 (docs/formats.md §3): hand
+// frames out (binary, little-endian, 632 bytes), JSON messages in. No DOM, no three.js:
+// unit-testable.
 
 export const PROTOCOL_VERSION = 1;
 export const CLIENT_NAME = 'mimicrete-page/1';

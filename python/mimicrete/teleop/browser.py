@@ -21,7 +21,7 @@ returns the logged joint positions (to float32 rounding, < 1e-6 m). Two modes:
     >>> with launch() as browser:
     ...     page = open_page(browser, "http://127.0.0.1:8012/?emulate=quest3")
     ...     enter_vr(page)
-    ...     replay(page, build_recording(right=mc.handlog.parse("hand.jsonl")))
+    ...     replay(page, build_recording(right=mc.hands.log.parse("hand.jsonl")))
     ...     wait_replay_done(page)
 """
 
@@ -99,7 +99,7 @@ class Track:
 
 
 def track_from_log(log: Any, local_from_log: np.ndarray | None = None) -> Track:
-    """A :class:`Track` from a parsed hand log (``mimicrete.handlog.HandLogData``).
+    """A :class:`Track` from a parsed hand log (``mimicrete.hands.log.HandLogData``).
 
     ``webxr`` logs are taken as they are; ``openxr`` logs lose their palm joint (WebXR has no
     palm; the other 25 joints are the same joints in the same order). The positions must be in
