@@ -8,7 +8,7 @@ STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
 RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
-.PHONY: help setup native web demos experiments train test test-rs test-py bench lint fmt experiments clean export-venv
+.PHONY: help setup native web demos experiments train test test-rs test-py figures bench lint fmt experiments clean export-venv
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
@@ -90,6 +90,14 @@ test-py: $(NATIVE_STAMP) $(EXP_STAMP) $(WEB_STAMP) $(CHROMIUM) $(EXPORT_STAMP) #
 	$(PY) -m pytest tests -q --runslow
 
 test: test-rs test-py ## all tests (what CI runs)
+
+# The README's screenshots of the live page (docs/figures/teleop_page.png, teleop_gestures.png):
+# the page tests that take them, told to keep a copy there (tests alone write only to tmp dirs).
+FIGURE_TESTS := tests/teleop/test_live_page.py::test_suction_episode_recorded_live_in_the_browser \
+	tests/teleop/test_gesture_mode_page.py::test_page_records_iwer_poses_trains_and_shows_held_out_accuracy
+
+figures: $(NATIVE_STAMP) $(WEB_STAMP) $(CHROMIUM) ## the README's page screenshots into docs/figures
+	$(PY) -m pytest $(FIGURE_TESTS) -q --runslow --figures docs/figures
 
 BENCH_STAMP := $(VENV)/.bench.stamp
 $(BENCH_STAMP): $(STAMP) requirements/bench.txt

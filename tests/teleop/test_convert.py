@@ -17,8 +17,6 @@ from mimicrete.teleop import convert as cv
 from mimicrete.teleop import session as ss
 from mimicrete.teleop import synth as sy
 
-HAVE_SIM = sy.have_simulator()
-
 
 def _log(tmp_path, scene_fn, task="suction", seed=0, layout="openxr", handedness="right"):
     paths = sy.synth_hands(
@@ -205,12 +203,7 @@ def test_task_names_and_logged_task_mismatch(tmp_path, scene_fn):
 
 # ---------------------------------------------------------------- end to end (needs the bindings)
 
-sim = pytest.mark.skipif(
-    not HAVE_SIM, reason="needs mimicrete._native built with the simulator (tile-sim)"
-)
 
-
-@sim
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_convert_installs_and_replays_exactly(tmp_path, task):
     from mimicrete import _native, demos, tasks
@@ -250,7 +243,6 @@ def test_convert_installs_and_replays_exactly(tmp_path, task):
             assert -1.0 not in d.actions[sl][:, 6]
 
 
-@sim
 @pytest.mark.parametrize(
     ("task", "layout", "hand"),
     [("suction", "meta_ovr", "left"), ("grip", "mediapipe", "left"), ("screw", "webxr", "right")],
@@ -263,7 +255,6 @@ def test_other_layouts_and_the_left_hand_install(tmp_path, task, layout, hand):
     assert res.installed, res.counts
 
 
-@sim
 def test_unreachable_targets_are_counted_not_followed(tmp_path):
     # the same demonstration with the calibration shifted 2 m away: every target is out of reach
     path = sy.synth_hands("suction", 1, 0, tmp_path / "logs")[0]
@@ -276,7 +267,6 @@ def test_unreachable_targets_are_counted_not_followed(tmp_path):
     assert np.all(res.actions[:, :6] == 0.0)  # no motion made up
 
 
-@sim
 def test_cli_convert_dir(tmp_path, capsys):
     sy.synth_hands("grip", 2, 1, tmp_path / "logs")
     (tmp_path / "logs" / "broken.jsonl").write_text('{"format": "nope"}\n')
@@ -291,7 +281,6 @@ def test_cli_convert_dir(tmp_path, capsys):
     ]
 
 
-@sim
 @pytest.mark.slow
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_acceptance_60_episodes_install_rate(tmp_path, task):

@@ -16,8 +16,6 @@ from mimicrete.hands import log as handlog
 from mimicrete.hands import model as hm
 from mimicrete.teleop import synth as sy
 
-HAVE_ENVS = sy.have_simulator()
-
 
 def _rot_from(seed: int) -> np.ndarray:
     return hm.random_rotation(np.random.default_rng(seed))
@@ -56,9 +54,9 @@ def test_default_calibration_matches_ur3_kin_doc():
     )
 
 
-def test_header_calibration_keeps_its_format(sim_like_scene):
+def test_header_calibration_keeps_its_format(scene_fn):
     # what hand logs have always stored under extra.calibration (readers of old logs rely on it)
-    ep = sy.synth_episode(sim_like_scene("suction", 1), 0)
+    ep = sy.synth_episode(scene_fn("suction", 1), 0)
     stored = json.loads(json.dumps(ep.header["extra"]["calibration"]))
     assert stored == {
         "rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
@@ -84,8 +82,8 @@ def _read(path):
 
 
 @pytest.mark.parametrize("layout", ["openxr", "webxr", "meta_ovr", "mediapipe"])
-def test_handlog_format_and_layouts(tmp_path, layout, sim_like_scene):
-    paths = sy.synth_hands("suction", 2, 7, tmp_path, layout=layout, scene_fn=sim_like_scene)
+def test_handlog_format_and_layouts(tmp_path, layout, scene_fn):
+    paths = sy.synth_hands("suction", 2, 7, tmp_path, layout=layout, scene_fn=scene_fn)
     assert [p.name for p in paths] == ["suction_0000.handlog.jsonl", "suction_0001.handlog.jsonl"]
     head, frames = _read(paths[0])
     assert head["format"] == "mimicrete.handlog" and head["version"] == 1
@@ -118,18 +116,18 @@ def test_handlog_format_and_layouts(tmp_path, layout, sim_like_scene):
     assert t0[:3, 2] @ np.array([0, 0, -1.0]) > np.cos(np.radians(5))  # tool points down
 
 
-def test_same_seed_same_files_other_seed_other_files(tmp_path, sim_like_scene):
-    a = sy.synth_hands("grip", 2, 3, tmp_path / "a", scene_fn=sim_like_scene)
-    b = sy.synth_hands("grip", 2, 3, tmp_path / "b", scene_fn=sim_like_scene)
-    c = sy.synth_hands("grip", 2, 4, tmp_path / "c", scene_fn=sim_like_scene)
+def test_same_seed_same_files_other_seed_other_files(tmp_path, scene_fn):
+    a = sy.synth_hands("grip", 2, 3, tmp_path / "a", scene_fn=scene_fn)
+    b = sy.synth_hands("grip", 2, 3, tmp_path / "b", scene_fn=scene_fn)
+    c = sy.synth_hands("grip", 2, 4, tmp_path / "c", scene_fn=scene_fn)
     for pa, pb, pc in zip(a, b, c, strict=True):
         assert pa.read_bytes() == pb.read_bytes()
         assert pa.read_bytes() != pc.read_bytes()
 
 
 @pytest.mark.parametrize("task", sy.TASKS)
-def test_motion_is_human_and_reaches_the_object(task, sim_like_scene):
-    scene = sim_like_scene(task, 11)
+def test_motion_is_human_and_reaches_the_object(task, scene_fn):
+    scene = scene_fn(task, 11)
     ep = sy.synth_episode(scene, 5)
     tcp = ep.tool0[:, :3, 3] + ep.tool0[:, :3, 2] * scene.tcp_z
     dt = 1 / 90
@@ -154,8 +152,8 @@ def test_motion_is_human_and_reaches_the_object(task, sim_like_scene):
 
 
 @pytest.mark.parametrize("task", sy.TASKS)
-def test_gestures_follow_the_task_through_in_between_shapes(task, sim_like_scene):
-    scene = sim_like_scene(task, 2)
+def test_gestures_follow_the_task_through_in_between_shapes(task, scene_fn):
+    scene = scene_fn(task, 2)
     ep = sy.synth_episode(scene, 1)
     model = g.load_default("screw" if task == "screw" else "grip")
     raw = model.predict(ep.joints, "right")
@@ -176,9 +174,7 @@ def test_gestures_follow_the_task_through_in_between_shapes(task, sim_like_scene
     assert all(np.linalg.norm(f - g.features_3d(e)) > 0.2 for e in ends)
 
 
-def test_cli_writes_logs(tmp_path, monkeypatch, capsys, sim_like_scene):
-    if not HAVE_ENVS:  # until the simulator's bindings exist, the sim's layout stands in
-        monkeypatch.setattr(sy, "scene_from_env", sim_like_scene)
+def test_cli_writes_logs(tmp_path, monkeypatch, capsys, scene_fn):
     from mimicrete.cli import main as cli_main
 
     rc = cli_main(
@@ -204,7 +200,6 @@ def test_cli_writes_logs(tmp_path, monkeypatch, capsys, sim_like_scene):
     assert "wrote 2 hand logs" in capsys.readouterr().out
 
 
-@pytest.mark.skipif(not HAVE_ENVS, reason="needs mimicrete._native built with the simulator")
 @pytest.mark.parametrize(("task", "tcp_z"), [("suction", 0.05), ("grip", 0.085), ("screw", 0.085)])
 def test_scene_from_env_is_what_the_simulator_resets(task, tcp_z):
     from mimicrete import _native, tasks
