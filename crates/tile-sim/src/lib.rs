@@ -25,10 +25,10 @@
 //!   engineers' builds at load average 3–5, so figures vary ±50 %): a TileSuction step that runs
 //!   the solver (FK + Rapier + rewards + frame stacking) is ~37k instructions (callgrind) ≈ 6–8 µs;
 //!   VecEnv(64) with uniform random actions, where most steps are idle (`cargo bench -p tile-sim
-//!   --bench vecenv -- 64 3`, commit ad106f1, 2026-12-01, this 2-core AMD EPYC VM at load average 7), in
-//!   env-steps/s with 1 / 2 threads: TileSuction 28k / 128k (solver skipped on 90 % of steps),
-//!   BlockGrip 62k / 108k (91 %), Screw 532k / 843k (100 %); under that load the figures are
-//!   only good to a factor of two. `VecEnv` keeps `num_threads − 1` persistent workers and
+//!   --bench vecenv -- 64 3`, commit ad106f1, 2026-12-01, this 2-core AMD EPYC VM at load
+//!   average 7), in env-steps/s with 1 / 2 threads: TileSuction 28k / 128k (solver skipped on
+//!   90 % of steps), BlockGrip 62k / 108k (91 %), Screw 532k / 843k (100 %); under that load the
+//!   figures are only good to a factor of two. `VecEnv` keeps `num_threads − 1` persistent workers and
 //!   hands out blocks of 4 envs dynamically, so a starved thread never stalls a step call.
 //!
 //! # Scene layout (Base frame)
