@@ -96,7 +96,9 @@ test: test-rs test-py ## all tests (what CI runs)
 FIGURE_TESTS := tests/teleop/test_live_page.py::test_suction_episode_recorded_live_in_the_browser \
 	tests/teleop/test_gesture_mode_page.py::test_page_records_iwer_poses_trains_and_shows_held_out_accuracy
 
-figures: $(NATIVE_STAMP) $(WEB_STAMP) $(CHROMIUM) ## the README's page screenshots into docs/figures
+# docs/figures/scene.png: the TileSuction env's own render (top and side views) after reset(seed=0).
+figures: $(NATIVE_STAMP) $(WEB_STAMP) $(CHROMIUM) ## the README's scene picture and page screenshots into docs/figures
+	$(PY) -c "import gymnasium as gym, matplotlib.pyplot as plt, mimicrete; e = gym.make('mimicrete/TileSuction-v0', render_mode='rgb_array'); e.reset(seed=0); plt.imsave('docs/figures/scene.png', e.render())"
 	$(PY) -m pytest $(FIGURE_TESTS) -q --runslow --figures docs/figures
 
 BENCH_STAMP := $(VENV)/.bench.stamp
