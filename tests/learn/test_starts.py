@@ -146,3 +146,15 @@ def test_eval_start_flags_refused(run_dir, tmp_path):
     ]:
         r = run_cli("eval", str(run_dir), *args)
         assert r.returncode == 2 and want in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_train_ends_with_the_row_on_the_training_and_the_wide_starts_beside_the_papers(run_dir):
+    from mimicrete.cli.train import _eval_rows
+
+    out = _eval_rows(run_dir, 4, "group3").splitlines()
+    assert out[0].split()[:3] == ["run", "Picked", "rate"] and len(out) == 4
+    assert out[1].startswith("run, training starts") and out[2].startswith("run, wide starts")
+    assert out[3].split()[-3:] == ["97%", "97%", "90.0"] and "paper, group 3" in out[3]
+    assert json.loads((run_dir / "eval_wide.json").read_text())["starts"] == "wide"
+    # a config that is not one of the paper's groups: no paper row
+    assert len(_eval_rows(run_dir, 4, "wide").splitlines()) == 3

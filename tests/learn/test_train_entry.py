@@ -26,9 +26,6 @@ SMALL = [
 
 @pytest.mark.slow
 def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
-    native = pytest.importorskip("mimicrete._native")
-    if not hasattr(native, "SimVecEnv"):
-        pytest.skip("mimicrete._native was built without the simulator")
     shutil.copytree(REPO / "configs", tmp_path / "configs")
     shutil.copy(REPO / "train.py", tmp_path / "train.py")
     env = dict(os.environ)
@@ -43,6 +40,8 @@ def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
     run = tmp_path / "runs/group3-seed0"
     assert json.loads((run / "run.json").read_text())["demos"] == "demos/suction"
     assert json.loads((run / "eval.json").read_text())["episodes"] == 2
+    assert json.loads((run / "eval_wide.json").read_text())["starts"] == "wide"
+    assert "group3-seed0, wide starts" in r.stdout and "paper, group 3 (Table 5)" in r.stdout
     assert "trained 1024 steps" in r.stdout
     # the hand logs are the ones `make demos` writes (synth-hands --episodes 60 --seed 0)
     from mimicrete import cli

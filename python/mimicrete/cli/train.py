@@ -120,6 +120,27 @@ def main(args: argparse.Namespace) -> int:
     for p in learn.learning_curves(run_dir):
         print(f"plot: {p}")
     if args.eval_episodes > 0:
-        res = learn.evaluate_run(run_dir, args.eval_episodes)
-        print(learn.format_row(run_dir.name, res))
+        print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem))
     return 0
+
+
+def _eval_rows(run_dir: Path, episodes: int, config_stem: str) -> str:
+    """Table 5's row of the final policy on the training starts and, for the simulator's tasks,
+    on the wide starts (the eval files say which), with the paper's row for a paper group."""
+    from mimicrete import learn
+    from mimicrete.learn.env import sim_task_of
+    from mimicrete.learn.run_files import load_policy
+
+    rows = [(f"{run_dir.name}, training starts", learn.evaluate_run(run_dir, episodes))]
+    if sim_task_of(load_policy(run_dir)[1].env_settings.env_id) is not None:
+        wide = learn.evaluate_run(run_dir, episodes, starts="wide")
+        rows.append((f"{run_dir.name}, wide starts", wide))
+    if config_stem.startswith("group") and config_stem[5:].isdigit():
+        from mimicrete.experiments.paper import PAPER_TABLE5
+
+        g = int(config_stem[5:])
+        if g in PAPER_TABLE5:
+            p, i, n = PAPER_TABLE5[g]
+            paper = {"picked_rate": p, "installed_rate": i, "mean_episode_length": n}
+            rows.append((f"paper, group {g} (Table 5)", paper))
+    return learn.format_rows(rows)

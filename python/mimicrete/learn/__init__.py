@@ -26,6 +26,7 @@ _EXPORTS = {
     "ResumeError": ("checkpoint", "ResumeError"),
     "evaluate_run": ("evaluate", "evaluate_run"),
     "format_row": ("evaluate", "format_row"),
+    "format_rows": ("evaluate", "format_rows"),
     "learning_curves": ("plots", "learning_curves"),
     "read_scalars": ("run_files", "read_scalars"),
     "ConfigError": ("config", "ConfigError"),

@@ -33,7 +33,14 @@ from .networks import Actor, env_action
 from .run_files import atomic_write, load_policy
 from .starts import StartList, label
 
-__all__ = ["eval_file", "evaluate_run", "format_row", "load_policy", "run_episodes"]
+__all__ = [
+    "eval_file",
+    "evaluate_run",
+    "format_row",
+    "format_rows",
+    "load_policy",
+    "run_episodes",
+]
 
 
 def _num_envs_for(episodes: int, cap: int = 32) -> int:
@@ -194,10 +201,18 @@ def evaluate_run(
     return res
 
 
+def format_rows(rows: list[tuple[str, dict]]) -> str:
+    """Table 5's columns for each ``(name, result)``, under one header."""
+    w = max(24, *(len(n) for n, _ in rows))
+    head = f"{'run':<{w}} {'Picked rate':>12} {'Installed rate':>15} {'Average episode length':>23}"
+    lines = [head]
+    for name, res in rows:
+        lines.append(
+            f"{name:<{w}} {res['picked_rate']:>12.0%} {res['installed_rate']:>15.0%} "
+            f"{res['mean_episode_length']:>23.1f}"
+        )
+    return "\n".join(lines)
+
+
 def format_row(name: str, res: dict) -> str:
-    head = f"{'run':<24} {'Picked rate':>12} {'Installed rate':>15} {'Average episode length':>23}"
-    row = (
-        f"{name:<24} {res['picked_rate']:>12.0%} {res['installed_rate']:>15.0%} "
-        f"{res['mean_episode_length']:>23.1f}"
-    )
-    return f"{head}\n{row}"
+    return format_rows([(name, res)])
