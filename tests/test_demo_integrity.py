@@ -13,12 +13,6 @@ import pytest
 
 import mimicrete as mc
 from _cli_run import run_cli
-from mimicrete import _native
-
-pytestmark = pytest.mark.skipif(
-    not hasattr(_native, "demo_verify"),
-    reason="mimicrete._native built without demo-log verification",
-)
 
 OBS, ACT, N = 12, 7, 80
 

@@ -11,14 +11,13 @@ import os
 import re
 from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 
 from mimicrete import _native
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import synth as sy
-
-jsonschema = pytest.importorskip("jsonschema")
 
 ROOT = Path(__file__).resolve().parent.parent
 SCHEMAS = Path(
@@ -32,7 +31,7 @@ INDEX = SCHEMAS / "dist" / "jsonschema" / "index.js"
 def _foxglove_schemas() -> dict[str, dict]:
     """``exports.<Name> = {...};`` blocks of the package's generated module, as JSON."""
     if not INDEX.is_file():
-        pytest.skip(f"{INDEX} missing: `npm install` in web/ (@foxglove/schemas 2.1.0)")
+        pytest.fail(f"{INDEX} missing: `make web` (npm ci in web/: @foxglove/schemas 2.1.0)")
     text = INDEX.read_text()
     out = {}
     for m in re.finditer(r"^exports\.(\w+) = (\{.*?^\});$", text, re.M | re.S):
@@ -49,8 +48,6 @@ def _validator(schema: dict):
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory) -> Path:
-    if not sy.have_simulator():
-        pytest.skip("needs the simulator")
     d = tmp_path_factory.mktemp("fox")
     log = sy.synth_hands("suction", 1, 0, d / "logs")[0]
     res = cv.convert_log(log, "suction", d / "demos")

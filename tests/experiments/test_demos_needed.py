@@ -6,18 +6,9 @@ from __future__ import annotations
 
 import json
 
-import pytest
-
 from mimicrete.experiments import demos_needed as dn
 
 from ._synthetic import write_run
-
-
-def _need_sim():
-    native = pytest.importorskip("mimicrete._native")
-    if not hasattr(native, "SimVecEnv"):
-        pytest.skip("mimicrete._native was built without the simulator")
-
 
 TINY = [
     "behavior.hyperparameters.buffer_size=1024",
@@ -32,7 +23,6 @@ TINY = [
 
 
 def test_demos_needed_tiny_run(tmp_path, capsys):
-    _need_sim()
     out = tmp_path / "dn"
     sets = [a for s in TINY for a in ("--set", s)]
     argv = ["--counts", "2", "--seeds", "0", "--max-steps", "2048", "--episodes", "8",

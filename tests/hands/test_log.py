@@ -12,12 +12,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import mimicrete as mc
-from mimicrete import _native
-
-pytestmark = pytest.mark.skipif(
-    not hasattr(_native, "demo_parse_handlog"),
-    reason="mimicrete._native built without demo-log (crates/pyext lacks the dependency)",
-)
 
 HEADER = {
     "format": "mimicrete.handlog",

@@ -203,16 +203,9 @@ def test_eval_bad_input_is_one_line(toy_yaml, tmp_path, capsys):
 # ----------------------------------------------------------------------------------------------
 
 
-def _need_sim():
-    native = pytest.importorskip("mimicrete._native")
-    if not hasattr(native, "SimVecEnv"):
-        pytest.skip("mimicrete._native was built without the simulator")
-
-
 @pytest.fixture(scope="module")
 def demo_dir(tmp_path_factory) -> Path:
     """Two MCAP demos made the way `make demos` makes them (synth-hands + convert)."""
-    _need_sim()
     root = tmp_path_factory.mktemp("demos")
     argv = ["synth-hands", "--task", "suction", "--episodes", "2", "--seed", "0", "--out"]
     assert cli.main([*argv, str(root / "hands")]) == 0

@@ -19,16 +19,9 @@ from mimicrete.learn.networks import Actor
 from ._small import SMALL_RUN
 
 
-def _need_sim():
-    native = pytest.importorskip("mimicrete._native")
-    if not hasattr(native.SimVecEnv, "reset_replay"):
-        pytest.skip("mimicrete._native was built without SimVecEnv.reset_replay")
-
-
 @pytest.fixture(scope="module")
 def hand_demos(tmp_path_factory) -> Path:
     """Three demos through the real teleoperation path (synth-hands + convert), seed 300."""
-    _need_sim()
     from mimicrete.teleop import convert as cv
     from mimicrete.teleop.synth import synth_hands
 

@@ -10,8 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 PKG = Path(__file__).resolve().parents[2] / "python" / "mimicrete"
 MAX_LINES = 600
 
@@ -102,7 +100,6 @@ def test_the_cli_parser_imports_no_torch():
 
 
 def test_experiments_entry_point_answers():
-    pytest.importorskip("mimicrete._native")
     env = dict(os.environ)
     env["PYTHONPATH"] = str(PKG.parent) + os.pathsep + env.get("PYTHONPATH", "")
     for mod in ("mimicrete.experiments", "mimicrete.experiments.report"):

@@ -17,12 +17,6 @@ DATA = Path(__file__).parent / "data"
 EXAMPLE = Path(__file__).parents[2] / "examples" / "onnx_policy.py"
 
 
-def _need_sim():
-    native = pytest.importorskip("mimicrete._native")
-    if not hasattr(native, "SimEnv"):
-        pytest.skip("mimicrete._native was built without the simulator")
-
-
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """The group-3 policy of tests/learn/data and its ONNX export."""
@@ -50,7 +44,6 @@ def _rollout_obs(actor, n: int, num_envs: int = 8) -> np.ndarray:
 
 
 def test_onnx_matches_torch_on_recorded_observations(trained):
-    _need_sim()
     import onnx
     import onnxruntime as ort
 
@@ -101,7 +94,6 @@ print("torch not imported")
 
 
 def test_example_runs_the_onnx_policy_without_torch(trained):
-    _need_sim()
     _, path = trained
     code = textwrap.dedent(_NO_TORCH.format(example=str(EXAMPLE), policy=str(path)))
     env = dict(os.environ)

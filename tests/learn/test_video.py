@@ -15,12 +15,6 @@ POLICY = Path(__file__).parent / "data" / "group3_policy.pt"
 H, W = 320 + video.BAND_H, 640  # the env's render (640 x 320) and the band
 
 
-def _need_sim():
-    native = pytest.importorskip("mimicrete._native")
-    if not hasattr(native, "SimEnv"):
-        pytest.skip("mimicrete._native was built without the simulator")
-
-
 def _band(frame):
     return frame[H - video.BAND_H :].astype(int)
 
@@ -80,7 +74,6 @@ def test_status_band_badges_and_text():
 def test_expert_episode_gif_follows_the_state(tmp_path):
     """The scripted expert picks and installs: the GIF's badges turn green on the steps where the
     env reports it, the step text changes every frame."""
-    _need_sim()
     from mimicrete import _native
 
     env = gym.make("mimicrete/TileSuction-v0", render_mode="rgb_array")
@@ -119,7 +112,6 @@ def _run_dir(tmp_path):
 
 
 def test_eval_video_through_cli(tmp_path, capsys):
-    _need_sim()
     from mimicrete import cli
 
     run = _run_dir(tmp_path)
