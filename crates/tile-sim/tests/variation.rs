@@ -72,16 +72,15 @@ fn out_of_range_variations_are_refused_and_change_nothing() {
     assert!((0..3).all(|i| venv.env(i).unwrap().variation() == Variation::robust()));
 }
 
-#[test]
-fn the_expert_installs_under_the_robust_variation() {
-    let task = Task::TileSuction;
+/// Episodes (seeds `0..episodes`) the scripted expert installs in under variation `v`.
+fn expert_installs(task: Task, v: Variation, episodes: u64) -> u32 {
     let mut env = Env::new(task, 0);
-    env.set_variation(Variation::robust()).unwrap();
+    env.set_variation(v).unwrap();
     let mut o = vec![0.0; task.obs_dim()];
     let mut a = vec![0.0; task.act_dim()];
     let mut ex = Expert::new(task);
     let mut ok = 0;
-    for seed in 0..200 {
+    for seed in 0..episodes {
         env.reset(Some(seed), &mut o).unwrap();
         ex.reset();
         loop {
@@ -93,6 +92,20 @@ fn the_expert_installs_under_the_robust_variation() {
             }
         }
     }
+    ok
+}
+
+#[test]
+fn the_expert_installs_under_the_robust_variation() {
+    let ok = expert_installs(Task::TileSuction, Variation::robust(), 200);
     eprintln!("TileSuction expert, robust starts: installed {ok}/200");
     assert!(ok >= 190, "installed {ok}/200");
+}
+
+/// The scripted expert installs from the wide starts too (the task stays feasible there).
+#[test]
+fn the_expert_installs_under_the_wide_variation() {
+    let ok = expert_installs(Task::TileSuction, Variation::wide(), 100);
+    eprintln!("TileSuction expert, wide starts: installed {ok}/100");
+    assert!(ok >= 95, "installed {ok}/100");
 }
