@@ -16,7 +16,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from mimicrete.experiments import peers
+from mimicrete.experiments import peers, peers_report
 
 REPO = Path(__file__).resolve().parents[2]
 LEROBOT_PY = Path(os.environ.get("MIMICRETE_LEROBOT_PYTHON", REPO / ".venv-export/bin/python"))
@@ -81,7 +81,7 @@ def test_pipeline_end_to_end(one_demo, tmp_path):
     assert files == [f"{m}-n1-{s}.json" for m in peers.METHODS for s in ("robust", "training")]
     for f in (out / "results").glob("*.json"):
         r = json.loads(f.read_text())
-        for k in peers.RESULT_FIELDS:
+        for k in peers_report.RESULT_FIELDS:
             assert k in r, (f.name, k)
         assert r["episodes"] == 2 and r["steps"] == 2 and r["demos"] == 1
         # rates and the mean length are over the two whole episodes

@@ -26,7 +26,7 @@ import pytest
 import yaml
 
 from mimicrete import cli
-from mimicrete.learn import config
+from mimicrete.learn import config, config_text
 from mimicrete.learn.toyenv import toy_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -426,7 +426,7 @@ def test_a_config_that_is_not_utf8_is_refused_naming_the_file_and_line(tmp_path,
 
 def test_a_huge_config_file_is_not_read_whole(tmp_path, capsys):
     path = tmp_path / "huge.yaml"
-    path.write_text("# " + "x" * (config.MAX_CONFIG_BYTES + 10) + "\n")
+    path.write_text("# " + "x" * (config_text.MAX_CONFIG_BYTES + 10) + "\n")
     rc, _, err = run(train_argv(path, tmp_path / "run"), capsys)
     assert rc == 2
     assert str(path) in one_error_line(err)
