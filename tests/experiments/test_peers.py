@@ -98,7 +98,7 @@ def test_pipeline_end_to_end(one_demo, tmp_path):
     assert time.perf_counter() - t1 < 5
 
     doc = tmp_path / "RESULTS.md"
-    doc.write_text(f"# R\n\n{peers.TABLE_BEGIN}\nold\n{peers.TABLE_END}\n\nafter\n")
+    doc.write_text(f"# R\n\n{peers_report.TABLE_BEGIN}\nold\n{peers_report.TABLE_END}\n\nafter\n")
     fig = tmp_path / "fig.png"
     rc = peers.main(["report", "--out", str(out), "--figure", str(fig), "--into", str(doc)])
     assert rc == 0
