@@ -151,7 +151,13 @@ def test_bad_input_is_dropped_and_counted_and_never_fatal(tmp_path):
         return states[-1]
 
     last = _serve(TeleopServer(live), go)
-    assert last["dropped"] == {"malformed": 3, "nan": 1, "unknown": 1, "not_driver": 0}
+    assert last["dropped"] == {
+        "malformed": 3,
+        "nan": 1,
+        "backwards": 0,
+        "unknown": 1,
+        "not_driver": 0,
+    }
 
 
 def test_second_client_watches_and_cannot_drive(tmp_path):
@@ -161,8 +167,8 @@ def test_second_client_watches_and_cannot_drive(tmp_path):
         a, _ = await _driver(client)
         b = await client.ws_connect("/ws")
         await b.send_json({"type": "hello", "protocol": 1, "role": "driver"})
+        hello_b = await b.receive_json(timeout=10)  # its hello first, then the error
         err = await b.receive_json(timeout=10)
-        hello_b = await b.receive_json(timeout=10)
         await b.send_bytes(pack_frame(0, 0.0, 0.0, log.joints[0]))
         await b.send_json({"type": "control", "action": "start"})
         states = await _stream(a, log, until=lambda m: m["seq"] >= 8)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
 from typing import TYPE_CHECKING
 
@@ -144,17 +146,24 @@ def main(args: argparse.Namespace) -> int:
         )
     print(HELP_OPEN.format(port=args.port))
     sys.stdout.flush()
+    # Ctrl-C, SIGTERM and SIGHUP all end `serve` the same way (its shutdown saves the episode
+    # being recorded); the exit status is then 0: everything recorded is on disk
+    sig = None
     try:
-        asyncio.run(srv.serve(server, args.host, args.port, ssl_ctx))
-    except KeyboardInterrupt:
+        sig = asyncio.run(srv.serve(server, args.host, args.port, ssl_ctx, signals=True))
+    except KeyboardInterrupt:  # (before the loop took the signals over)
         pass
     except OSError as e:
         raise UsageError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
     if live.recording:
         live.stop("interrupted")
     live.close()
-    if live.last_saved:
-        print(f"last episode: {live.last_saved}")
+    with contextlib.suppress(OSError):  # the terminal may be gone (SIGHUP)
+        if sig is not None:
+            print(f"mimicrete teleop: stopped by {signal.Signals(sig).name}", file=sys.stderr)
+        if live.last_saved:
+            print(f"last episode: {live.last_saved}")
+        sys.stdout.flush()
     return 0
 
 

@@ -29,7 +29,7 @@ from mimicrete.hands.log import HandLogData
 from mimicrete.kin import Calibration
 from mimicrete.safe_io import FileLock
 
-from .record import DemoSink, episode_meta
+from .record import DemoSink, episode_meta, source_keys
 from .session import Counts, Session
 
 #: Hand-log file suffixes stripped to name the demo (longest first).
@@ -249,16 +249,15 @@ def convert_log(
                     episode=episode_index,
                     task_sim=spec.sim,
                     seed=seed,
-                    source=source,
+                    source=None,  # source_keys below: relative to the demo, hashed as parsed
                     model=model,
                     layout=log.header["layout"],
                     space=log.header["space"],
                     handedness=log.header["handedness"],
                     extra={"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
                 )
-                sha = log.report.get("sha256")
-                if sha:  # the bytes parsed, not the file as it is now (it may have grown)
-                    meta["source_handlog_sha256"] = sha
+                # the hash of the bytes parsed, not the file as it is now (it may have grown)
+                meta.update(source_keys(source_path, out_path, log.report.get("sha256") or None))
                 sink = DemoSink(out_path, meta)
             session = Session(
                 spec.name,

@@ -46,8 +46,8 @@ from .gesturemode import (
     user_model_path,
 )
 from .left_hand import LeftHandControl
-from .protocol import HandFrame
-from .record import DemoSink, episode_meta
+from .protocol import FrameError, HandFrame
+from .record import DemoSink, episode_meta, source_keys
 from .session import Session, Step
 from .view import (
     effector_state,
@@ -58,6 +58,9 @@ from .view import (
 )
 
 LAYOUT = "webxr"
+#: The hand's space as the formats name it: WebXR's axes are OpenXR's (right-handed, +Y up), and
+#: the hand-log format reads ``webxr`` as ``openxr`` and writes ``openxr`` (docs/formats.md §1)
+SPACE = "openxr"
 
 
 @dataclass
@@ -153,7 +156,13 @@ class Live:
         return self.episode is not None
 
     def push(self, f: HandFrame) -> list[Step]:
-        """One hand frame from the driving client."""
+        """One hand frame from the driving client. Raises :class:`.protocol.FrameError`
+        (``backwards``) for a frame whose ``t`` is before the previous one of the episode being
+        recorded: it is not a frame of this episode (the hand log's times never decrease), so
+        nothing of it is used, not even its left hand."""
+        ep = self.episode
+        if ep is not None and ep.t and f.t < ep.t[-1]:
+            raise FrameError("backwards", f"frame time {f.t} before the previous {ep.t[-1]}")
         self.poll()
         self._left_hand_control(f)
         if f.right_tracked:
@@ -172,8 +181,6 @@ class Live:
             elif took is not None:
                 self._gesture_event("progress" if took == "sample" else took)
         if ep is not None:
-            if ep.t and f.t < ep.t[-1]:  # a clock that goes back: not a frame of this episode
-                return []
             ep.t.append(f.t)
             ep.tracked.append(f.right_tracked)
             ep.joints.append(joints)
@@ -216,14 +223,13 @@ class Live:
             episode=index,
             task_sim=self.task.sim,
             seed=seed,
-            source=None,  # the hand log is written at the end; named in extra
+            source=None,  # the hand log is written at the end: named in the `episode` record
             model=self.model,
             layout=LAYOUT,
-            space="webxr",
+            space=SPACE,
             handedness="right",
             extra={
                 "recorder": "mimicrete teleop",
-                "handlog": str(self.out / f"{name}.handlog.jsonl"),
                 "calibration": self.calibration.to_dict(),
             },
         )
@@ -258,18 +264,24 @@ class Live:
         return {"index": ep.index, "result": res, "steps": o.steps, "finished": finished}
 
     def _save(self, ep: Episode, res: str, finished: bool) -> None:
-        """Close the demo and write the hand log (in the worker thread)."""
+        """Write the hand log and finish the demo (in the worker thread). The demo's ``episode``
+        record names the hand log (:func:`.record.source_keys`) and says ``result`` and
+        ``finished``. An episode cut short (a disconnect; Ctrl-C, SIGTERM or SIGHUP to the
+        server) is finished all the same, so any MCAP reader opens it, and then renamed to
+        ``TASK_NNNN.mcap.partial``: directory loaders leave it out of a data set."""
         s = ep.session
         name = f"{self.task.name}_{ep.index:04d}"
         demo = self.out / f"{name}.mcap"
         hand = self.out / f"{name}.handlog.jsonl"
+        source = None
         if ep.t:
             self._write_handlog(hand, ep)
-        if finished:
-            ep.sink.close(s.installed, s.counts, {"result": res})
-        else:  # cut short (disconnect, Ctrl-C): kept as a valid, unfinished .partial file
-            ep.sink.abandon()
-            demo = Path(str(demo) + ".partial")
+            source = source_keys(hand, demo)
+        ep.sink.close(s.installed, s.counts, {"result": res, "finished": finished}, source)
+        if not finished:
+            partial = Path(str(demo) + ".partial")
+            os.replace(demo, partial)
+            demo = partial
         saved = {
             "type": "episode",
             "event": "saved",
@@ -282,6 +294,12 @@ class Live:
         }
         self._last_saved = saved
         self.events.append(saved)
+        notify = self.notify
+        if notify is not None:  # the server sends it now, not with the next frame's answer
+            try:
+                notify()
+            except RuntimeError:  # its loop has closed meanwhile
+                pass
 
     def flush(self) -> None:
         """Wait until every stopped episode is on disk (errors of a save are raised here)."""
@@ -561,7 +579,7 @@ class Live:
             "format": "mimicrete.handlog",
             "version": 1,
             "layout": LAYOUT,
-            "space": "webxr",
+            "space": SPACE,
             "handedness": "right",
             "units": "m",
             "task": self.task.name,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -51,6 +52,22 @@ def episode_meta(
     return meta
 
 
+def source_keys(
+    handlog: str | os.PathLike[str], demo: str | os.PathLike[str], sha256: str | None = None
+) -> dict[str, str]:
+    """The demo's ``source_handlog`` and ``source_handlog_sha256`` (docs/formats.md §2), the one
+    way live demos and ``mimicrete convert`` write them: the hand log's name relative to the
+    demo's folder (``TASK_0003.handlog.jsonl`` beside it, ``../hands/take.jsonl``), never an
+    absolute path, so a folder of demos and logs can move; and the SHA-256 of its bytes
+    (``sha256`` when the caller hashed what it parsed, else the file as it is now)."""
+    rel = os.path.relpath(os.path.abspath(handlog), os.path.dirname(os.path.abspath(demo)))
+    if sha256 is None:
+        with open(handlog, "rb") as f:
+            sha256 = hashlib.file_digest(f, "sha256").hexdigest()
+    text = os.fsencode(rel).decode("utf-8", "backslashreplace")  # as convert.path_text
+    return {"source_handlog": text, "source_handlog_sha256": sha256}
+
+
 class DemoSink:
     """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer):
     the :class:`~mimicrete.teleop.session.Recorder` a session records into."""
@@ -89,11 +106,20 @@ class DemoSink:
             step.events,
         )
 
-    def close(self, success: bool, counts: Counts, extra: dict[str, Any] | None = None) -> None:
-        """Finish the file: the summary is written and it is renamed into place."""
+    def close(
+        self,
+        success: bool,
+        counts: Counts,
+        extra: dict[str, Any] | None = None,
+        source: dict[str, str] | None = None,
+    ) -> None:
+        """Finish the file: the summary is written and it is renamed into place. ``extra`` values
+        are stored as JSON; ``source`` (:func:`source_keys`, for a hand log written while the
+        demo was recorded) goes into the ``episode`` record as it is."""
         info = {k: json.dumps(v) for k, v in counts.as_dict().items()}
         for k, v in (extra or {}).items():
             info[k] = json.dumps(v)
+        info.update(source or {})
         self.w.finish(success, info)
 
     def abandon(self) -> None:

@@ -6,9 +6,11 @@ answer with the state (robot frames, gesture, following or why not, episode, rec
 the frame's ``sent_ms`` echoed for the round trip, and the time the server spent on it).
 
 Bad input (a frame of the wrong size, NaN, garbage, an unknown message type) is dropped and
-counted, never fatal. One driver at a time: a second client watches read-only. A disconnect or
-Ctrl-C mid-episode closes the demo cleanly as an unfinished ``.partial`` file and writes the hand
-log; nothing recorded is lost.
+counted, never fatal; so is a frame whose time goes back during a recording (``backwards``). One
+driver at a time: a second client watches read-only. A disconnect mid-episode, and (through
+:func:`serve`'s one handler for all three) Ctrl-C, SIGTERM (``kill``) or SIGHUP (the terminal
+closed), finish the demo as ``TASK_NNNN.mcap.partial``, marked ``result`` ``disconnected`` or
+``interrupted`` and ``finished`` false, and write the whole hand log; nothing recorded is lost.
 
 The gesture mode (``{"type":"gestures",...}`` messages, :mod:`.gesturemode`): the driver's
 right-hand frames become labelled samples of the task's gesture classes; the training runs in a
@@ -27,6 +29,7 @@ import hmac
 import ipaddress
 import json
 import secrets
+import signal
 import socket
 import ssl
 import sys
@@ -63,7 +66,13 @@ class Stats:
 
     frames: int = 0
     dropped: dict[str, int] = field(
-        default_factory=lambda: {"malformed": 0, "nan": 0, "unknown": 0, "not_driver": 0}
+        default_factory=lambda: {
+            "malformed": 0,
+            "nan": 0,
+            "backwards": 0,
+            "unknown": 0,
+            "not_driver": 0,
+        }
     )
     frame_times: deque[float] = field(default_factory=deque)  # arrival times, last second
     # per frame, received → state sent, ms (the benchmark reads it)
@@ -87,7 +96,7 @@ class TeleopServer:
         self.driver: web.WebSocketResponse | None = None
         self.viewers: set[web.WebSocketResponse] = set()
         self.stats = Stats()
-        self.log = lambda msg: print(f"mimicrete teleop: {msg}", file=sys.stderr, flush=True)
+        self.log = _log
 
     def app(self) -> web.Application:
         app = web.Application()
@@ -167,16 +176,15 @@ class TeleopServer:
             return role
         if kind == "hello":
             want = msg.get("role", "driver")
-            if want == "driver" and self.driver is None:
+            refused = want == "driver" and self.driver is not None
+            if want == "driver" and not refused:
                 self.driver, role = ws, "driver"
             else:
                 role = "viewer"
                 self.viewers.add(ws)
-                if want == "driver":
-                    await ws.send_json(
-                        {"type": "error", "message": "another client drives; you watch"}
-                    )
-            await ws.send_json(self._hello(role))
+            await ws.send_json(self._hello(role))  # the answer to a hello comes first
+            if refused:
+                await ws.send_json({"type": "error", "message": "another client drives; you watch"})
         elif kind == "gestures" and ws is self.driver:
             try:
                 self._gestures(msg)
@@ -261,9 +269,13 @@ class TeleopServer:
         except FrameError as e:
             self.stats.dropped[e.kind] += 1
             return
+        try:
+            self.live.push(f)
+        except FrameError as e:  # its time goes back: dropped like any bad frame
+            self.stats.dropped[e.kind] += 1
+            return
         self.stats.frames += 1
         self.stats.frame_times.append(time.monotonic())
-        self.live.push(f)
         state = self.live.state()
         state.update(
             seq=f.seq,
@@ -311,6 +323,14 @@ class TeleopServer:
         for ws in [self.driver, *self.viewers]:
             if ws is not None:
                 await ws.close()
+
+
+def _log(msg: str) -> None:
+    """One line on stderr; a terminal that is gone (SIGHUP) does not stop a save."""
+    try:
+        print(f"mimicrete teleop: {msg}", file=sys.stderr, flush=True)
+    except OSError:
+        pass
 
 
 def _gesture_line(ev: dict[str, Any]) -> str:
@@ -393,18 +413,50 @@ async def serve(
     port: int,
     ssl_ctx: ssl.SSLContext | None,
     ready: asyncio.Event | None = None,
-) -> None:
-    """Run until cancelled (Ctrl-C): the app on ``host:port``."""
-    runner = web.AppRunner(server.app(), handle_signals=False, access_log=None)
-    await runner.setup()
-    site = web.TCPSite(runner, host, port, ssl_context=ssl_ctx)
-    await site.start()
-    if ready is not None:
-        ready.set()
+    *,
+    signals: bool = False,
+) -> int | None:
+    """Serve the app on ``host:port`` until cancelled or, with ``signals`` (the main thread of
+    ``mimicrete teleop``), until one of :data:`STOP_SIGNALS` arrives; returns its number.
+
+    The three signals go through one handler and one way out: the app's shutdown stops the
+    episode being recorded as ``interrupted``, waits until its demo and hand log are on disk,
+    and closes the clients. A signal the process was started ignoring (``nohup`` ignores SIGHUP)
+    stays ignored; one that comes while the save runs changes nothing."""
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    got: list[int] = []
+
+    def on_signal(sig: int) -> None:
+        got.append(sig)
+        stop.set()
+
+    installed = []
+    if signals:
+        for sig in STOP_SIGNALS:
+            if signal.getsignal(sig) is not signal.SIG_IGN:
+                loop.add_signal_handler(sig, on_signal, sig)
+                installed.append(sig)
     try:
-        await asyncio.Event().wait()
+        runner = web.AppRunner(server.app(), handle_signals=False, access_log=None)
+        await runner.setup()
+        try:
+            site = web.TCPSite(runner, host, port, ssl_context=ssl_ctx)
+            await site.start()
+            if ready is not None:
+                ready.set()
+            await stop.wait()
+        finally:
+            await runner.cleanup()
     finally:
-        await runner.cleanup()
+        for sig in installed:
+            loop.remove_signal_handler(sig)
+    return got[0] if got else None
+
+
+#: The signals that end ``mimicrete teleop`` through its shutdown: Ctrl-C, ``kill``, a closed
+#: terminal.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class ServerThread:
