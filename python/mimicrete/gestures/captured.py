@@ -31,27 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mimicrete.hands.layouts import WEBXR_JOINT_NAMES
+
 #: IWER's pose files, by the pose id IWER gives them (``default`` is the relaxed hand).
 IWER_POSE_FILES: dict[str, str] = {"default": "relaxed", "pinch": "pinch", "point": "point"}
-#: WebXR joint names in the WebXR order (the order of :data:`mimicrete.hands.layouts` ``webxr``).
-WEBXR_JOINTS: tuple[str, ...] = (
-    "wrist",
-    "thumb-metacarpal",
-    "thumb-phalanx-proximal",
-    "thumb-phalanx-distal",
-    "thumb-tip",
-    *(
-        f"{f}-{part}"
-        for f in ("index-finger", "middle-finger", "ring-finger", "pinky-finger")
-        for part in (
-            "metacarpal",
-            "phalanx-proximal",
-            "phalanx-intermediate",
-            "phalanx-distal",
-            "tip",
-        )
-    ),
-)
 #: The default hand shape of each suction / gripping class (pose id in IWER).
 IWER_GRIP_CLASS: dict[str, str] = {"pinch": "closing", "default": "opening", "point": "fixed"}
 #: WebXR joint ranges of each finger chain (metacarpal … tip; the thumb metacarpal … tip).
@@ -103,7 +86,7 @@ def _pose_matrices(pose: str, root: str) -> np.ndarray:
         raise CapturedDataMissing(f"{path}: IWER's captured hand poses are missing (npm ci)")
     found = {m[1]: m[2] for m in _JOINT.finditer(path.read_text())}
     out = np.zeros((25, 4, 4))
-    for k, joint in enumerate(WEBXR_JOINTS):
+    for k, joint in enumerate(WEBXR_JOINT_NAMES):
         if joint not in found:
             raise CapturedDataMissing(f"{path}: no joint {joint!r}")
         vals = [float(v) for v in re.findall(_NUM, found[joint])]
@@ -229,7 +212,6 @@ __all__ = [
     "IWER_GRIP_CLASS",
     "IWER_POSE_FILES",
     "SCREW_SPLICES",
-    "WEBXR_JOINTS",
     "CapturedDataMissing",
     "KEYPOINT_CLASSES",
     "captured_set",

@@ -71,6 +71,26 @@ MEDIAPIPE_FROM_OPENXR: tuple[int, ...] = (
     25,
 )
 #: OpenXR index of each WebXR joint (OpenXR without the palm).
+WEBXR_JOINT_NAMES: tuple[str, ...] = (
+    "wrist",
+    "thumb-metacarpal",
+    "thumb-phalanx-proximal",
+    "thumb-phalanx-distal",
+    "thumb-tip",
+    *(
+        f"{finger}-{part}"
+        for finger in ("index-finger", "middle-finger", "ring-finger", "pinky-finger")
+        for part in (
+            "metacarpal",
+            "phalanx-proximal",
+            "phalanx-intermediate",
+            "phalanx-distal",
+            "tip",
+        )
+    ),
+)
+"""WebXR's ``XRHand`` joint names in its order (``layout: webxr`` and the wire format)."""
+
 WEBXR_FROM_OPENXR: tuple[int, ...] = tuple(range(1, 26))
 #: OpenXR index of each OVR legacy bone that has an OpenXR counterpart, ``-1`` for the two OVR
 #: bones OpenXR lacks (1 ForearmStub, 2 Thumb0/trapezium), which :func:`to_layout` synthesises.

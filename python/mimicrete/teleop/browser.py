@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete.hands.layouts import WEBXR_FROM_OPENXR
+from mimicrete.hands.layouts import WEBXR_FROM_OPENXR, WEBXR_JOINT_NAMES
 
 CHROMIUM = Path("/usr/bin/chromium")
 #: SwiftShader gives headless Chromium WebGL without a GPU; no sandbox because tests run as root;
@@ -47,26 +47,6 @@ CHROMIUM_ARGS: tuple[str, ...] = (
     "--no-sandbox",
     "--disable-background-networking",
     "--disable-component-update",
-)
-
-#: WebXR joint names in XRHand order (the order of the wire format and of ``layout: webxr``).
-WEBXR_JOINT_NAMES: tuple[str, ...] = (
-    "wrist",
-    "thumb-metacarpal",
-    "thumb-phalanx-proximal",
-    "thumb-phalanx-distal",
-    "thumb-tip",
-    *(
-        f"{finger}-{part}"
-        for finger in ("index-finger", "middle-finger", "ring-finger", "pinky-finger")
-        for part in (
-            "metacarpal",
-            "phalanx-proximal",
-            "phalanx-intermediate",
-            "phalanx-distal",
-            "tip",
-        )
-    ),
 )
 
 #: Joint radii (metres) given to IWER when a log has none (hand logs carry positions only):
