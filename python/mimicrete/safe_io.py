@@ -119,22 +119,12 @@ def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> None:
     """Write ``data`` (text is UTF-8) to ``path`` whole or not at all (see the module doc)."""
     path = Path(path)
     raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
-    tmp = _tmp_path(path)
-    try:
+    with atomic_output(path) as tmp:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
         try:
             _write_all(fd, raw)
-            os.fsync(fd)
         finally:
             os.close(fd)
-        os.replace(tmp, path)
-    except BaseException as e:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        if isinstance(e, OSError):
-            raise write_error(path, e) from e
-        raise
-    _fsync_dir(path.parent)
 
 
 @contextlib.contextmanager
