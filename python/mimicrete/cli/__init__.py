@@ -76,6 +76,24 @@ def gesture_model_arg(path: str | None):  # -> GestureModel | None (no import of
         raise UsageError(f"--gesture-model {path}: {e}") from None
 
 
+def calibration_arg(path: str | None):  # -> Calibration | None
+    """The calibration a ``--calibration FILE.json`` flag names (``Calibration.to_dict``'s JSON,
+    as a recentre saves it), parsed and checked (None: no flag); a file that is missing or not a
+    calibration is a :class:`UsageError` naming the flag."""
+    if not path:
+        return None
+    import json
+
+    from mimicrete import LogFormatError
+    from mimicrete.teleop.convert import parse_calibration
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            return parse_calibration(json.load(f), path, None, "calibration")
+    except (OSError, ValueError, LogFormatError) as e:
+        raise UsageError(f"--calibration {path}: {getattr(e, 'strerror', None) or e}") from None
+
+
 def user_errors() -> tuple[type[BaseException], ...]:
     """Exceptions that mean "bad input": the CLI prints them as one line and exits 2."""
     from mimicrete import LogFormatError

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mimicrete.cli import UsageError, gesture_model_arg
+from mimicrete.cli import UsageError, calibration_arg, gesture_model_arg
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -25,7 +25,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--gesture-model",
         metavar="PATH",
-        help="gesture model (default: the shipped one for the task)",
+        help="gesture model for every log (default: the one a live hand log names in its header, "
+        "checked by its SHA-256; else the shipped one for the task)",
+    )
+    parser.add_argument(
+        "--calibration",
+        metavar="FILE.json",
+        help="tracking space -> Base calibration for every log (default: the one a hand log "
+        "carries, else the default for its space)",
     )
     parser.add_argument(
         "--overwrite", action="store_true", help="replace demos that exist in --out already"
@@ -42,7 +49,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete convert``; prints per-file outcomes and a summary. Every log is tried;
     exit 2 when logs were refused as bad input (malformed, not a regular file, for another task:
-    each named on its own line), 1 when any other failure (a disk error) stopped one."""
+    each named on its own line; a live hand log whose gesture model is missing or changed, too),
+    1 when any other failure (a disk error) stopped one."""
     from mimicrete.teleop import convert as cv
 
     logs = cv.find_logs(args.source)
@@ -77,6 +85,7 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
     except cv.ConvertError as e:
         raise UsageError(str(e)) from None
     model = gesture_model_arg(args.gesture_model)
+    calib = calibration_arg(args.calibration)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -90,7 +99,13 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
         try:
             log = cv.load_log(path, mode)
             res = cv.convert_log(
-                log, args.task, plan[path], source=path, episode_index=i, model=model
+                log,
+                args.task,
+                plan[path],
+                source=path,
+                episode_index=i,
+                model=model,
+                calibration=calib,
             )
         except (LogFormatError, cv.ConvertError, ValueError, OSError) as e:
             failed += 1

@@ -3,6 +3,8 @@ the shipped models' paths."""
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import warnings
 from pathlib import Path
@@ -17,7 +19,8 @@ def load_model(path: str | Path) -> GestureModel:
     """Load a model written by :meth:`GestureModel.save` (a
     :class:`~mimicrete.gestures.temporal.TemporalGestureModel` when its kind is temporal); warns
     when the sklearn or numpy version differs from the one it was fitted with (pickled sklearn
-    models may then misbehave)."""
+    models may then misbehave). ``info["sha256"]`` is the SHA-256 of exactly the bytes loaded
+    (hand logs name the model that read them by it)."""
     import joblib
 
     path = Path(path)
@@ -42,7 +45,10 @@ def load_model(path: str | Path) -> GestureModel:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # sklearn's own InconsistentVersionWarning: ours is above
         try:
-            d = joblib.load(path)
+            data = path.read_bytes()
+            d = joblib.load(io.BytesIO(data))
+        except OSError:
+            raise
         except Exception as e:  # joblib/pickle raise many types on foreign bytes
             raise GestureDataError(f"{path}: not a gesture model ({type(e).__name__})") from None
     keys = ("pipeline", "classes", "layout", "dims", "task")
@@ -53,7 +59,8 @@ def load_model(path: str | Path) -> GestureModel:
         )
     for note in notes:
         warnings.warn(note, RuntimeWarning, stacklevel=2)
-    info = {**info, "path": str(path.resolve())}  # demos recorded with it name the file
+    # demos recorded with it name the file; hand logs name it by its hash too
+    info = {**info, "path": str(path.resolve()), "sha256": hashlib.sha256(data).hexdigest()}
     args = (d["pipeline"], tuple(d["classes"]), d["layout"], d["dims"], d["task"], info)
     kind = d.get("kind", "per-frame")
     if kind == "temporal":

@@ -29,6 +29,7 @@ from mimicrete.hands.log import HandLogData
 from mimicrete.kin import Calibration
 from mimicrete.safe_io import FileLock
 
+from .provenance import ModelFileError, model_of
 from .record import DemoSink, episode_meta, source_keys
 from .session import Counts, Session
 
@@ -202,6 +203,7 @@ def convert_log(
     source: str | os.PathLike[str] | None = None,
     episode_index: int = 0,
     model: gest.GestureModel | None = None,
+    calibration: Calibration | None = None,
 ) -> EpisodeResult:
     """Run one hand log through a :class:`Session`; write its MCAP demo to ``out`` (a file path
     ending in ``.mcap``, a directory to write :func:`demo_name` into, or ``None``: simulate only).
@@ -211,8 +213,15 @@ def convert_log(
     :func:`path_text`). The demo's ``source_handlog_sha256`` is the hash of the bytes the parser
     read (``log.report["sha256"]``), so it covers exactly what was converted.
 
+    What reads the hand: ``model`` if given, else the gesture model the log's header names
+    (``extra.gesture_model``, a live hand log: :func:`.provenance.model_of`, beside the log and
+    checked by its SHA-256), else the shipped one for the task; ``calibration`` if given, else
+    the log's ``extra.calibration``, else the default for its space. The demo's metadata says
+    which (``gesture_model_from``, ``calibration_from``: ``given`` / ``handlog`` / ``default``).
+
     Raises:
-        ConvertError: the log is for another task, or the robot never followed the hand.
+        ConvertError: the log is for another task, the gesture model it names is missing, has
+            changed (another SHA-256) or is not a model, or the robot never followed the hand.
     """
     if not isinstance(log, HandLogData):
         source = source if source is not None else log
@@ -232,8 +241,25 @@ def convert_log(
                 f"{source}: hand log is for task {logged!r}, converting as {spec.name!r}"
             )
     seed = int(log.header.get("episode_seed") or 0)
-    calib = calibration_of(log, source)
-    model = model or gest.load_default(spec.name)
+    extra = log.header.get("extra")
+    logged_cal = isinstance(extra, dict) and extra.get("calibration") is not None
+    calib_from = "given" if calibration is not None else "handlog" if logged_cal else "default"
+    calib = calibration if calibration is not None else calibration_of(log, source)
+    model_from = "given"
+    if model is None:
+        try:
+            model = model_of(log.header, source_path, source)
+        except ModelFileError as e:
+            raise ConvertError(str(e)) from None
+        model_from = "handlog" if model is not None else "default"
+        model = model or gest.load_default(spec.name)
+    what_read = {
+        "gesture_model_from": model_from,
+        "calibration_from": calib_from,
+        "calibration": calib.to_dict(),
+    }
+    if model.info.get("sha256"):
+        what_read["gesture_model_sha256"] = model.info["sha256"]
     out_path = None
     if out is not None:
         out_path = Path(out)
@@ -254,7 +280,11 @@ def convert_log(
                     layout=log.header["layout"],
                     space=log.header["space"],
                     handedness=log.header["handedness"],
-                    extra={"converter": "mimicrete convert", "hand_rate_hz": _rate(log)},
+                    extra={
+                        "converter": "mimicrete convert",
+                        "hand_rate_hz": _rate(log),
+                        **what_read,
+                    },
                 )
                 # the hash of the bytes parsed, not the file as it is now (it may have grown)
                 meta.update(source_keys(source_path, out_path, log.report.get("sha256") or None))

@@ -36,6 +36,8 @@ from mimicrete.gestures import (
 )
 from mimicrete.gestures.record import GestureRecorder, train_samples
 
+from .provenance import file_sha256
+
 #: Samples per class unless the page or the CLI asks for another count.
 DEFAULT_PER_CLASS = 150
 #: Fewest samples per class a training accepts (an 80/20 split leaves 5-fold CV ≥ 6 per class).
@@ -238,9 +240,11 @@ class GestureMode:
         path = user_model_path(self.out, self.task)
         tmp = path.with_name(path.stem + ".tmp.joblib")
         model.save(tmp)
+        sha = file_sha256(tmp)  # what the hand logs name it by (not in the sidecar either)
         os.replace(str(tmp) + ".json", str(path) + ".json")
         os.replace(tmp, path)
         model.info["path"] = str(path)  # not in the sidecar: the folder may move
+        model.info["sha256"] = sha
         report.update(csv=str(csv), model=str(path), seconds=time.perf_counter() - t0)
         return model, report
 

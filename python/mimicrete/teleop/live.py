@@ -47,6 +47,8 @@ from .gesturemode import (
 )
 from .left_hand import LeftHandControl
 from .protocol import FrameError, HandFrame
+from .provenance import KEY as MODEL_KEY
+from .provenance import file_sha256, model_entry
 from .record import DemoSink, episode_meta, source_keys
 from .session import Session, Step
 from .view import (
@@ -74,6 +76,11 @@ class Episode:
     t: list[float] = field(default_factory=list)
     tracked: list[bool] = field(default_factory=list)
     joints: list[np.ndarray] = field(default_factory=list)
+    #: what reads the hand in this episode, for its hand log (the server's may change before the
+    #: log is written: a training ends, a recentre after the stop)
+    model: gest.GestureModel | None = None
+    model_source: str = "shipped"
+    calibration: Calibration | None = None
 
 
 class Live:
@@ -234,7 +241,15 @@ class Live:
             },
         )
         sink = DemoSink(self.out / f"{name}.mcap", meta)
-        self.episode = Episode(index, seed, self._session(seed, sink), sink)
+        self.episode = Episode(
+            index,
+            seed,
+            self._session(seed, sink),
+            sink,
+            model=self.model,
+            model_source=self.model_source,
+            calibration=self.calibration,
+        )
         self.next_index += 1
         self.last_result = None
         self.events.append({"type": "episode", "event": "started", "index": index})
@@ -397,6 +412,10 @@ class Live:
         """The model in use and where it comes from (``given`` / ``user`` / ``shipped``); its
         ``info["path"]`` names its file (the demos' metadata quote it)."""
         if given is not None:
+            path = given.info.get("path")
+            if path and not given.info.get("sha256") and Path(path).is_file():
+                # what the hand logs name it by (load_model gives it; a model built in code not)
+                given.info["sha256"] = file_sha256(path)
             return given, "given"
         path = user_model_path(self.out, self.task.name)
         if path.exists():
@@ -575,6 +594,13 @@ class Live:
         return max(used) + 1 if used else 0
 
     def _write_handlog(self, path: Path, ep: Episode) -> None:
+        """The episode's hand log, whose header says what read the hand: the calibration
+        (``extra.calibration``) and the gesture model (``extra.gesture_model``: file relative to
+        the log's folder, SHA-256, classes; :func:`.provenance.model_entry`), which
+        ``mimicrete convert`` uses by default (docs/formats.md §1)."""
+        model = ep.model if ep.model is not None else self.model
+        calibration = ep.calibration if ep.calibration is not None else self.calibration
+        source = ep.model_source if ep.model is not None else self.model_source
         header = {
             "format": "mimicrete.handlog",
             "version": 1,
@@ -585,7 +611,10 @@ class Live:
             "task": self.task.name,
             "episode_seed": ep.seed,
             "source": "mimicrete teleop (WebXR page)",
-            "extra": {"calibration": self.calibration.to_dict()},
+            "extra": {
+                "calibration": calibration.to_dict(),
+                MODEL_KEY: model_entry(model, source, path),
+            },
         }
         handlog.write(
             path,
