@@ -224,3 +224,13 @@ def test_cli_calibration_option_overrides(user_live, tmp_path, capsys):
     bad.write_text('{"rotation": 1}')
     assert cli_main([*argv, "--out", str(tmp_path / "b"), "--calibration", str(bad)]) == 2
     assert f"--calibration {bad}: " in capsys.readouterr().err
+
+
+def test_docs_list_every_field_written(user_live):
+    """docs/formats.md §1 documents each field of ``extra.gesture_model`` a live log has."""
+    _, saved = user_live
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "formats.md").read_text()
+    entry = cv.load_log(saved["handlog"]).header["extra"]
+    assert "| `extra.calibration` |" in docs
+    for key in entry["gesture_model"]:
+        assert f"| `extra.gesture_model.{key}` |" in docs, key
