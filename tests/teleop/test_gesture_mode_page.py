@@ -8,7 +8,9 @@ class (one is first recorded with the wrong pose and redone), the server writes 
 trains in a worker thread while frames keep being answered, the page shows the held-out accuracy
 and the confusion matrix; the model then reads the live hand and drives an episode whose demo
 names it. The CSV round-trips through ``mimicrete gesture train`` / ``eval``, and the next
-``mimicrete teleop --out DIR`` picks the model up."""
+``mimicrete teleop --out DIR`` picks the model up and records more episodes in the page, whose
+hand logs name the model (and the recentred calibration): ``mimicrete convert`` of each gives back
+its live demo step for step."""
 
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ from mimicrete.teleop import browser as br
 from mimicrete.teleop.gesturemode import user_csv_path, user_model_path
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
+from mimicrete.teleop.view import standing_calibration
 
 POSES = {"closing": "pinch", "opening": "default", "fixed": "point"}
 #: the shipped suction/grip model's sidecar: its held-out accuracy is what teleop prints
@@ -361,3 +364,131 @@ def test_next_run_picks_up_the_user_model(taught, tmp_path, capsys):
     bad = ["teleop", "--task", "grip", "--out", str(tmp_path), "--gesture-samples", "5"]
     assert cli_main(bad) == 2
     assert "--gesture-samples must be in 10..5000" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------ the hand log says what read it
+
+EPISODES = 3  # recorded in the page with the personal model
+
+
+def _record_episode(page: Any, mover: HandMover, n_saved: int, k: int) -> None:
+    """One episode in the page: start relaxed, move, pinch (suction on), move, relax (off),
+    move, stop; waits until the server has saved it (``n_saved`` saved before it)."""
+    set_pose(page, "default")
+    page.wait_for_function("() => window.__mimicrete.state.gesture === 'opening'")
+    page.click("#btn-start")
+    page.wait_for_function("() => window.__mimicrete.state.recording")
+    for pose, on in (("default", None), ("pinch", True), ("default", False)):
+        set_pose(page, pose)
+        if on is not None:
+            page.wait_for_function(
+                "(on) => { const s = window.__mimicrete.state; return s.recording"
+                " && s.ee.on === on; }",
+                arg=on,
+                timeout=30_000,
+            )
+        for _ in range(10 + 5 * k):  # episodes of different lengths
+            mover.step()
+            page.wait_for_timeout(40)
+    page.click("#btn-stop")
+    page.wait_for_function(
+        "(n) => window.__mimicrete.events.filter((e) => e.type === 'episode'"
+        " && e.event === 'saved').length > n",
+        arg=n_saved,
+        timeout=60_000,
+    )
+
+
+@pytest.fixture(scope="module")
+def recorded(taught) -> dict[str, Any]:
+    """The next run in the folder the gesture mode trained in (``mimicrete teleop --out DIR``
+    picks the personal model up) records :data:`EPISODES` more episodes in the page, the hand
+    moving and turning; the saved events."""
+    out = taught["out"]
+    live = Live("suction", out, seed=21)
+    assert live.model_status()["source"] == "user"
+    saved: list[dict[str, Any]] = []
+    with br.launch() as chromium, ServerThread(TeleopServer(live)) as run:
+        with br.vr_page(
+            chromium, f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0", viewport=(480, 270)
+        ) as page:
+            page.wait_for_function(
+                "() => { const s = window.__mimicrete.state; return s && s.target; }"
+            )
+            # the hand onto the tool (IWER's hand is out of the arm's reach where it starts): the
+            # robot follows, and the hand logs carry this calibration, not the default
+            page.click("#btn-recentre")
+            page.wait_for_function(
+                "() => window.__mimicrete.events.some((e) => e.type === 'calibration')",
+                timeout=30_000,
+            )
+            calibration = run.call(lambda: live.calibration.to_dict())
+            mover = HandMover(page, seed=8, reach_m=0.08, turn_deg=20.0)
+            for k in range(EPISODES):
+                _record_episode(page, mover, k, k)
+            errors = [e for e in page.mimicrete_errors if "pageerror" in e]
+            saved = [
+                e
+                for e in page.evaluate("window.__mimicrete.events")
+                if e["type"] == "episode" and e["event"] == "saved"
+            ]
+    live.close()
+    return {"out": out, "saved": saved, "errors": errors, "calibration": calibration}
+
+
+def test_live_hand_logs_convert_with_the_personal_model_to_the_live_demos(
+    taught, recorded, tmp_path
+):
+    """Every episode recorded live with the personal model (the gesture-mode session's and the
+    next run's) names it in its hand log, and ``mimicrete convert HANDLOG`` with no option gives
+    back the live demo: the same observations, actions and rewards, step for step."""
+    from mimicrete.teleop import provenance as pv
+
+    assert recorded["errors"] == []
+    model = user_model_path(taught["out"], "suction")
+    sha = pv.file_sha256(model)
+    saved = [taught["saved"], *recorded["saved"]]
+    assert len(saved) == 1 + EPISODES and all(s["finished"] for s in saved), saved
+    again = tmp_path / "again"
+    shipped = tmp_path / "shipped"
+    differ, max_delta = 0, 0.0
+    for s in saved:
+        hand = Path(s["handlog"])
+        extra = json.loads(hand.read_text().splitlines()[0])["extra"]
+        entry = extra["gesture_model"]
+        assert entry["file"] == model.name and not entry["shipped"], entry
+        assert entry["sha256"] == sha and entry["classes"] == list(POSES)
+        assert entry["origin"] == "user"
+        argv = ["convert", str(hand), "--task", "suction", "--no-progress"]
+        assert cli_main([*argv, "--out", str(again)]) == 0
+        live_demo, conv = demos.load(s["demo"]), demos.load(again / Path(s["demo"]).name)
+        assert len(conv.actions) == len(live_demo.actions) == s["steps"] > 0
+        np.testing.assert_array_equal(conv.actions, live_demo.actions)
+        np.testing.assert_array_equal(conv.rewards, live_demo.rewards)
+        np.testing.assert_array_equal(conv.obs, live_demo.obs)
+        if s is not taught["saved"]:  # recorded after the recentre: the arm followed the hand
+            assert extra["calibration"] == recorded["calibration"]
+            assert np.abs(live_demo.actions[:, :6]).max() > 0.1
+        meta = demos.read(again / Path(s["demo"]).name)["meta"]
+        assert meta["gesture_model_from"] == "handlog" and meta["calibration_from"] == "handlog"
+        assert meta["gesture_model_sha256"] == sha
+        # what the shipped model would have made of the same hand (issue 23's finding)
+        with_shipped = ["--gesture-model", str(g.default_model_path("suction"))]
+        assert cli_main([*argv, "--out", str(shipped), *with_shipped]) == 0
+        other = demos.load(shipped / Path(s["demo"]).name)
+        n = min(len(other.actions), len(live_demo.actions))
+        d = np.abs(other.actions[:n] - live_demo.actions[:n]).max(initial=0.0)
+        differ += bool(len(other.actions) != len(live_demo.actions) or d > 0)
+        max_delta = max(max_delta, float(d))
+    # the calibration matters too: the default one (not the recentred one the logs carry)
+    # makes another demo of the last episode
+    default = tmp_path / "default.json"
+    default.write_text(json.dumps(standing_calibration().to_dict()))
+    argv = ["convert", saved[-1]["handlog"], "--task", "suction", "--no-progress"]
+    assert cli_main([*argv, "--out", str(tmp_path / "cal"), "--calibration", str(default)]) == 0
+    other = demos.load(tmp_path / "cal" / Path(saved[-1]["demo"]).name)
+    assert not np.array_equal(other.obs, demos.load(saved[-1]["demo"]).obs)
+    print(
+        f"{len(saved)} live episodes with the personal model: convert identical in all; "
+        f"with the shipped model {differ} differ (max |Δaction| {max_delta:g})"
+    )
