@@ -1,6 +1,8 @@
 """Exceptions from the Rust core carry the Rust errors' fields (``IkError.reason`` / ``.iters`` /
 ``.pos_residual_m`` / ``.rot_residual_rad``, ``LogFormatError.file`` / ``.line`` / ``.reason``,
-``SimError.reason``), on real failing inputs; ``str(e)`` keeps the native message."""
+``SimError.reason``, ``ActionShapeError.expected`` / ``.got``, ``IoError.errno`` /
+``.filename``), on real failing inputs; ``str(e)`` keeps the native message. Every exception
+class of the package is a MimicreteError."""
 
 from __future__ import annotations
 
@@ -102,3 +104,146 @@ def test_sim_error_reason():
         env.step(np.zeros(7, np.float32))
     assert ei.value.reason == str(ei.value)
     assert "call reset before step" in ei.value.reason
+
+
+# ---------------------------------------------------------------------------------------------
+# One exception tree (issue 25 §2): the simulator's refusals, the OS's errors and every exception
+# class the Python package defines are MimicreteErrors, and stay the built-in class callers catch.
+
+
+def test_action_shape_error_carries_the_shapes():
+    env = _native.SimEnv("TileSuction", 0)
+    env.reset(0)
+    with pytest.raises(mc.ActionShapeError) as ei:
+        env.step(np.zeros(6, np.float32))
+    e = ei.value
+    assert (e.expected, e.got, e.task) == ((7,), (6,), "TileSuction")
+    assert isinstance(e, ValueError) and isinstance(e, mc.SimError)
+    assert isinstance(e, mc.SimInputError) and isinstance(e, mc.MimicreteError)
+    assert str(e) == e.reason == "action must have shape (7,), got (6,)"
+    venv = _native.SimVecEnv("suction", 2, num_threads=1)
+    venv.reset(0)
+    with pytest.raises(mc.ActionShapeError) as ei:
+        venv.step(np.zeros((2, 6), np.float32))
+    assert (ei.value.expected, ei.value.got, ei.value.task) == ((2, 7), (2, 6), "TileSuction")
+    # The class attributes exist (None) for a user-constructed one.
+    plain = mc.ActionShapeError("free text")
+    assert (plain.expected, plain.got, plain.task) == (None, None, None)
+
+
+def test_the_simulators_other_refusals_are_sim_input_errors():
+    with pytest.raises(mc.SimInputError) as ei:
+        _native.SimEnv("nope", 0)
+    assert isinstance(ei.value, ValueError) and 'unknown task "nope"' in ei.value.reason
+    env = _native.SimEnv("TileSuction", 0)
+    env.reset(0)
+    with pytest.raises(mc.SimInputError, match="not finite"):
+        env.step(np.array([0, 0, 0, np.nan, 0, 0, 0], np.float32))
+
+
+def test_io_errors_keep_errno_filename_and_their_os_error_class(tmp_path: Path):
+    import errno
+
+    missing = tmp_path / "absent.mcap"
+    with pytest.raises(FileNotFoundError) as ei:
+        mc.demos.read(missing)
+    e = ei.value
+    assert isinstance(e, mc.IoError) and isinstance(e, mc.MimicreteError)
+    assert (e.errno, e.filename, e.strerror) == (
+        errno.ENOENT,
+        str(missing),
+        "No such file or directory",
+    )
+    # A file where a directory of demos should be: NotADirectoryError, ENOTDIR.
+    f = tmp_path / "plain.txt"
+    f.write_text("x")
+    with pytest.raises(NotADirectoryError) as ei:
+        _native.demo_files(f)
+    assert isinstance(ei.value, mc.IoError)
+    assert (ei.value.errno, ei.value.filename) == (errno.ENOTDIR, str(f))
+    # One class per errno kind, reused.
+    with pytest.raises(FileNotFoundError) as again:
+        _native.demo_read(tmp_path / "other.mcap")
+    assert type(again.value) is type(e)
+
+
+def test_a_bad_pose_is_refused_with_its_reason(tmp_path: Path):
+    env = _native.SimEnv("TileSuction", 0)
+    good = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    step = dict(
+        step=0,
+        t=0.0,
+        obs=np.zeros(env.obs_dim, np.float32),
+        action=np.zeros(env.act_dim, np.float32),
+        reward=0.0,
+        terminated=False,
+        truncated=False,
+        gesture="none",
+        joints=[0.0] * 6,
+        tile_pose=good,
+    )
+    w = _native.DemoWriter(tmp_path / "d.mcap", {"task": "TileSuction"})
+    try:
+        # Formerly any value the JSON conversion refused became null, and the error only said
+        # the pose must be 7 numbers: the NaN or the foreign object went unnamed.
+        with pytest.raises(ValueError, match=r"^ee_pose: nan is not a finite number"):
+            w.write_step(ee_pose=[0.0, 0.0, float("nan"), 0.0, 0.0, 0.0, 1.0], **step)
+        with pytest.raises(ValueError, match=r"^ee_pose: object is not JSON data"):
+            w.write_step(ee_pose=object(), **step)
+        with pytest.raises(ValueError, match=r"ee_pose must be \[x, y, z, qx, qy, qz, qw\]"):
+            w.write_step(ee_pose=good[:6], **step)
+        assert w.steps == 0
+        w.write_step(ee_pose=good, **step)
+        assert w.steps == 1
+    finally:
+        w.abandon()
+
+
+def _python_exception_classes() -> list[type[BaseException]]:
+    """Every exception class defined in the package's Python sources (found by parsing them; only
+    the modules that define a class are imported)."""
+    import ast
+    import importlib
+
+    root = Path(mc.__file__).resolve().parent
+    found = []
+    for src in sorted(root.rglob("*.py")):
+        names = [n.name for n in ast.parse(src.read_text()).body if isinstance(n, ast.ClassDef)]
+        if not names:
+            continue
+        rel = src.relative_to(root.parent).with_suffix("")
+        mod_name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        try:
+            mod = importlib.import_module(mod_name)
+        except ImportError:  # an optional dependency (playwright, ray, ...) not installed
+            continue
+        for name in names:
+            c = getattr(mod, name, None)
+            if isinstance(c, type) and issubclass(c, BaseException) and c.__module__ == mod_name:
+                found.append(c)
+    return found
+
+
+def test_every_exception_class_of_the_package_is_a_mimicrete_error():
+    classes = _python_exception_classes()
+    assert len(classes) >= 19
+    outside = [
+        f"{c.__module__}.{c.__qualname__}" for c in classes if not issubclass(c, mc.MimicreteError)
+    ]
+    assert not outside, outside
+    # One name, one class (formerly learn's DemoError shared its name with demo-log's).
+    names = [c.__name__ for c in classes] + [
+        n for n in _native.__all__ if isinstance(getattr(_native, n), type)
+    ]
+    assert sorted(set(names)) == sorted(names)
+    assert "DemoError" not in names
+    # Callers catch these as the built-in classes too.
+    from mimicrete import learn, safe_io
+    from mimicrete.gestures import captured
+
+    assert issubclass(learn.DemoDataError, ValueError)
+    assert issubclass(learn.ConfigError, ValueError)
+    assert issubclass(safe_io.WriteError, OSError)
+    assert issubclass(safe_io.LockBusyError, RuntimeError)
+    assert issubclass(captured.CapturedDataMissing, FileNotFoundError)
+    assert issubclass(learn.NonFiniteLossError, RuntimeError)

@@ -37,11 +37,31 @@ if _started_as_the_cli() and _signal.getsignal(_signal.SIGINT) is _signal.defaul
 
 # `envs` registers mimicrete/TileSuction-v0, BlockGrip-v0 and Screw-v0 with gymnasium on import.
 from mimicrete import _native, envs  # noqa: E402, F401
-from mimicrete._native import IkError, LogFormatError, MimicreteError, SimError  # noqa: E402
+from mimicrete._native import (  # noqa: E402
+    ActionShapeError,
+    IkError,
+    IoError,
+    LogFormatError,
+    MimicreteError,
+    SimError,
+    SimInputError,
+)
 
 __version__: str = _native.__version__
 
-__all__ = ["IkError", "LogFormatError", "MimicreteError", "SimError", "__version__"]
+# Every exception mimicrete defines is a MimicreteError (the native ones above; the Python ones,
+# e.g. ``learn.ConfigError``, beside the code that raises them); those a caller may also catch as
+# ValueError / OSError / RuntimeError / FileNotFoundError stay subclasses of those too.
+__all__ = [
+    "ActionShapeError",
+    "IkError",
+    "IoError",
+    "LogFormatError",
+    "MimicreteError",
+    "SimError",
+    "SimInputError",
+    "__version__",
+]
 
 
 def __getattr__(name: str):  # lazy submodules: `mc.kin`, `mc.envs`, ... import on first use

@@ -31,6 +31,9 @@ __all__ = [
     "IkError",
     "SimError",
     "LogFormatError",
+    "SimInputError",
+    "ActionShapeError",
+    "IoError",
     "log_format_error",
     "kin_models",
     "kin_dh",
@@ -95,6 +98,25 @@ class LogFormatError(MimicreteError):
     file: str | None
     line: int | None
     reason: str | None
+
+class SimInputError(SimError, ValueError):
+    """The simulator refused the caller's input: an unknown task, a non-finite action, an invalid
+    state or argument (a ``SimError`` and a ``ValueError``; ``reason``: what)."""
+
+class ActionShapeError(SimInputError):
+    """An action array of the wrong shape (``SimEnv.step``, ``SimVecEnv.step``): ``expected`` and
+    ``got`` are shapes, e.g. ``(7,)`` and ``(6,)``; ``task`` the task whose ``act_dim`` it must
+    match."""
+
+    expected: tuple[int, ...] | None
+    got: tuple[int, ...] | None
+    task: str | None
+
+class IoError(MimicreteError, OSError):
+    """A file the Rust core could not read or write: an ``OSError`` with ``errno``, ``strerror``
+    and ``filename``. An errno that Python maps to an ``OSError`` subclass (``ENOENT`` →
+    ``FileNotFoundError``, ``EACCES`` → ``PermissionError``, ...) is raised as a class that is both
+    this and that subclass, so ``except FileNotFoundError`` catches a missing file."""
 
 def log_format_error(file: str, line: int | None, reason: str) -> LogFormatError:
     """A ``LogFormatError`` with these fields and the native message rule (for Python code that
@@ -329,7 +351,8 @@ class SimVecEnv:
     ) -> _F32:
         """Reset every env with base seed ``seed``, env i at ``object_poses[i]`` [x, y, yaw] with
         its target (and pad) moved by ``target_offsets[i]`` → obs (num_envs, obs_dim). All starts
-        are checked first (ValueError "env i: <field> …"); later episodes draw from the variation."""
+        are checked first (ValueError "env i: <field> …"); later episodes draw from the
+        variation."""
     def reset_replay(
         self,
         i: int,

@@ -36,6 +36,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from mimicrete._native import MimicreteError
+
 __all__ = [
     "FileLock",
     "LockBusyError",
@@ -50,7 +52,7 @@ __all__ = [
 _counter = itertools.count()
 
 
-class WriteError(OSError):
+class WriteError(MimicreteError, OSError):
     """A file that could not be written; the message names it and the reason."""
 
     def __init__(self, err: int | None, message: str) -> None:
@@ -186,7 +188,7 @@ def append_text(path: str | os.PathLike[str], text: str) -> None:
 # ----------------------------------------------------------------------------------------------
 
 
-class LockBusyError(RuntimeError):
+class LockBusyError(MimicreteError, RuntimeError):
     """The lock is held by another live process (the message names it)."""
 
 

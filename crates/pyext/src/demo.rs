@@ -7,7 +7,7 @@ use demo_log::{
     ParseMode, ParseReport, Pose, SceneEntity, StepRecord, WriterOptions,
 };
 use numpy::{PyReadonlyArray1, PyReadonlyArrayDyn};
-use pyo3::exceptions::PyRuntimeError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
@@ -62,9 +62,11 @@ fn demo_write_handlog(
     py.detach(|| log.write_jsonl(&path)).map_err(handlog_err)
 }
 
-/// A pose from `[x, y, z, qx, qy, qz, qw]` or a (4, 4) matrix (`demo_log::Pose::from_json`).
+/// A pose from `[x, y, z, qx, qy, qz, qw]` or a (4, 4) matrix (`demo_log::Pose::from_json`); a
+/// value that is not numbers (NaN, infinity, a string, an object) is refused with its reason.
 fn pose_from(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Pose> {
-    Pose::from_json(&from_py(obj).unwrap_or_default(), what).map_err(demo_err)
+    let v = from_py(obj).map_err(|e| PyValueError::new_err(format!("{what}: {}", e.value(obj.py()))))?;
+    Pose::from_json(&v, what).map_err(demo_err)
 }
 
 fn str_map(d: Option<&Dict<'_>>) -> PyResult<BTreeMap<String, String>> {

@@ -1,7 +1,7 @@
 //! Bindings for tile-sim (`SimEnv`, `SimVecEnv` stepped without the interpreter lock, the expert)
 //! and the task scenes (demo-log's `episode_scene_json`, `frame_numbers`).
 
-use crate::errors::{demo_err, matrix, nd_from_py, sim_err, to_py, vector};
+use crate::errors::{action_shape, demo_err, matrix, nd_from_py, sim_err, to_py, vector};
 use numpy::{AllowTypeChange, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -147,7 +147,7 @@ impl SimEnv {
 
     /// One step → `(obs, reward, terminated, truncated, info)`; info: picked, held, installed, fell, step.
     fn step<'py>(&mut self, py: Python<'py>, action: Actions<'py>) -> PyResult<StepTuple<'py>> {
-        let a = nd_from_py(&action).into_shape(&[self.act_dim], "action").map_err(demo_err)?;
+        let a = action_shape(nd_from_py(&action), &[self.act_dim], "action", self.task)?;
         let (obs, out, info) = self.env.step_owned(&a).map_err(sim_err)?;
         Ok((vector(py, obs), out.reward, out.terminated, out.truncated, to_py(py, &info)?.cast_into()?))
     }
@@ -318,7 +318,7 @@ impl SimVecEnv {
     /// Step all envs → (obs, reward, terminated, truncated, final_obs, has_final, picked, installed, fell).
     fn step<'py>(&mut self, py: Python<'py>, actions: Actions<'py>) -> PyResult<VecStep<'py>> {
         let (n, ad, od) = (self.num_envs, self.act_dim, self.obs_dim);
-        let acts = nd_from_py(&actions).into_shape(&[n, ad], "actions").map_err(demo_err)?;
+        let acts = action_shape(nd_from_py(&actions), &[n, ad], "actions", self.task)?;
         let SimVecEnv { venv, buf, .. } = self;
         py.detach(|| venv.step_buffers(&acts, buf)).map_err(sim_err)?;
         let b = &self.buf;

@@ -22,6 +22,8 @@ import sys
 import threading
 from typing import Any
 
+from mimicrete._native import MimicreteError
+
 # subcommand -> (module in this package, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "synth-hands": ("synth_hands", "write hand logs of a scripted person doing a task"),
@@ -38,7 +40,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-class UsageError(Exception):
+class UsageError(MimicreteError):
     """Bad input the user can fix; printed as one line, exit code 2."""
 
 

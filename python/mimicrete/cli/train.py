@@ -106,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
             skip_bad_demos=args.skip_bad_demos,
             progress=not args.no_progress,
         )
-    except (learn.ConfigError, learn.DemoError, learn.RunDirError) as e:
+    except (learn.ConfigError, learn.DemoDataError, learn.RunDirError) as e:
         raise UsageError(str(e)) from None
     print(f"trained {tr.step} steps in {time.perf_counter() - t0:.0f} s -> {run_dir}")
     conv = learn.run_files.read_run_info(run_dir).get("convergence") or {}

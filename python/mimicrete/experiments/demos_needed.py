@@ -309,7 +309,7 @@ def main(argv: list[str] | None = None) -> int:
         config.resolve(args.config, overrides=[f"env_settings.env_id={tasks.get(args.task).env_id}",
                                                *args.set])  # fmt: skip
         return _run(args)
-    except (learn.ConfigError, learn.DemoError, learn.RunDirError, FileNotFoundError) as e:
+    except (learn.ConfigError, learn.DemoDataError, learn.RunDirError, FileNotFoundError) as e:
         return error(str(e))
     except KeyboardInterrupt:
         print("demos_needed: interrupted; finished runs are kept", file=sys.stderr)

@@ -9,6 +9,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from mimicrete._native import MimicreteError
+
 LABELS = {"act": "ACT (LeRobot)", "diffusion": "Diffusion Policy (LeRobot)"}
 STARTS = ("training", "robust", "wide")
 TABLE_BEGIN = "<!-- peers:table -->"
@@ -22,7 +24,7 @@ STYLE: dict[str, dict[str, Any]] = {
 }
 
 
-class PeersError(RuntimeError):
+class PeersError(MimicreteError, RuntimeError):
     """A step of the pipeline failed (one line, with the log file to read)."""
 
 

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
+
 #: The task as one sentence (LeRobot stores it as the frame's task text).
 TASK_TEXT: dict[str, str] = {
     "suction": "Pick up the tile with the suction head and install it on the target pad.",
@@ -59,7 +61,7 @@ ACTION_NAMES: dict[str, list[str]] = {
 INFO_KEYS: tuple[str, ...] = ("picked", "held", "installed", "fell")
 
 
-class ExportError(ValueError):
+class ExportError(MimicreteError, ValueError):
     """Input that cannot be exported (mixed tasks, a damaged demo, an existing output, ...)."""
 
 

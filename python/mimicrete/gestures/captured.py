@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
 from mimicrete.hands.layouts import WEBXR_JOINT_NAMES
 
 #: IWER's pose files, by the pose id IWER gives them (``default`` is the relaxed hand).
@@ -59,7 +60,7 @@ SCREW_SPLICES: dict[str, tuple[str, dict[str, str]]] = {
 }
 
 
-class CapturedDataMissing(FileNotFoundError):
+class CapturedDataMissing(MimicreteError, FileNotFoundError):
     """IWER's pose files are not installed (``cd web && npm ci``)."""
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from mimicrete._native import MimicreteError
+
 TASK_CLASSES: dict[str, tuple[str, ...]] = {
     "grip": ("closing", "opening", "fixed"),
     "screw": (
@@ -68,5 +70,5 @@ MODELS_DIR = Path(__file__).resolve().parent / "models"
 remade by ``python -m mimicrete.gestures.shipped``, see ``models/README.md``)."""
 
 
-class GestureDataError(ValueError):
+class GestureDataError(MimicreteError, ValueError):
     """A gesture CSV is malformed; the message starts with ``file:line:``."""

@@ -30,7 +30,7 @@ _EXPORTS = {
     "learning_curves": ("plots", "learning_curves"),
     "read_scalars": ("run_files", "read_scalars"),
     "ConfigError": ("config", "ConfigError"),
-    "DemoError": ("demo_data", "DemoError"),
+    "DemoDataError": ("demo_data", "DemoDataError"),
     "RunDirError": ("run_files", "RunDirError"),
     "ensure_demos": ("demo_data", "ensure_demos"),
 }

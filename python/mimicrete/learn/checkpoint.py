@@ -18,11 +18,13 @@ from typing import Any
 import numpy as np
 import torch
 
+from mimicrete._native import MimicreteError
+
 from .bc import bc_learning_rate
 from .episodes import Episode
 
 
-class ResumeError(RuntimeError):
+class ResumeError(MimicreteError, RuntimeError):
     """A checkpoint that cannot be resumed exactly (its episodes do not replay)."""
 
 

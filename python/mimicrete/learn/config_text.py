@@ -16,8 +16,10 @@ from typing import Any
 
 import yaml
 
+from mimicrete._native import MimicreteError
 
-class ConfigError(ValueError):
+
+class ConfigError(MimicreteError, ValueError):
     """A config file that does not match the schema."""
 
 

@@ -12,13 +12,15 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
+
 from .config import ConfigError
 from .env import N_CONT
 
 DEMO_KEYS = ("obs", "actions", "rewards", "terminated", "truncated", "episode")
 
 
-class DemoError(ValueError):
+class DemoDataError(MimicreteError, ValueError):
     """A demo path that cannot be trained on (missing, cut, empty, not MCAP); names the file."""
 
 
@@ -32,7 +34,7 @@ class LoadedDemos:
     tasks: list[tuple[str, str | None]] = field(default_factory=list)
 
     def check_task(self, sim: str, path: str | os.PathLike[str]) -> None:
-        """:class:`DemoError` naming the first demo file recorded on another task than ``sim``
+        """:class:`DemoDataError` naming the first demo file recorded on another task than ``sim``
         (``TileSuction``, ``BlockGrip``, ``Screw``): its sizes may match, its meaning does not."""
         from mimicrete import tasks
 
@@ -45,7 +47,7 @@ class LoadedDemos:
                 theirs = task
             if theirs != sim:
                 others = sum(1 for _, t in self.tasks if t is not None and t != task)
-                raise DemoError(
+                raise DemoDataError(
                     f"{file}: a demo of task {theirs}, the config trains {sim} (demo path "
                     f"{path}; {len(self.tasks) - others} of {len(self.tasks)} files are {theirs})"
                 )
@@ -63,7 +65,7 @@ def read_demos(
     path: str | os.PathLike[str], episodes: int | None, *, skip_bad: bool = False
 ) -> LoadedDemos:
     """:func:`load_demos` with the list of skipped files. A damaged, cut, empty or non-MCAP file
-    is a :class:`DemoError` naming it, unless ``skip_bad``: then the directory's other files are
+    is a :class:`DemoDataError` naming it, unless ``skip_bad``: then the directory's other files are
     used and the bad ones listed in ``skipped``."""
     p = Path(path)
     skipped: list[str] = []
@@ -92,10 +94,10 @@ def _npz_arrays(p: Path) -> dict[str, np.ndarray]:
         with np.load(p) as z:
             d = {k: z[k] for k in z.files}
     except (OSError, ValueError) as e:
-        raise DemoError(f"{p}: not a readable .npz of demos ({e})") from e
+        raise DemoDataError(f"{p}: not a readable .npz of demos ({e})") from e
     missing = [k for k in DEMO_KEYS if k not in d]
     if missing:
-        raise DemoError(f"{p}: demo .npz without {missing}")
+        raise DemoDataError(f"{p}: demo .npz without {missing}")
     return d
 
 
@@ -123,7 +125,7 @@ def _mcap_read(
     except (LogFormatError, OSError) as e:
         if not skip_bad or not p.is_dir():
             hint = " (--skip-bad-demos trains on the other files)" if p.is_dir() else ""
-            raise DemoError(f"{e}{hint}") from e
+            raise DemoDataError(f"{e}{hint}") from e
     # one file at a time, leaving out the bad ones; episodes renumbered in file order
     parts, skipped, file_tasks = [], [], []
     for f in sorted(p.glob("*.mcap")):
@@ -135,7 +137,7 @@ def _mcap_read(
         parts.append(demo_arrays(loaded))
         file_tasks += _file_tasks(loaded)
     if not parts:
-        raise DemoError(f"{p}: no loadable demo file ({len(skipped)} bad)")
+        raise DemoDataError(f"{p}: no loadable demo file ({len(skipped)} bad)")
     for i, part in enumerate(parts):
         part["episode"] = np.full_like(part["episode"], i)
     return {k: np.concatenate([q[k] for q in parts]) for k in DEMO_KEYS}, skipped, file_tasks

@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
+
 if TYPE_CHECKING:
     from .config import TrainerConfig
     from .networks import Actor
@@ -87,7 +89,7 @@ RUN_ENTRIES = (
 )
 
 
-class RunDirError(ValueError):
+class RunDirError(MimicreteError, ValueError):
     """A run directory that cannot be used as asked (holds another run, nothing to resume)."""
 
 
@@ -351,7 +353,7 @@ def save_policy(run_dir: Path, actor: Actor, obs_dim: int, step: int, cfg: Train
     )
 
 
-class PolicyFileError(ValueError):
+class PolicyFileError(MimicreteError, ValueError):
     """A ``policy.pt`` that is missing, unreadable or not a policy; names the file."""
 
 

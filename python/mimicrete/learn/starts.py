@@ -24,12 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from mimicrete import _native
+from mimicrete._native import MimicreteError
 
 NAMED = ("training", "robust", "wide")
 MAX_FILE_BYTES = 16 * 1024 * 1024
 
 
-class StartsFileError(ValueError):
+class StartsFileError(MimicreteError, ValueError):
     """A starts file that cannot be read: ``file:line: reason``."""
 
 

@@ -50,6 +50,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from mimicrete._native import MimicreteError
+
 from . import checkpoint, run_files
 from . import config as config_mod
 from .bc import BehavioralCloning
@@ -73,7 +75,7 @@ from .ppo import (
 SIGNAL_TAG = {"extrinsic": "Extrinsic", "gail": "GAIL"}  # Policy/<tag> Reward, Value Estimate, ...
 
 
-class NonFiniteLossError(RuntimeError):
+class NonFiniteLossError(MimicreteError, RuntimeError):
     """A loss or weight became NaN / infinite; the run stops before writing anything from it."""
 
 

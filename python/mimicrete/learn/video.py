@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
+
 VIDEO_DIR = "videos"
 FORMATS = ("auto", "mp4", "gif")
 
@@ -44,7 +46,7 @@ _ON = (46, 160, 67)
 _FELL = (200, 50, 50)
 
 
-class VideoError(ValueError):
+class VideoError(MimicreteError, ValueError):
     """A video that cannot be made as asked (no encoder for mp4, an env that does not render)."""
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from mimicrete import _native, tasks
 from mimicrete import gestures as gest
+from mimicrete._native import MimicreteError
 from mimicrete.hands import log as handlog
 from mimicrete.hands.log import HandLogData
 from mimicrete.kin import Calibration
@@ -37,7 +38,7 @@ from .session import Counts, Session
 LOG_SUFFIXES: tuple[str, ...] = (".handlog.jsonl", ".jsonl")
 
 
-class ConvertError(ValueError):
+class ConvertError(MimicreteError, ValueError):
     """A hand log cannot become a demo (names the file and the reason)."""
 
 

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
 from mimicrete.gestures import (
     TASK_CLASSES,
     TASK_MODEL,
@@ -83,7 +84,7 @@ def task_classes(task: str) -> tuple[str, ...]:
     return TASK_CLASSES[TASK_MODEL[task]]
 
 
-class GestureModeError(ValueError):
+class GestureModeError(MimicreteError, ValueError):
     """A gesture-mode request that cannot be done now (the message says why)."""
 
 

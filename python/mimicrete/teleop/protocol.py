@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mimicrete._native import MimicreteError
+
 VERSION = 1
 MAGIC = b"MHF1"
 JOINTS = 25  # WebXR hand joints
@@ -22,7 +24,7 @@ FRAME_BYTES = HEADER.size + 2 * JOINTS * 3 * 4  # 632
 RIGHT_TRACKED, LEFT_TRACKED = 1, 2
 
 
-class FrameError(ValueError):
+class FrameError(MimicreteError, ValueError):
     """A binary message that is not a valid hand frame; ``kind`` is the drop counter it feeds."""
 
     def __init__(self, kind: str, reason: str) -> None:

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from mimicrete import gestures as gest
+from mimicrete._native import MimicreteError
 
 #: The header's ``extra`` key naming the gesture model.
 KEY = "gesture_model"
@@ -29,7 +30,7 @@ _CACHE: dict[tuple[str, str], gest.GestureModel] = {}
 _CACHE_MAX = 16
 
 
-class ModelFileError(ValueError):
+class ModelFileError(MimicreteError, ValueError):
     """The gesture model a hand log names cannot be used: missing, changed since the log was
     written (another SHA-256), not a model, or with other classes. The message names the hand
     log, the model file and the reason."""
