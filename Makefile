@@ -89,7 +89,13 @@ export-venv: $(EXPORT_STAMP) ## the test-only lerobot venv (.venv-export) tests/
 test-py: $(NATIVE_STAMP) $(EXP_STAMP) $(WEB_STAMP) $(CHROMIUM) $(EXPORT_STAMP) ## Python tests
 	$(PY) -m pytest tests -q --runslow
 
-test: test-rs test-py ## all tests (what CI runs)
+# In order, the lint first: a formatting, clippy or ruff slip fails in a minute, before the long
+# tests. clippy runs in test-rs's release profile, so the build scripts and proc-macros it compiles
+# are the ones the test build reuses.
+test: ## the lint, then all tests (what CI runs: .ci/run)
+	$(MAKE) lint
+	$(MAKE) test-rs
+	$(MAKE) test-py
 
 # The README's screenshots of the live page (docs/figures/teleop_page.png, teleop_gestures.png):
 # the page tests that take them, told to keep a copy there (tests alone write only to tmp dirs).
@@ -109,9 +115,10 @@ $(BENCH_STAMP): $(STAMP) requirements/bench.txt
 bench: $(NATIVE_STAMP) $(BENCH_STAMP) $(WEB_STAMP) $(CHROMIUM) ## print every benchmark (installs the peers: mujoco, ikpy, SB3)
 	$(PY) -m mimicrete.bench
 
-lint: $(STAMP) ## fmt, clippy, ruff
+# The crates' lint levels are Cargo.toml's [workspace.lints]; ruff is pinned (requirements/dev.txt).
+lint: $(STAMP) ## fmt, clippy (-D warnings), ruff
 	cargo fmt --all --check
-	cargo clippy --workspace --all-targets --release -- -D warnings
+	cargo clippy --workspace --all-targets --release --locked -- -D warnings
 	$(VENV)/bin/ruff check python tests
 
 fmt: ## format Rust and Python
