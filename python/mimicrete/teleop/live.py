@@ -47,8 +47,7 @@ from .gesturemode import (
 )
 from .left_hand import LeftHandControl
 from .protocol import FrameError, HandFrame
-from .provenance import KEY as MODEL_KEY
-from .provenance import file_sha256, model_entry
+from .provenance import what_read
 from .record import DemoSink, episode_meta, source_keys
 from .session import Session, Step
 from .view import (
@@ -76,11 +75,7 @@ class Episode:
     t: list[float] = field(default_factory=list)
     tracked: list[bool] = field(default_factory=list)
     joints: list[np.ndarray] = field(default_factory=list)
-    #: what reads the hand in this episode, for its hand log (the server's may change before the
-    #: log is written: a training ends, a recentre after the stop)
-    model: gest.GestureModel | None = None
-    model_source: str = "shipped"
-    calibration: Calibration | None = None
+    read_by: dict[str, Any] = field(default_factory=dict)  # the hand log's extra (at the start)
 
 
 class Live:
@@ -241,15 +236,9 @@ class Live:
             },
         )
         sink = DemoSink(self.out / f"{name}.mcap", meta)
-        self.episode = Episode(
-            index,
-            seed,
-            self._session(seed, sink),
-            sink,
-            model=self.model,
-            model_source=self.model_source,
-            calibration=self.calibration,
-        )
+        hand = self.out / f"{name}.handlog.jsonl"
+        read_by = what_read(self.model, self.model_source, self.calibration, hand)
+        self.episode = Episode(index, seed, self._session(seed, sink), sink, read_by=read_by)
         self.next_index += 1
         self.last_result = None
         self.events.append({"type": "episode", "event": "started", "index": index})
@@ -412,10 +401,6 @@ class Live:
         """The model in use and where it comes from (``given`` / ``user`` / ``shipped``); its
         ``info["path"]`` names its file (the demos' metadata quote it)."""
         if given is not None:
-            path = given.info.get("path")
-            if path and not given.info.get("sha256") and Path(path).is_file():
-                # what the hand logs name it by (load_model gives it; a model built in code not)
-                given.info["sha256"] = file_sha256(path)
             return given, "given"
         path = user_model_path(self.out, self.task.name)
         if path.exists():
@@ -594,13 +579,6 @@ class Live:
         return max(used) + 1 if used else 0
 
     def _write_handlog(self, path: Path, ep: Episode) -> None:
-        """The episode's hand log, whose header says what read the hand: the calibration
-        (``extra.calibration``) and the gesture model (``extra.gesture_model``: file relative to
-        the log's folder, SHA-256, classes; :func:`.provenance.model_entry`), which
-        ``mimicrete convert`` uses by default (docs/formats.md §1)."""
-        model = ep.model if ep.model is not None else self.model
-        calibration = ep.calibration if ep.calibration is not None else self.calibration
-        source = ep.model_source if ep.model is not None else self.model_source
         header = {
             "format": "mimicrete.handlog",
             "version": 1,
@@ -611,10 +589,7 @@ class Live:
             "task": self.task.name,
             "episode_seed": ep.seed,
             "source": "mimicrete teleop (WebXR page)",
-            "extra": {
-                "calibration": calibration.to_dict(),
-                MODEL_KEY: model_entry(model, source, path),
-            },
+            "extra": ep.read_by,  # what read the hand: docs/formats.md §1
         }
         handlog.write(
             path,

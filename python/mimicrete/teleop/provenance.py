@@ -73,6 +73,16 @@ def model_entry(model: gest.GestureModel, origin: str, handlog: str | os.PathLik
     return entry
 
 
+def what_read(
+    model: gest.GestureModel, origin: str, calibration: Any, handlog: str | os.PathLike[str]
+) -> dict[str, Any]:
+    """A live hand log's header ``extra``: what reads the hand, taken when the episode starts
+    (the server's model or calibration may change before the log is written: a training that
+    ends, a recentre after the stop): ``calibration`` (``Calibration.to_dict``) and
+    ``gesture_model`` (:func:`model_entry`, ``file`` relative to ``handlog``'s folder)."""
+    return {"calibration": calibration.to_dict(), KEY: model_entry(model, origin, handlog)}
+
+
 def model_file(entry: dict, handlog: str | os.PathLike[str]) -> Path | None:
     """Where ``entry`` (an ``extra.gesture_model``) says the model is: beside the hand log
     ``handlog`` (its folder joined with ``file``), or in the shipped models' folder."""
