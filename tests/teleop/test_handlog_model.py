@@ -118,6 +118,24 @@ def test_convert_uses_the_logged_model_and_gives_the_live_demo_back(user_live, t
     assert meta["gesture_model_from"] == "given" and meta["calibration_from"] == "given"
 
 
+def test_the_model_that_read_the_hand_is_the_one_used(tmp_path):
+    """A personal model that reads the hand otherwise than the shipped one (here the shipped
+    model with closing and opening exchanged): the live episode never picks, its hand log
+    converts to exactly that demo, and the shipped model would have made another one."""
+    m = g.load_model(SHIPPED)
+    svc = m.pipeline[-1]
+    swap = {"closing": "opening", "opening": "closing"}
+    svc.classes_ = np.array([swap.get(str(c), str(c)) for c in svc.classes_], dtype=object)
+    m._fast = None
+    swapped = m.save(tmp_path / "model" / "swapped.joblib")
+    live, saved = _live_episode(tmp_path, swapped)
+    assert saved["result"] != "installed"
+    res = cv.convert_log(saved["handlog"], "suction", tmp_path / "again")
+    _same_demo(saved["demo"], res.out)
+    other = cv.convert_log(saved["handlog"], "suction", None, model=g.load_model(SHIPPED))
+    assert other.installed and not res.installed
+
+
 def test_shipped_model_is_named_by_its_shipped_file(tmp_path):
     _, saved = _live_episode(tmp_path, None)
     entry = cv.load_log(saved["handlog"]).header["extra"]["gesture_model"]
