@@ -9,6 +9,7 @@ Units: metres, radians, seconds; quaternions are ``[x, y, z, w]``.
 """
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Final, Literal, TypedDict, final
@@ -68,6 +69,9 @@ __all__ = [
     "demo_files",
     "DEMO_FORMAT_VERSION",
     "HANDLOG_VERSION",
+    "TeleopSession",
+    "teleop_gesture_commands",
+    "TELEOP_BRANCH_JUMP",
 ]
 
 # ---------------------------------------------------------------------------------------------
@@ -595,3 +599,101 @@ def demo_verify(path: _StrPath) -> _VerifyReport:
 
 def demo_files(path: _StrPath) -> list[Path]:
     """The *.mcap entries of a directory, sorted by name, whatever they are."""
+
+# ---------------------------------------------------------------------------------------------
+# teleop-core (teleop.rs): the per-frame loop
+
+TELEOP_BRANCH_JUMP: Final[float]
+
+# (index, t, obs, action, reward, terminated, truncated, events, why)
+_TeleopStep = tuple[int, float, _F32, _F32, float, bool, bool, list[str], str | None]
+
+class _TeleopView(TypedDict):
+    frames: dict[str, list[float]]
+    snapshot: _Snapshot
+    target: list[float] | None
+
+class _TeleopCounts(TypedDict):
+    frames: int
+    untracked: int
+    degenerate: int
+    unreachable: int
+    steps: int
+    frames_after_end: int
+    gesture_changes: int
+    gestures: dict[str, int]
+
+class _TeleopOutcome(TypedDict):
+    steps: int
+    picked: bool
+    installed: bool
+    fell: bool
+    terminated: bool
+    truncated: bool
+    total_reward: float
+
+def teleop_gesture_commands() -> list[tuple[str, float, float]]:
+    """The gesture classes and their (command, spin), teleop-core's table."""
+
+@final
+class TeleopSession:
+    """One teleoperation episode (teleop-core's ``Session``); every step is recorded into
+    ``writer``."""
+
+    def __new__(
+        cls,
+        task: str,
+        layout: str,
+        handedness: str,
+        calibration: _Calibration,
+        seed: int,
+        writer: DemoWriter | None = None,
+    ) -> TeleopSession: ...
+    def push(
+        self,
+        t: float,
+        tracked: bool,
+        joints: _F64,
+        raw: str | None,
+        gesture: str | None,
+        view: bool = False,
+    ) -> tuple[list[_TeleopStep], _TeleopView | None]:
+        """One hand frame → (the control steps that fell due, the page's view or None)."""
+    def observe(
+        self, t: float, tracked: bool, joints: _F64, raw: str | None, gesture: str | None
+    ) -> None:
+        """The hand half of ``push`` alone: the gesture and the target, no steps."""
+    def finish(self) -> list[_TeleopStep]:
+        """The hand stream has ended: the steps up to one control period past the last frame."""
+    def view(self) -> _TeleopView:
+        """What the page draws now: frames (one FK), the snapshot, the target."""
+    def set_calibration(
+        self, calibration: _Calibration, shift: Sequence[float] | None = None
+    ) -> None:
+        """Use ``calibration`` from the next frame on; ``shift`` moves the current target."""
+    @property
+    def counts(self) -> _TeleopCounts: ...
+    @property
+    def target(self) -> _F64 | None: ...
+    @property
+    def gesture(self) -> str | None: ...
+    @property
+    def command(self) -> tuple[float, float]: ...
+    @property
+    def step_index(self) -> int: ...
+    @property
+    def last_why(self) -> str | None: ...
+    @property
+    def last_tracked(self) -> bool | None: ...
+    @property
+    def observation(self) -> _F32: ...
+    @property
+    def outcome(self) -> _TeleopOutcome: ...
+    def snapshot(self) -> _Snapshot:
+        """The simulator's state now."""
+    def set_joints(self, q: Sequence[float] | _F64) -> None:
+        """Test/tool API: teleport the arm to joint angles ``q`` (6,) rad."""
+    def scene_frames(self) -> dict[str, list[float]]:
+        """``scene_frames`` of the current state."""
+    def scene_entities(self) -> list[dict[str, Any]]:
+        """The Foxglove ``SceneEntity`` list of the episode."""

@@ -84,40 +84,8 @@ def test_convert_errors_name_file_and_line(tmp_path, lines, match):
 # ---------------------------------------------------------------- numerics
 
 
-@settings(max_examples=200, deadline=None)
-@given(
-    q=st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6),
-    dq=st.lists(st.floats(-10.0, 10.0), min_size=6, max_size=6),
-)
-def test_joint_action_takes_the_short_way_and_is_bounded(q, dq):
-    q, dq = np.array(q), np.array(dq)
-    a = ss.joint_action(q + dq, q, 0.04)
-    assert np.all(np.abs(a) <= 1.0)
-    short = ss.wrap_to_pi(dq)
-    assert np.all(np.abs(short) <= np.pi + 1e-12)
-    small = np.abs(short) < 0.04
-    np.testing.assert_allclose(a[small], short[small] / 0.04, atol=1e-6)
-    # half a turn either way is equally short: only then may the sign differ
-    clear = ~small & (np.abs(np.abs(short) - np.pi) > 1e-9)
-    assert np.all(np.sign(a[clear]) == np.sign(short[clear]))
-
-
-def test_one_euro_smooths_jitter_and_follows_motion():
-    rng = np.random.default_rng(0)
-    f = ss.OneEuro(min_cutoff=1.0, beta=2.0)
-    t = np.arange(900) / 90.0
-    still = np.array(
-        [f(np.array([0.1, 0.2, 0.3]) + rng.normal(scale=0.001, size=3), x) for x in t[:450]]
-    )
-    assert np.std(still[100:], axis=0).max() < 0.25 * 0.001  # jitter cut by > 4×
-    # a 0.3 m/s move: the filter lags by at most a few centimetres and catches up after it stops
-    move = np.clip((t[450:] - t[450]) * 0.3, 0, 0.3)
-    out = np.array(
-        [f(np.array([0.1 + m, 0.2, 0.3]), x) for m, x in zip(move, t[450:], strict=True)]
-    )
-    lag = np.abs(out[:, 0] - (0.1 + move))
-    assert lag.max() < 0.03
-    assert lag[-1] < 1e-3
+# The loop's numerics (the joint action, the wrap, the One Euro filter, the suction's switch
+# commands) are teleop-core's and tested there: crates/teleop-core/tests/numerics.rs.
 
 
 # ---------------------------------------------------------------- the per-frame pipeline
@@ -149,24 +117,6 @@ def test_teleop_targets_follow_the_plan_and_gestures_command(task, handedness, s
     assert runs[-1] == -1.0  # released at the end
     if task == "screw":
         assert (1.0, 1.0) in cmds and (1.0, -1.0) not in cmds
-
-
-@pytest.mark.parametrize(
-    ("task", "state", "cmd", "sent"),
-    [
-        ("suction", -1.0, 1.0, 1.0),  # off -> on: sent
-        ("suction", 1.0, 1.0, 0.0),  # already on: fixed
-        ("suction", 1.0, -1.0, -1.0),  # on -> drop: sent
-        ("suction", -1.0, -1.0, 0.0),  # already off: fixed
-        ("suction", 1.0, 0.0, 0.0),
-        ("grip", 0.03, 1.0, 1.0),  # the gripper closes only while commanded
-        ("grip", 0.085, -1.0, -1.0),
-    ],
-)
-def test_recorded_command_switches_latching_suction_only(task, state, cmd, sent):
-    frame = np.zeros(16)
-    frame[6] = state
-    assert ss.recorded_command(task, cmd, frame) == sent
 
 
 def test_teleop_holds_target_through_untracked_frames(scene_fn):

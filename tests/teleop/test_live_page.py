@@ -152,7 +152,7 @@ def test_suction_episode_recorded_live_in_the_browser(chromium, tmp_path, figure
                 np.linalg.norm(p - window[-1]) < 1e-3 for p in window
             )
             if still:
-                tool0 = np.asarray(s.env.snapshot()["tool0"]["t"])
+                tool0 = np.asarray(s.snapshot()["tool0"]["t"])
                 assert np.linalg.norm(tool0 - s.target[:3, 3]) < 0.01, (st.index, tool0)
                 checked += 1
     assert checked > 10
@@ -232,7 +232,7 @@ def test_recentre_maps_the_hand_onto_the_tool(chromium, tmp_path):
             after = page.evaluate("window.__mimicrete.state")
             drawn = page.evaluate("window.__mimicrete.scene()")
             server_side = run.call(
-                lambda: (live.session.target.copy(), live.session.env.snapshot()["tool0"]["t"])
+                lambda: (live.session.target.copy(), live.session.snapshot()["tool0"]["t"])
             )
             errors = list(page.mimicrete_errors)
     assert not errors, errors

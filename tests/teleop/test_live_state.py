@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mimicrete import _native
 from mimicrete.hands.layouts import to_layout
 from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
 from mimicrete.teleop.live import Live
@@ -52,7 +53,7 @@ def test_why_comes_from_the_newest_step_of_the_current_session(tmp_path):
     # a new session (the recording) has no step yet: nothing of the preview's carries over
     live.start()
     assert live.last_step is None and live.state()["why"] == "no hand yet"
-    tool0 = np.asarray(live.session.env.snapshot()["tool0"]["t"])
+    tool0 = np.asarray(live.session.snapshot()["tool0"]["t"])
     _push(live, _hand_at(tool0), t, 1.0)
     state = live.state()
     assert live.last_step is not None and live.last_step.why is None
@@ -64,16 +65,18 @@ def test_why_comes_from_the_newest_step_of_the_current_session(tmp_path):
 @pytest.mark.parametrize("task", ["suction", "grip", "screw"])
 def test_state_frames_pose_every_frame_of_the_scene(tmp_path, task):
     """Every frame an entity of the hello's scene is locked to (but ``base``, the identity) is
-    posed in the state, as the simulator's own ``scene_frames`` poses it."""
+    posed in the state, as demo-log's ``scene_frames`` poses it from the joints and the object
+    (its own pass down the chain; the session's comes from the step's shared one)."""
     live = Live(task, tmp_path / "out", calibration=standing_calibration(), seed=3)
-    env = live.session.env
+    env = live.session.core
     rng = np.random.default_rng(0)
     for _ in range(5):
         env.set_joints(rng.uniform(-np.pi, np.pi, 6))
         frames = live.state()["frames"]
         used = {e["frame_id"] for e in env.scene_entities()} - {"base"}
         assert used <= set(frames)
-        want = env.scene_frames()
+        snap = env.snapshot()
+        want = _native.scene_frames(snap["q"], [*snap["object"]["t"], *snap["object"]["q"]])
         assert set(frames) == set(want)
         for name, pose in want.items():
             np.testing.assert_allclose(frames[name], pose, atol=1e-12, err_msg=name)
@@ -86,13 +89,13 @@ def test_a_new_scene_goes_out_when_the_next_episode_moves_it(tmp_path, task):
     screw task's plate and bolt move with the seed; the suction task's table, pad and target do
     not) sends a ``scene`` message with its entities."""
     live = Live(task, tmp_path / "out", calibration=standing_calibration(), seed=0)
-    assert live.scene == live.session.env.scene_entities()
+    assert live.scene == live.session.scene_entities()
     first = live.scene
     for _ in range(3):  # each stop saves the episode and previews the next seed
         live.start()
         live.stop()
     sent = [e["scene"] for e in live.events if e["type"] == "scene"]
-    assert live.scene == live.session.env.scene_entities()
+    assert live.scene == live.session.scene_entities()
     if task == "suction":
         assert sent == [] and live.scene == first
     else:

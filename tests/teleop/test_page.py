@@ -228,12 +228,12 @@ def _scene_hello(task: str, seed: int = 0) -> dict[str, Any]:
     from mimicrete.teleop.view import frame_poses, standing_calibration, view_from_base
 
     calib = standing_calibration()
-    env = Session(task, "webxr", "right", calib, seed).env
+    s = Session(task, "webxr", "right", calib, seed)
     return br.driver_hello(
         task,
-        scene=env.scene_entities(),
+        scene=s.scene_entities(),
         view_from_base=view_from_base(calib),
-        frames=frame_poses(env.snapshot()),
+        frames=frame_poses(s.snapshot()),
     )
 
 

@@ -736,6 +736,30 @@ impl DemoWriter {
     /// [`DemoError::Invalid`] for non-consecutive step numbers, decreasing time, non-finite values,
     /// or obs/action lengths that differ from the first step's; [`DemoError::Mcap`] on write failure.
     pub fn write_step(&mut self, rec: &StepRecord) -> Result<(), DemoError> {
+        let links = urdf::link_transforms(self.model, &rec.joints);
+        self.write_step_with_links(rec, &links)
+    }
+
+    /// [`DemoWriter::write_step`] with the arm's parent-to-child link transforms at `rec.joints`
+    /// given (`ur3_kin::urdf::link_transforms` of the demo's robot model): a caller that needs
+    /// them too (the live page's frames) runs the arm's chain once per step.
+    ///
+    /// # Errors
+    /// As [`DemoError::Invalid`] of [`DemoError::write_step`], and a `links` of another length
+    /// than the chain's.
+    pub fn write_step_with_links(
+        &mut self,
+        rec: &StepRecord,
+        links: &[(&'static str, &'static str, ur3_kin::Pose)],
+    ) -> Result<(), DemoError> {
+        if links.len() != LINK_FRAMES.len() {
+            return Err(DemoError::Invalid(format!(
+                "step {}: {} link transforms, the arm's chain has {}",
+                rec.step,
+                links.len(),
+                LINK_FRAMES.len()
+            )));
+        }
         if self.ended {
             return Err(DemoError::Invalid(format!(
                 "step {}: the episode already ended (terminated or truncated at step {})",
@@ -801,7 +825,7 @@ impl DemoWriter {
         // /tf: the link chain, then the tile.
         let stamp = Time::from_ns(ns);
         let mut tfs = Vec::with_capacity(LINK_FRAMES.len() + 1);
-        for (parent, child, rel) in urdf::link_transforms(self.model, &rec.joints) {
+        for &(parent, child, rel) in links {
             let pm = PoseMsg::from(&Pose::from_isometry(&rel));
             tfs.push(Tf {
                 timestamp: stamp,

@@ -409,3 +409,28 @@ mod mutations {
         }
     }
 }
+
+#[test]
+fn steps_with_their_link_transforms_given_write_the_same_bytes() {
+    let d = tmpdir("with_links");
+    let (a, b) = (d.join("a.mcap"), d.join("b.mcap"));
+    let n = 30;
+    let mut wa = DemoWriter::create(&a, &meta(0)).unwrap();
+    let mut wb = DemoWriter::create(&b, &meta(0)).unwrap();
+    for i in 0..n {
+        let s = step(i, n, 12, 7);
+        wa.write_step(&s).unwrap();
+        wb.write_step_with_links(&s, &link_transforms(&ur3_kin::UR3, &s.joints)).unwrap();
+    }
+    let done = EpisodeSummary { success: true, ..Default::default() };
+    wa.finish(&done).unwrap();
+    wb.finish(&done).unwrap();
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    // a chain of the wrong length is refused, naming the step
+    let mut w = DemoWriter::create(d.join("c.mcap"), &meta(0)).unwrap();
+    let s = step(0, n, 12, 7);
+    let mut links = link_transforms(&ur3_kin::UR3, &s.joints);
+    links.pop();
+    let e = w.write_step_with_links(&s, &links).unwrap_err().to_string();
+    assert!(e.contains("step 0: 7 link transforms, the arm's chain has 8"), "{e}");
+}

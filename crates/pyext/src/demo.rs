@@ -89,7 +89,7 @@ fn closed(path: &Path) -> PyErr {
 }
 
 impl PyDemoWriter {
-    fn open(&mut self) -> PyResult<&mut RsWriter> {
+    pub(crate) fn open(&mut self) -> PyResult<&mut RsWriter> {
         self.inner.as_mut().ok_or_else(|| closed(&self.path))
     }
 }

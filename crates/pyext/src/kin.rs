@@ -80,10 +80,10 @@ fn table<const K: usize>(rows: &[[f64; K]]) -> Array2<f64> {
 
 /// A calibration as Python passes it: `(base_from_space (4, 4) | None, scale, space name)`.
 #[derive(FromPyObject)]
-struct Calib<'py>(Option<F2<'py>>, f64, String);
+pub(crate) struct Calib<'py>(Option<F2<'py>>, f64, String);
 
 impl Calib<'_> {
-    fn get(&self) -> PyResult<Calibration> {
+    pub(crate) fn get(&self) -> PyResult<Calibration> {
         let base = self.0.as_ref().map(|m| pose_from(m, "base_from_space")).transpose()?;
         Calibration::new(base, self.1, &self.2).map_err(kin_err)
     }

@@ -1,5 +1,5 @@
 //! `mimicrete._native`: the pyo3 layer over the crates (conversion, errors, the interpreter lock),
-//! one file per crate (`kin.rs`, `sim.rs`, `demo.rs`); `errors.rs`: exceptions and conversions.
+//! one file per crate (`kin.rs`, `sim.rs`, `demo.rs`, `teleop.rs`); `errors.rs`: exceptions and conversions.
 
 use pyo3::prelude::*;
 
@@ -23,6 +23,7 @@ mod demo;
 mod errors;
 mod kin;
 mod sim;
+mod teleop;
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -31,5 +32,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     kin::register(m)?;
     sim::register(m)?;
     demo::register(m)?;
+    teleop::register(m)?;
     Ok(())
 }

@@ -11,7 +11,7 @@ use tile_sim::{Env, Start, StepBuffers, Task, Variation, VecEnv, VecEnvState};
 
 type Any<'py> = Bound<'py, PyAny>;
 
-fn parse_task(name: &str) -> PyResult<Task> {
+pub(crate) fn parse_task(name: &str) -> PyResult<Task> {
     Task::from_name(name).map_err(sim_err)
 }
 

@@ -11,8 +11,10 @@ row out of the arrays.
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +35,114 @@ def _pct(xs: list[float]) -> str:
         f"p50 {np.percentile(a, 50):7.1f} µs  p99 {np.percentile(a, 99):7.1f} µs  "
         f"max {a.max():7.1f} µs  (n={len(a)})"
     )
+
+
+def _native_callee(fn: object) -> str | None:
+    """The name of a builtin function or method of ``mimicrete._native`` (None: not one)."""
+    owner = getattr(fn, "__self__", None)
+    mod = getattr(fn, "__module__", None) or getattr(type(owner), "__module__", None)
+    if mod != "mimicrete._native":
+        return None
+    if owner is not None and not isinstance(owner, type(sys)):
+        return f"{type(owner).__name__}.{getattr(fn, '__name__', '?')}"
+    return str(getattr(fn, "__name__", "?"))
+
+
+class CrossingCounter:
+    """Counts the calls from Python into ``mimicrete._native`` (a profile hook on C calls; its
+    cost makes timings meaningless while it runs, so the timed pass runs without it)."""
+
+    def __init__(self) -> None:
+        self.calls: Counter[str] = Counter()
+
+    def _hook(self, frame: object, event: str, arg: object) -> None:
+        if event == "c_call":
+            name = _native_callee(arg)
+            if name is not None:
+                self.calls[name] += 1
+
+    def __enter__(self) -> CrossingCounter:
+        sys.setprofile(self._hook)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        sys.setprofile(None)
+
+
+def crossings(task: str = "suction") -> tuple[float, float, Counter[str]]:
+    """Calls into Rust per hand frame over one synthetic episode converted as ``mimicrete
+    convert`` does: (all frames, frames that ran a control step, calls by name)."""
+    tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-crossings-"))
+    path = sy.synth_hands(task, 1, 0, tmp / "logs")[0]
+    log = cv.load_log(path)
+    h = log.header
+    model = gest.load_default(tasks.get(task).name)
+    meta = episode_meta(
+        episode=0,
+        task_sim=tasks.get(task).sim,
+        seed=h["episode_seed"],
+        source=str(path),
+        model=model,
+        layout=h["layout"],
+        space=h["space"],
+        handedness=h["handedness"],
+        extra={},
+    )
+    sink = DemoSink(tmp / "demo.mcap", meta)
+    session = Session(
+        task,
+        h["layout"],
+        h["handedness"],
+        cv.calibration_of(log),
+        h["episode_seed"],
+        model=model,
+        recorder=sink,
+    )
+    total = Counter[str]()
+    per_step: list[int] = []
+    per_frame: list[int] = []
+    for k in range(len(log)):
+        with CrossingCounter() as c:
+            steps = session.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k])
+        n = sum(c.calls.values())
+        per_frame.append(n)
+        if steps:
+            per_step.append(n)
+        total += c.calls
+        if session.done:
+            break
+    session.finish()
+    sink.close(session.installed, session.counts)
+    return float(np.mean(per_frame)), float(np.mean(per_step)), total
+
+
+def crossings_live(task: str = "suction", frames: int = 400) -> tuple[float, float]:
+    """Calls into Rust per hand frame of the live server's work (``Live.push`` then the state
+    the page gets, ``Live.state``), recording, over a synthetic episode's right hand in WebXR
+    order: (all frames, frames that ran a control step)."""
+    from mimicrete.hands import layouts
+    from mimicrete.teleop.live import Live
+    from mimicrete.teleop.protocol import HandFrame
+
+    tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-crossings-live-"))
+    path = sy.synth_hands(task, 1, 0, tmp / "logs", layout="webxr")[0]
+    log = cv.load_log(path)
+    live = Live(task, tmp / "out", calibration=cv.calibration_of(log))
+    live.start()
+    per_frame, per_step = [], []
+    left = np.zeros((len(layouts.WEBXR_JOINT_NAMES), 3))
+    for k in range(min(frames, len(log))):
+        f = HandFrame(k, float(log.t[k]), 0.0, bool(log.tracked[k]), False, log.joints[k], left)
+        with CrossingCounter() as c:
+            steps = live.push(f)
+            live.state()
+        n = sum(c.calls.values())
+        per_frame.append(n)
+        if steps:
+            per_step.append(n)
+    live.discard()
+    live.close()
+    return float(np.mean(per_frame)), float(np.mean(per_step))
 
 
 def run(task: str = "suction", episodes: int = 2) -> None:
@@ -93,6 +203,17 @@ def run(task: str = "suction", episodes: int = 2) -> None:
     print(f"  same, CPU time of this thread (excludes waiting for a core): {_pct(per_frame_cpu)}")
     print(f"  frames that ran a control step (IK, sim, record) {_pct(with_step)}")
     print(f"  frames that only updated gesture and target     {_pct(without_step)}")
+    all_frames, step_frames, calls = crossings(task)
+    print(
+        f"  calls from Python into Rust per hand frame: {all_frames:.2f} on average, "
+        f"{step_frames:.2f} on frames that ran a control step"
+    )
+    print("    by function: " + ", ".join(f"{k} {v}" for k, v in calls.most_common()))
+    live_all, live_step = crossings_live(task)
+    print(
+        f"  live server (push + the page's state) per hand frame: {live_all:.2f} calls into Rust "
+        f"on average, {live_step:.2f} on frames that ran a control step"
+    )
     load = os.getloadavg()[0]
     print(f"  machine load average {load:.2f} on {os.cpu_count()} cores at the end of the run")
 

@@ -38,6 +38,8 @@ import numpy as np
 
 from mimicrete.hands.layouts import WEBXR_FROM_OPENXR, WEBXR_JOINT_NAMES
 
+from .session import CONTROL_DT
+
 CHROMIUM = Path("/usr/bin/chromium")
 #: SwiftShader gives headless Chromium WebGL without a GPU; no sandbox because tests run as root;
 #: no background traffic (the machines reach no network but package registries).
@@ -418,7 +420,7 @@ def driver_hello(task: str = "grip", **fields: Any) -> dict[str, Any]:
         "role": "driver",
         "task": task,
         "layout": "webxr",
-        "control_dt": 0.04,
+        "control_dt": CONTROL_DT,
         "scene": [],
         "view_from_base": list(np.eye(4).ravel()),
         "frames": {},

@@ -299,12 +299,13 @@ def convert_log(
                 model=model,
                 recorder=sink,
             )
+            skipped = 0  # frames after the end, never pushed
             for k in range(len(log.t)):
                 for st in session.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k]):
                     rewards.append(st.reward)
                     actions.append(st.action)
                 if session.done:
-                    session.counts.frames_after_end += len(log.t) - k - 1
+                    skipped = len(log.t) - k - 1
                     break
             for st in session.finish():
                 rewards.append(st.reward)
@@ -313,6 +314,7 @@ def convert_log(
             if never is not None:
                 raise ConvertError(f"{source}: the robot never followed the hand ({never})")
             counts = session.counts
+            counts.frames_after_end += skipped
             if sink is not None:
                 sink.close(session.installed, counts)
         except BaseException:

@@ -50,13 +50,7 @@ from .protocol import FrameError, HandFrame
 from .provenance import what_read
 from .record import DemoSink, episode_meta, source_keys
 from .session import Session, Step
-from .view import (
-    effector_state,
-    frame_poses,
-    quat_xyzw,
-    standing_calibration,
-    view_from_base,
-)
+from .view import effector_state, standing_calibration, view_from_base
 
 LAYOUT = "webxr"
 #: The hand's space as the formats name it: WebXR's axes are OpenXR's (right-handed, +Y up), and
@@ -187,7 +181,7 @@ class Live:
             ep.tracked.append(f.right_tracked)
             ep.joints.append(joints)
         s = self.session
-        steps = s.push(f.t, f.right_tracked, joints)
+        steps = s.push(f.t, f.right_tracked, joints, view=True)
         if steps:
             self._last_step = (s, steps[-1])
         if s.done:
@@ -337,7 +331,7 @@ class Live:
         s = self.session
         if s.target is None or self.recording:
             return None
-        tool0 = np.asarray(s.env.snapshot()["tool0"]["t"], dtype=np.float64)
+        tool0 = np.asarray(s.snapshot()["tool0"]["t"], dtype=np.float64)
         delta = tool0 - s.target[:3, 3]
         c = self.calibration
         self.calibration = Calibration(c.rotation, c.translation + delta, c.scale, c.space)
@@ -350,10 +344,12 @@ class Live:
     # ------------------------------------------------------------------ state out
 
     def state(self) -> dict[str, Any]:
-        """What the page shows after a frame, from one simulator snapshot (the frames' poses and
-        the end effector) and the session's newest control step (why the arm does not follow)."""
+        """What the page shows after a frame, from the session's view (the frames' poses from one
+        FK, the simulator's snapshot, the target; taken by the frame's own call into Rust) and
+        its newest control step (why the arm does not follow)."""
         s = self.session
-        snap = s.env.snapshot()
+        v = s.view if s.view is not None else s.core.view()
+        snap = v["snapshot"]
         last = self.last_step
         why = None
         if s.target is None:
@@ -364,19 +360,16 @@ class Live:
             why = last.why
         elif not self.recording:
             why = "not recording"
-        target = None
-        if s.target is not None:
-            target = [*s.target[:3, 3].tolist(), *quat_xyzw(s.target[:3, :3])]
         margin = None if s.margin is None else round(s.margin, 3)
         return {
             "type": "state",
-            "frames": frame_poses(snap),
+            "frames": v["frames"],
             "ee": effector_state(self.task.name, snap),
             "gesture": s.gesture,
             "margin": margin,
             "following": why in (None, "not recording"),
             "why": why,
-            "target": target,
+            "target": v["target"],
             "episode": self.episode.index if self.episode else self.next_index,
             "recording": self.recording,
             "step": s.step_index,
@@ -564,7 +557,7 @@ class Live:
             model=self.model,
             recorder=sink,
         )
-        scene = s.env.scene_entities()
+        scene = s.scene_entities()
         if scene != self.scene:
             if self.scene is not None:  # the first one goes out in the hello
                 self.events.append({"type": "scene", "scene": scene})

@@ -8,12 +8,10 @@ import os
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from mimicrete import demos
 from mimicrete.gestures import GestureModel
 
-from .session import CONTROL_DT, Counts, Step
+from .session import CONTROL_DT, Counts
 
 
 def episode_meta(
@@ -69,42 +67,15 @@ def source_keys(
 
 
 class DemoSink:
-    """Writes one episode through ``mimicrete.demos.DemoWriter`` (the Rust demo-log writer):
-    the :class:`~mimicrete.teleop.session.Recorder` a session records into."""
+    """One episode's MCAP demo: ``w`` is the Rust demo-log writer (``mimicrete.demos.DemoWriter``)
+    the session (teleop-core, in Rust) writes every hand frame and step into; this opens it with
+    the episode's metadata and finishes, abandons or discards it."""
 
     def __init__(self, path: str | os.PathLike[str], meta: dict[str, Any]) -> None:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.w = demos.DemoWriter(str(path), meta)
-
-    def hand(self, t: float, joints: np.ndarray, tracked: bool, hand_t: float) -> None:
-        self.w.write_hand_frame(t, np.ascontiguousarray(joints, dtype=np.float64), tracked, hand_t)
-
-    def event(self, t: float, name: str, props: dict[str, Any]) -> None:
-        self.w.write_event(t, name, {k: str(v) for k, v in props.items()})
-
-    def step(self, step: Step, gesture: str, snap: dict[str, Any]) -> None:
-        """One env step, recorded with the smoothed ``gesture`` it obeyed and ``snap``, the
-        simulator's snapshot after it (f64 joints, poses)."""
-
-        def pose(p: dict[str, Any]) -> list[float]:
-            return [*map(float, p["t"]), *map(float, p["q"])]
-
-        self.w.write_step(
-            step.index,
-            step.t,
-            np.ascontiguousarray(step.obs, dtype=np.float32),
-            np.ascontiguousarray(step.action, dtype=np.float32),
-            step.reward,
-            step.terminated,
-            step.truncated,
-            gesture,
-            [float(x) for x in snap["q"]],
-            pose(snap["tool0"]),
-            pose(snap["object"]),
-            step.events,
-        )
 
     def close(
         self,

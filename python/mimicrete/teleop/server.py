@@ -46,6 +46,7 @@ from aiohttp import WSMsgType, web
 from .gesturemode import GestureModeError
 from .live import Live
 from .protocol import VERSION, FrameError, parse_frame
+from .session import CONTROL_DT
 from .view import view_from_base
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -213,7 +214,7 @@ class TeleopServer:
             "role": role,
             "task": live.task.name,
             "layout": "webxr",
-            "control_dt": 0.04,
+            "control_dt": CONTROL_DT,
             "scene": live.scene,
             "view_from_base": view_from_base(live.calibration),
             "mode": "gestures" if live.gesture_mode else "teleop",

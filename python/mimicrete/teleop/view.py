@@ -79,20 +79,3 @@ def view_from_base(calibration: Calibration) -> list[float]:
     m[:3, :3] = (p[1:] - p[0]).T  # columns: images of the unit vectors
     m[:3, 3] = p[0]
     return np.linalg.inv(m).reshape(-1, order="F").tolist()
-
-
-def quat_xyzw(r: np.ndarray) -> list[float]:
-    """Unit quaternion ``[x, y, z, w]`` of a rotation matrix (Shepperd's method, closed form)."""
-    t = float(r[0, 0] + r[1, 1] + r[2, 2])
-    if t > 0.0:
-        k = 2.0 * np.sqrt(t + 1.0)
-        q = [(r[2, 1] - r[1, 2]) / k, (r[0, 2] - r[2, 0]) / k, (r[1, 0] - r[0, 1]) / k, k / 4.0]
-    else:
-        i = int(np.argmax(np.diag(r)))
-        j, m = (i + 1) % 3, (i + 2) % 3
-        k = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[m, m])
-        q = [0.0, 0.0, 0.0, (r[m, j] - r[j, m]) / k]
-        q[i] = k / 4.0
-        q[j] = (r[j, i] + r[i, j]) / k
-        q[m] = (r[m, i] + r[i, m]) / k
-    return [float(x) for x in q]
