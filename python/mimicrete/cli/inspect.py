@@ -1,17 +1,103 @@
-"""`mimicrete inspect` (temporary forwarder while the package is regrouped)."""
+"""`mimicrete inspect FILE.mcap ...`: what is in each demo (channels, message counts, metadata,
+attachments, duration and step count, read by :func:`mimicrete.demos.inspect` with the official
+``mcap`` reader) and, unless ``--no-verify``, every chunk's CRC (:func:`mimicrete.demos.verify`).
+Exit 1 when a file is damaged or not a demo; ``--json`` prints one JSON object per file."""
 
 from __future__ import annotations
 
 import argparse
+import json
+from typing import Any
+
+
+def _print_report(info: dict[str, Any]) -> None:
+    sizes = f"{info['bytes']} bytes, {info['chunks']} chunks, {info['messages']} messages"
+    print(f"{info['path']}  ({sizes})")
+    ep = info["metadata"].get("episode") or info["metadata"].get("episode_start") or {}
+    print(
+        f"  task={ep.get('task', '?')} episode={ep.get('episode', '?')} seed={ep.get('seed', '?')} "
+        f"robot={ep.get('robot_model', '?')} steps={info['steps']} "
+        f"duration={info['duration_s']:.3f} s success={info['success']}"
+        + ("" if info["finished"] else "  [NOT FINISHED: no 'episode' record]")
+    )
+    print("  channels:")
+    width = max((len(c["topic"]) for c in info["channels"]), default=5)
+    for c in info["channels"]:
+        print(
+            f"    {c['topic']:<{width}}  {c['messages']:>7}  {c['schema']} "
+            f"({c['message_encoding']}/{c['schema_encoding']})"
+        )
+    print("  metadata:")
+    for name, md in info["metadata"].items():
+        print(f"    {name}:")
+        for k, v in sorted(md.items()):
+            print(f"      {k} = {v}")
+    print("  attachments:")
+    for a in info["attachments"]:
+        print(f"    {a['name']}  {a['media_type']}  {a['bytes']} bytes")
+
+
+def _print_integrity(f: str, rep: dict[str, Any]) -> None:
+    chunks = rep["chunks"]
+    if rep["ok"]:
+        print(f"  integrity: OK ({len(chunks)} chunks, every CRC checked)")
+        return
+    bad = [c for c in chunks if c["error"] is not None]
+    lost = rep["messages_lost"]
+    print(
+        f"  integrity: DAMAGED ({len(bad)} of {len(chunks)} chunks damaged, "
+        f"{'an unknown number of' if lost is None else lost} messages lost)"
+    )
+    for line in rep["problems"]:
+        print(f"    {line}")
+    print(f"  recover the intact chunks: mimicrete.demos.salvage_to({f!r}, 'fixed.mcap')")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    import mimicrete.demos as lib
-
-    lib.configure(parser)
+    parser.add_argument("files", nargs="+", metavar="FILE.mcap", help="demo file(s) to inspect")
+    parser.add_argument("--json", action="store_true", help="print one JSON object per file")
+    parser.add_argument(
+        "--no-verify",
+        dest="verify",
+        action="store_false",
+        help="read only the summary; skip checking every chunk's CRC (by default a damaged "
+        "chunk is reported and the exit code is 1)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
-    import mimicrete.demos as lib
+    from mimicrete import LogFormatError, demos
 
-    return int(lib.main(args) or 0)
+    status = 0
+    for f in args.files:
+        rep: dict[str, Any] | None = None
+        if getattr(args, "verify", True):
+            try:
+                rep = demos.verify(f)
+            except (LogFormatError, OSError) as e:
+                print(json.dumps({"path": str(f), "error": str(e)}) if args.json else f"error: {e}")
+                status = 1
+                continue
+        info: dict[str, Any] | None = None
+        error = None
+        try:
+            info = demos.inspect(f)
+        except (LogFormatError, OSError) as e:
+            error = str(e)
+        if error is not None or (rep is not None and not rep["ok"]):
+            status = 1
+        if args.json:
+            out = dict(info) if info is not None else {"path": str(f), "error": error}
+            if rep is not None:
+                out["integrity"] = rep
+            print(json.dumps(out, sort_keys=True))
+            continue
+        if info is not None:
+            _print_report(info)
+        elif rep is None or rep["ok"]:  # a sound MCAP file that is not a demo, ...
+            print(f"error: {error}")
+        else:
+            print(f"{f}  ({rep['bytes']} bytes; summary unreadable: {error})")
+        if rep is not None:
+            _print_integrity(str(f), rep)
+    return status
