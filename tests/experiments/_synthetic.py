@@ -1,5 +1,5 @@
 """Synthetic sweep run dirs (scalars.csv, eval files, run.json, trial.json) for the report's and
-demos_needed's tests."""
+demos_needed's tests (``config``: a resolved_config.yaml)."""
 
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ def write_run(
     extra_rows=(),
     ev_sampled=None,
     converged_at=None,
+    config=None,
 ):
     from mimicrete.learn.run_files import TAGS
 
@@ -61,6 +62,10 @@ def write_run(
                     }
                 )
             )
+    if config is not None:  # the resolved config as `mimicrete train` writes it
+        import yaml
+
+        (rd / "resolved_config.yaml").write_text(yaml.safe_dump(config))
     if converged_at is not None:
         (rd / "run.json").write_text(
             json.dumps({"convergence": {"installed_rate": 0.99, "converged_at_step": converged_at}})

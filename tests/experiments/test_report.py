@@ -6,21 +6,58 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mimicrete.experiments import report, stats
+from mimicrete.experiments.paper import PAPER_TABLE3
 from mimicrete.experiments.runs import Run
 from mimicrete.learn.run_files import read_scalars
 
 from ._synthetic import write_run as _write_run
 
+REPO = Path(__file__).resolve().parents[2]
+
 # ----------------------------------------------------------------------------------------------
 # the report, on synthetic run dirs
 # ----------------------------------------------------------------------------------------------
+
+
+def _config(group: int, gail: float | None = None) -> dict:
+    """configs/group<group>.yaml as the run resolved it, GAIL's strength set to ``gail``."""
+    cfg = yaml.safe_load((REPO / "configs" / f"group{group}.yaml").read_text())
+    if gail is not None:
+        next(iter(cfg["behaviors"].values()))["reward_signals"]["gail"]["strength"] = gail
+    return cfg
+
+
+def test_strengths_come_from_the_runs_configs_not_table_3():
+    def run(group, cfg):
+        return Run(group, 0, None, resolved=cfg)
+
+    # what configs/group*.yaml say, in Table 3's form; matching Table 3, nothing beside it
+    for g in range(1, 10):
+        paper = PAPER_TABLE3[g][0]
+        cell = report.strengths_cell([run(g, _config(g))], paper)
+        assert "Table 3" not in cell and "?" not in cell
+    assert report.strengths_cell([run(1, _config(1))], "PPO") == "PPO (1.0)"
+    assert report.strengths_cell([run(2, _config(2))], "GAIL") == "GAIL (1.0)"
+    assert report.run_strengths(run(6, _config(6))) == "PPO (0.5), GAIL (0.5), BC (0.5)"
+    # a run trained with other strengths says so, with Table 3's beside it
+    cell = report.strengths_cell([run(4, _config(4, gail=0.2))], PAPER_TABLE3[4][0])
+    assert cell == "PPO (1.0), GAIL (0.2), BC (0.5) (Table 3: PPO (1.0), GAIL (0.01), BC (0.5))"
+    # an algorithm Table 3 does not have for the group differs too
+    cell = report.strengths_cell([run(2, _config(3))], "GAIL")
+    assert cell == "PPO (1.0), GAIL (0.005), BC (0.5) (Table 3: GAIL)"
+    # no resolved config: unknown, never the paper's string in its place
+    assert (
+        report.strengths_cell([run(3, None)], PAPER_TABLE3[3][0]) == "? (no resolved_config.yaml)"
+    )
 
 
 def test_report_numbers_on_synthetic_runs(tmp_path):
@@ -34,7 +71,18 @@ def test_report_numbers_on_synthetic_runs(tmp_path):
         ins = np.where(steps >= hit[s], 0.98, 0.5 * steps / steps[-1])
         gl = 0.01 * (s + 1) + 1e-7 * steps  # rising: the last-100k mean is not the overall mean
         gail3[s] = gl
-        _write_run(root, 3, s, steps, ins, 2 * ins, gl, evals[s])
+        # seed 2 ran with GAIL at 0.05 (a --set override), not Table 3's 0.005
+        _write_run(
+            root,
+            3,
+            s,
+            steps,
+            ins,
+            2 * ins,
+            gl,
+            evals[s],
+            config=_config(3, gail=0.05 if s == 2 else None),
+        )
     # group 2: never installs, GAIL loss ~0.7; one seed crashed
     for s in range(2):
         _write_run(
@@ -47,6 +95,7 @@ def test_report_numbers_on_synthetic_runs(tmp_path):
             np.full(30, 0.7 + 0.1 * s),
             (0.2, 0.0, 750.0),
             ev_sampled=(0.1 + 0.1 * s, 0.0, 730.0 + 20 * s),
+            config=_config(2),
         )
     _write_run(
         root,
@@ -82,7 +131,12 @@ def test_report_numbers_on_synthetic_runs(tmp_path):
     text = out.read_text()
 
     # Table 5 row of group 3: installed mean 0.95, sd 0.05 -> "95 ± 5 %"; length 90 ± 10
-    row3 = next(ln for ln in text.splitlines() if ln.startswith("| 3 | PPO (1.0), GAIL (0.005)"))
+    # the strengths the runs used (their resolved configs), Table 3's beside them where they differ
+    row3 = next(ln for ln in text.splitlines() if ln.startswith("| 3 | "))
+    assert row3.startswith(
+        "| 3 | PPO (1.0), GAIL (0.005), BC (0.5) / PPO (1.0), GAIL (0.05), BC (0.5) "
+        "(Table 3: PPO (1.0), GAIL (0.005), BC (0.5)) |"
+    )
     cells = [c.strip() for c in row3.strip("|").split("|")]
     assert cells[3] == "300k" and cells[4] == "3"
     # picked mean .9733, sd .0252; no sampled evaluation: "–"
@@ -90,7 +144,7 @@ def test_report_numbers_on_synthetic_runs(tmp_path):
     assert cells[8] == "95 ± 5 %" and cells[9] == "–" and cells[10] == "97 %"
     assert cells[11] == "90 ± 10" and cells[12] == "–" and cells[13] == "90"
     # group 2: the crashed seed is not averaged in; sampled evaluations of both seeds
-    row2 = next(ln for ln in text.splitlines() if ln.startswith("| 2 | GAIL |"))
+    row2 = next(ln for ln in text.splitlines() if ln.startswith("| 2 | GAIL (1.0) |"))
     cells2 = [c.strip() for c in row2.strip("|").split("|")]
     assert cells2[4] == "2"
     assert cells2[6] == "15 ± 7 %" and cells2[9] == "0 ± 0 %" and cells2[12] == "740 ± 14"

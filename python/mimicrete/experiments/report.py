@@ -211,6 +211,52 @@ def section_summary(r: ReportInput) -> list[str]:
     return lines
 
 
+_SIGNAL_NAMES = {"extrinsic": "PPO", "gail": "GAIL"}
+
+
+def run_strengths(run: Run) -> str | None:
+    """The algorithms and strengths ``run`` trained with, from its ``resolved_config.yaml``, in
+    Table 3's form (``PPO (1.0), GAIL (0.005), BC (0.5)``: the extrinsic reward is PPO's); None
+    without a config."""
+    beh = run.behavior
+    if not beh:
+        return None
+    parts = [
+        f"{_SIGNAL_NAMES.get(name, name.upper())} ({float(sig.get('strength', 1.0))})"
+        for name, sig in (beh.get("reward_signals") or {}).items()
+    ]
+    bc = beh.get("behavioral_cloning")
+    if bc:
+        parts.append(f"BC ({float(bc.get('strength', 1.0))})")
+    return ", ".join(parts) or "-"
+
+
+def _paper_strengths(text: str) -> dict[str, float | None]:
+    """Table 3's ``PPO (1.0), GAIL (0.005)`` (or a bare ``GAIL``) as {algorithm: strength}."""
+    out: dict[str, float | None] = {}
+    for part in text.split(","):
+        name, _, rest = part.strip().partition(" (")
+        out[name] = float(rest.rstrip(")")) if rest else None
+    return out
+
+
+def strengths_cell(runs: list[Run], paper: str) -> str:
+    """The Table 5 cell: the strengths the group's runs used (distinct ones joined by `` / ``),
+    with Table 3's beside them where they differ (a bare algorithm in Table 3 matches any
+    strength of it)."""
+    used = list(dict.fromkeys(s for s in map(run_strengths, runs) if s is not None))
+    if not used:
+        return "? (no resolved_config.yaml)"
+    want = _paper_strengths(paper)
+
+    def same(s: str) -> bool:
+        got = _paper_strengths(s)
+        return got.keys() == want.keys() and all(want[k] is None or got[k] == want[k] for k in want)
+
+    cell = " / ".join(used)
+    return cell if all(map(same, used)) else f"{cell} (Table 3: {paper})"
+
+
 def section_table5(r: ReportInput) -> list[str]:
     lines = [
         "## Table 5: evaluation of the final policy, ours beside the paper's",
@@ -221,12 +267,15 @@ def section_table5(r: ReportInput) -> list[str]:
         "(`mimicrete eval --stochastic`, `eval_stochastic.json`), as ML-Agents runs it unless "
         "`deterministic_inference` is set. The paper does not say which it used. Paper: one run "
         "per group, 100 executions. Steps: the budget, and the mean of the steps each run "
-        "trained (fewer where it stopped on convergence).",
+        "trained (fewer where it stopped on convergence). Algorithms (strength): what the runs "
+        "trained with (their `resolved_config.yaml`; the extrinsic reward's strength is PPO's), "
+        "with Table 3's beside it where it differs.",
         "",
     ]
     rows = []
     for g, st in r.stats.items():
-        alg, demos = PAPER_TABLE3.get(g, ("?", "?"))
+        paper_alg, demos = PAPER_TABLE3.get(g, ("?", "?"))
+        alg = strengths_cell([x for x in r.runs if x.group == g], paper_alg)
         pp, pi, pl = PAPER_TABLE5.get(g, (math.nan, math.nan, math.nan))
         steps = _steps(st.budget)
         if st.final_steps[2] and st.budget and st.final_steps[0] < 0.98 * st.budget:
