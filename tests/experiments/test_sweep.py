@@ -42,7 +42,7 @@ def _toy_configs(
     """Group 1 (PPO only) and group 2 (PPO + GAIL + BC) on the toy env; ``bad_group`` gets a
     config the trainer rejects (an unknown key) so its trials crash."""
     from mimicrete.learn import config
-    from mimicrete.learn.toyenv import toy_config
+    from mimicrete.testing.toyenv import toy_config
 
     cfg_dir.mkdir(parents=True, exist_ok=True)
     config.save(
@@ -323,7 +323,7 @@ def test_stop_on_convergence_flag_reaches_every_trial(tmp_path):
         build_param_space,
     )
     from mimicrete.learn import config
-    from mimicrete.learn.toyenv import toy_config
+    from mimicrete.testing.toyenv import toy_config
 
     args = build_parser().parse_args(["--stop-on-convergence", "--set", "behavior.beta=0.01"])
     space = build_param_space(args, [1], [0])

@@ -17,7 +17,7 @@ import torch
 from mimicrete import cli
 from mimicrete.learn import config
 from mimicrete.learn.run_files import TAGS, WALL_CLOCK_TAGS
-from mimicrete.learn.toyenv import toy_config
+from mimicrete.testing.toyenv import toy_config
 
 
 @pytest.fixture()

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import torch
 
-from mimicrete.learn import toyenv
 from mimicrete.learn.bc import MIN_LR, BehavioralCloning, bc_learning_rate
 from mimicrete.learn.evaluate import run_episodes
 from mimicrete.learn.networks import Actor, ee_value_to_index
@@ -16,6 +15,7 @@ from mimicrete.learn.ppo import (
     ppo_loss,
     scheduled,
 )
+from mimicrete.testing import toyenv
 
 
 def _toy_bc(*, demos, seed, hidden, steps, batch_size, num_epoch):

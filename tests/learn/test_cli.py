@@ -10,7 +10,7 @@ import yaml
 from mimicrete.cli import eval as cli_eval
 from mimicrete.cli import train as cli_train
 from mimicrete.learn import config, demo_data, plots
-from mimicrete.learn.toyenv import toy_config
+from mimicrete.testing.toyenv import toy_config
 
 from ._rollout import evaluated_first_episode, first_episode
 
@@ -121,7 +121,7 @@ def test_load_demos_selects_the_first_episodes(tmp_path):
 
     import numpy as np
 
-    from mimicrete.learn import toyenv
+    from mimicrete.testing import toyenv
 
     d = toyenv.expert_demos(6, seed=2)
     np.savez(tmp_path / "d.npz", **d)

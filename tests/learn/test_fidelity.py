@@ -16,7 +16,7 @@ from mimicrete import cli
 from mimicrete.learn import config
 from mimicrete.learn.gail import Gail
 from mimicrete.learn.normalizer import FixedNorm
-from mimicrete.learn.toyenv import toy_config
+from mimicrete.testing.toyenv import toy_config
 
 
 @pytest.fixture()

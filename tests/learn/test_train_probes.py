@@ -27,7 +27,7 @@ import yaml
 
 from mimicrete import cli
 from mimicrete.learn import config, config_text
-from mimicrete.learn.toyenv import toy_config
+from mimicrete.testing.toyenv import toy_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _cli_run import run_cli  # noqa: E402

@@ -156,7 +156,7 @@ def test_eval_video_bad_input(tmp_path, capsys, monkeypatch):
 
     from mimicrete import cli
     from mimicrete.learn.networks import Actor
-    from mimicrete.learn.toyenv import OBS_DIM, toy_config
+    from mimicrete.testing.toyenv import OBS_DIM, toy_config
 
     run = _run_dir(tmp_path)
     assert cli.main(["eval", str(run), "--video", "-1"]) == 2

@@ -29,11 +29,11 @@ import pytest
 from mimicrete import demos
 from mimicrete import gestures as g
 from mimicrete.cli import main as cli_main
-from mimicrete.teleop import browser as br
 from mimicrete.teleop.gesturemode import user_csv_path, user_model_path
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
 from mimicrete.teleop.view import standing_calibration
+from mimicrete.testing import page_driver as br
 
 POSES = {"closing": "pinch", "opening": "default", "fixed": "point"}
 #: the shipped suction/grip model's sidecar: its held-out accuracy is what teleop prints

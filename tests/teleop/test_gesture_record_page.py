@@ -1,7 +1,7 @@
 """Gesture samples of IWER's Quest-captured hand poses, recorded through the real page.
 
 The built page runs in Debian's Chromium (Playwright, headless) with IWER emulating a Quest 3;
-its WebSocket is answered inside Playwright (:class:`~mimicrete.teleop.browser.FrameSink`). The
+its WebSocket is answered inside Playwright (:class:`~mimicrete.testing.page_driver.FrameSink`). The
 emulated right hand shows IWER's ``pinch``, ``default`` (relaxed) and ``point`` poses in turn
 while it moves and turns about the workspace; the joints the page sends are the samples
 (:func:`mimicrete.gestures.record.record`)."""
@@ -14,7 +14,7 @@ import pytest
 from mimicrete import gestures as g
 from mimicrete.cli import main as cli_main
 from mimicrete.gestures import record as gr
-from mimicrete.teleop import browser as br
+from mimicrete.testing import page_driver as br
 
 POSES = {"closing": "pinch", "opening": "default", "fixed": "point"}
 

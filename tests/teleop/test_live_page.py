@@ -17,7 +17,6 @@ import pytest
 
 from mimicrete import demos
 from mimicrete.kin import Calibration
-from mimicrete.teleop import browser as br
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import synth as sy
 from mimicrete.teleop.live import Live
@@ -25,6 +24,7 @@ from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
 from mimicrete.teleop.session import Session
 from mimicrete.teleop.synth_scene import scene_from_env
 from mimicrete.teleop.view import standing_calibration, view_from_base
+from mimicrete.testing import page_driver as br
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ import pytest
 
 from mimicrete.hands.log import HandLogData
 from mimicrete.hands.model import GESTURE_SHAPES, hand_joints, rotation_matrix
-from mimicrete.teleop import browser as br
+from mimicrete.testing import page_driver as br
 
 STATIC = Path(__file__).resolve().parents[2] / "python" / "mimicrete" / "teleop" / "static"
 FRAME = struct.Struct("<4sIddII75f75f")

@@ -175,9 +175,9 @@ def server_latency(seconds: float = SECONDS) -> dict[str, Any]:
 
 
 def browser_round_trip(seconds: float = SECONDS) -> dict[str, Any]:
-    from mimicrete.teleop import browser as br
     from mimicrete.teleop.live import Live
     from mimicrete.teleop.server import ServerThread, TeleopServer
+    from mimicrete.testing import page_driver as br
 
     tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-live-page-"))
     right, left, calib, seed = _hands(tmp / "hands")

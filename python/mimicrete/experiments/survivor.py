@@ -13,6 +13,12 @@ sampled evaluation, e.g. group 5 with ``none`` at the paper's 5M steps::
 Every dir named ``group<g>-...seed<s>`` under the ``--runs`` dirs with both evaluations counts; its
 handling and budget come from its own ``resolved_config.yaml`` and ``run.json``, so the sweep's
 runs (``bootstrap``) go beside the comparison's without being named again.
+
+``--toy`` repeats the comparison in minutes: the same configuration (group 5's strengths:
+extrinsic 1.0, GAIL 0.1, BC 0.5) trained with ``none`` and with ``bootstrap`` on the numpy toy env,
+each evaluated on 100 deterministic episodes::
+
+    python -m mimicrete.experiments.survivor --toy [--steps 200000] [--gail 0.1] [--extrinsic 1.0]
 """
 
 from __future__ import annotations
@@ -89,18 +95,88 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(md_table(cols, out)) + "\n"
 
 
+def toy_run(mode: str, steps: int, gail: float, ext: float, seed: int, tmp: Path) -> dict:
+    """One short run on the numpy toy env (``mimicrete.testing.toyenv``: 12 toy expert demos,
+    small nets, BC warm start) with ``survivor_bias: mode``, evaluated on 100 deterministic
+    episodes; the evaluation's row plus ``train_seconds``."""
+    import time
+
+    from mimicrete.learn import config, evaluate
+    from mimicrete.learn.loop import train
+    from mimicrete.testing.toyenv import toy_config
+
+    c = toy_config(
+        tmp,
+        max_steps=steps,
+        buffer=4096,
+        batch=256,
+        num_envs=32,
+        ckpt=10**9,
+        gail=gail,
+        bc=0.5,
+        survivor_bias=mode,
+        seed=seed,
+    )
+    c = config.with_overrides(
+        c,
+        [
+            f"behavior.reward_signals.extrinsic.strength={ext}",
+            "behavior.behavioral_cloning.steps=40000",
+            "behavior.behavioral_cloning.pretrain_steps=1500",
+            "behavior.hyperparameters.num_epoch=3",
+            "behavior.summary_freq=16384",
+        ],
+    )
+    rd = tmp / f"{mode}-gail{gail}-ext{ext}-seed{seed}"
+    t0 = time.perf_counter()
+    train(c, rd, progress=False)
+    res = evaluate.evaluate_run(rd, 100)
+    res["train_seconds"] = time.perf_counter() - t0
+    return res
+
+
+def _toy(args: argparse.Namespace) -> int:
+    """``--toy``: one configuration trained twice, ``none`` then ``bootstrap``; a line each."""
+    import json
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(args.toy_dir or d)
+        tmp.mkdir(parents=True, exist_ok=True)
+        for mode in ("none", "bootstrap"):
+            r = toy_run(mode, args.steps, args.gail, args.extrinsic, args.seed, tmp)
+            print(
+                f"survivor_bias={mode:<9} picked {r['picked_rate']:.0%}  installed "
+                f"{r['installed_rate']:.0%}  mean length {r['mean_episode_length']:.1f}  "
+                f"({r['train_seconds']:.0f} s)  {json.dumps(r)}"
+            )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m mimicrete.experiments.survivor",
         description="GAIL's survivor-bias handling (none / bootstrap) against the evaluation "
         "policy: a Markdown table of the evaluated runs of groups 2, 5, 6 and 7 under the given "
-        "dirs.",
+        "dirs (--runs), or a short rerun of both settings on the numpy toy env (--toy).",
     )
-    p.add_argument("--runs", nargs="+", required=True, metavar="DIR",
-                   help="dirs holding group<g>-...seed<s> run dirs (e.g. runs/survivor and the "
-                   "sweep's runs/table5/runs)")  # fmt: skip
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--runs", nargs="+", metavar="DIR",
+                       help="dirs holding group<g>-...seed<s> run dirs (e.g. runs/survivor and "
+                       "the sweep's runs/table5/runs)")  # fmt: skip
+    which.add_argument("--toy", action="store_true",
+                       help="train group 5's strengths (by default) twice on the toy env, none "
+                       "then bootstrap, and print each evaluation")  # fmt: skip
     p.add_argument("--out", help="also write the table to this file")
+    toy = p.add_argument_group("--toy")
+    toy.add_argument("--steps", type=int, default=200_000)
+    toy.add_argument("--gail", type=float, default=0.1, help="GAIL strength")
+    toy.add_argument("--extrinsic", type=float, default=1.0, help="extrinsic strength")
+    toy.add_argument("--seed", type=int, default=0)
+    toy.add_argument("--toy-dir", help="keep the toy runs here (default: a temporary dir)")
     args = p.parse_args(argv)
+    if args.toy:
+        return _toy(args)
     bad = missing_dir("--runs", args.runs)
     if bad:
         print(f"survivor: error: {bad}", file=sys.stderr)

@@ -9,9 +9,9 @@ Modules, by what they own: ``config`` (the YAML schema), ``env`` (which env an i
 ``demo_data`` (demos as the trainer reads them), ``episodes`` (episode statistics), ``networks``,
 ``normalizer``, ``buffer`` (rollout, GAE), ``ppo``, ``gail``, ``bc``, ``trainer`` (one update),
 ``checkpoint`` (what a checkpoint holds), ``loop`` (a run: resume, summaries, checkpoints),
-``run_files`` (what a run dir holds), ``evaluate``, ``video`` (rollout videos), ``plots``,
-``toyenv``. The names below are imported on first use, so importing the package does not import
-torch.
+``run_files`` (what a run dir holds), ``evaluate``, ``video`` (rollout videos), ``plots``. The
+numpy toy env of the tests and smoke runs (env ids ``Toy…``) is ``mimicrete.testing.toyenv``. The
+names below are imported on first use, so importing the package does not import torch.
 """
 
 from __future__ import annotations
@@ -37,8 +37,7 @@ _EXPORTS = {
 
 _SUBMODULES = {
     "bc", "buffer", "checkpoint", "config", "demo_data", "env", "episodes", "evaluate", "gail",
-    "loop", "networks", "normalizer", "plots", "ppo", "run_files", "scripted_demos",
-    "survivor_demo", "toyenv", "trainer", "video",
+    "loop", "networks", "normalizer", "plots", "ppo", "run_files", "trainer", "video",
 }  # fmt: skip
 
 __all__ = sorted(_EXPORTS)

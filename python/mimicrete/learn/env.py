@@ -1,10 +1,10 @@
 """The environments the trainer and the evaluation run: which vector env an ``env_id`` names, and
 the terminal observations of the episodes that ended in a step.
 
-``Toy...`` ids give the pure-numpy stand-in of ``toyenv.py`` (tests, smoke runs); anything else is
-``mimicrete.envs.make_vec`` over the Rust simulator. Both follow gymnasium 1.x's SAME_STEP
-autoreset: when an episode ends at a step, ``infos["final_obs"]`` holds its last observation and
-the returned observation is already the next episode's first.
+``Toy...`` ids give the pure-numpy stand-in of ``mimicrete.testing.toyenv`` (tests, smoke runs);
+anything else is ``mimicrete.envs.make_vec`` over the Rust simulator. Both follow gymnasium 1.x's
+SAME_STEP autoreset: when an episode ends at a step, ``infos["final_obs"]`` holds its last
+observation and the returned observation is already the next episode's first.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ TOY_PREFIX = "Toy"
 def make_env(env_id: str, num_envs: int, seed: int) -> Any:
     """``num_envs`` vectorised envs of ``env_id`` seeded with ``seed``."""
     if env_id.startswith(TOY_PREFIX):
-        from . import toyenv
+        from mimicrete.testing import toyenv
 
         return toyenv.make_vec(num_envs, seed=seed)
     from mimicrete import envs

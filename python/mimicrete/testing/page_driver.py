@@ -37,8 +37,7 @@ from typing import Any
 import numpy as np
 
 from mimicrete.hands.layouts import WEBXR_FROM_OPENXR, WEBXR_JOINT_NAMES
-
-from .session import CONTROL_DT
+from mimicrete.teleop.session import CONTROL_DT
 
 CHROMIUM = Path("/usr/bin/chromium")
 #: SwiftShader gives headless Chromium WebGL without a GPU; no sandbox because tests run as root;
@@ -445,7 +444,7 @@ class FrameSink:
     def _message(self, ws: Any, m: str | bytes) -> None:
         import json
 
-        from .protocol import parse_frame
+        from mimicrete.teleop.protocol import parse_frame
 
         if isinstance(m, str):
             if json.loads(m).get("type") == "hello":

@@ -213,7 +213,7 @@ def toy_config(
     }
     if bc:
         b["behavioral_cloning"] = {"demo_path": str(demos), "strength": bc, "steps": max_steps}
-    from .config import from_dict
+    from mimicrete.learn.config import from_dict
 
     return from_dict(
         {

@@ -1,14 +1,10 @@
-"""Interim demonstrations from the Rust scripted expert (``_native.SimExpert``) run through
-``gymnasium.make("mimicrete/<Task>-v0")``, saved as ``.npz`` with the arrays of
-``mimicrete.demos.load`` (obs, actions, rewards, terminated, truncated, episode). The trainer reads
-an ``.npz`` demo path directly. For when the hand-derived MCAP demos are not available:
-``python -m mimicrete.learn.scripted_demos --episodes 60 --seed 0 --out demos/expert.npz``.
-"""
+"""Demonstrations of the Rust scripted expert (``_native.SimExpert``) for the trainer tests on the
+real env: episodes run through ``gymnasium.make("mimicrete/<Task>-v0")``, as the arrays of
+``mimicrete.demos.load`` (obs, actions, rewards, terminated, truncated, episode), which a test
+saves as an ``.npz`` demo (the trainer reads one directly). Quicker than the hand-derived MCAP
+demos (``synth-hands`` + ``convert``), which the tests of that path use."""
 
 from __future__ import annotations
-
-import argparse
-from pathlib import Path
 
 import numpy as np
 
@@ -54,24 +50,3 @@ def scripted_demos(
         ep += 1
     env.close()
     return step_arrays(rows)
-
-
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--episodes", type=int, default=60)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--task", default="TileSuction")
-    p.add_argument("--out", required=True)
-    a = p.parse_args()
-    d = scripted_demos(a.episodes, a.seed, a.task)
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(a.out, **d)
-    lens = np.bincount(d["episode"])
-    print(
-        f"wrote {a.episodes} episodes, {len(d['obs'])} steps (mean length {lens.mean():.1f}) "
-        f"to {a.out}"
-    )
-
-
-if __name__ == "__main__":
-    main()
