@@ -17,7 +17,7 @@ _CONST: dict[str, Any] = _native.sim_constants()
 
 
 @dataclass(frozen=True)
-class Task:
+class TaskSpec:
     """One task: its names and the simulator's sizes for it."""
 
     name: str  # suction | grip | screw: the CLI's and the hand logs' name
@@ -33,9 +33,9 @@ class Task:
         return f"mimicrete/{self.sim}-v0"
 
 
-def _task(name: str, sim: str, gesture_model: str, success: str) -> Task:
+def _task(name: str, sim: str, gesture_model: str, success: str) -> TaskSpec:
     d = _CONST["tasks"][sim]
-    return Task(
+    return TaskSpec(
         name,
         sim,
         gesture_model,
@@ -46,7 +46,7 @@ def _task(name: str, sim: str, gesture_model: str, success: str) -> Task:
     )
 
 
-TABLE: dict[str, Task] = {
+TABLE: dict[str, TaskSpec] = {
     t.name: t
     for t in (
         _task("suction", "TileSuction", "grip", "installed"),
@@ -69,7 +69,7 @@ _ALIASES: dict[str, str] = {
 }
 
 
-def get(name: str) -> Task:
+def get(name: str) -> TaskSpec:
     """The task named by any accepted spelling: ``suction``, ``TileSuction``,
     ``TileSuction-v0``, ``mimicrete/TileSuction-v0`` (case, ``-`` and ``_`` ignored)."""
     key = str(name).split("/")[-1].lower().replace("-", "").replace("_", "")

@@ -16,9 +16,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from mimicrete.export.source import DemoSet, Episode, ExportError, read_demo_dir
+from mimicrete.export.source import DemoEpisode, DemoSet, ExportError, read_demo_dir
 
-__all__ = ["FORMATS", "DemoSet", "Episode", "ExportError", "Result", "export", "read_demo_dir"]
+__all__ = ["FORMATS", "DemoEpisode", "DemoSet", "ExportError", "Result", "export", "read_demo_dir"]
 
 FORMATS: tuple[str, ...] = ("lerobot", "minari")
 

@@ -66,7 +66,7 @@ class ExportError(MimicreteError, ValueError):
 
 
 @dataclass
-class Episode:
+class DemoEpisode:
     """One demonstration, checked by replay. ``T`` steps."""
 
     file: str
@@ -96,7 +96,7 @@ class DemoSet:
     control_dt: float
     obs_dim: int
     act_dim: int
-    episodes: list[Episode]
+    episodes: list[DemoEpisode]
 
     @property
     def num_frames(self) -> int:
@@ -186,7 +186,7 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
         seed = int(ep["meta"].get("seed", "0"))
         final_obs, info = _replay(f, spec.sim, seed, obs, act, ep)
         episodes.append(
-            Episode(
+            DemoEpisode(
                 file=str(f),
                 index=i,
                 obs=obs,

@@ -7,7 +7,7 @@ through in-between finger shapes, one-frame tracking glitches, short dropouts):
 
 * **episodes** (:func:`demo_sequences`): whole task demonstrations, exactly as
   ``mimicrete synth-hands`` makes them; the demonstrator labels each frame
-  (:attr:`mimicrete.teleop.synth.Episode.gestures`). They show only the classes a task uses
+  (:attr:`mimicrete.teleop.synth.SynthEpisode.gestures`). They show only the classes a task uses
   (suction/grip: ``closing``/``opening``; screw: ``opening_stopped`` → ``closing_fixed`` →
   ``closing_tightening`` → ``closing_fixed`` → ``opening_stopped``).
 * **drills** (:func:`drill_sequence`): the same person cycling through every class of a model

@@ -56,7 +56,7 @@ from .synth_scene import (  # noqa: F401  (re-exported: the demonstrator's publi
 
 
 @dataclass
-class Episode:
+class SynthEpisode:
     """One synthesised demonstration: frames in headset space and what made them."""
 
     header: dict[str, Any]
@@ -80,7 +80,7 @@ def synth_episode(
     layout: str = "openxr",
     calib: Calibration | None = None,
     handedness: str = "right",
-) -> Episode:
+) -> SynthEpisode:
     """Synthesise one demonstration of ``scene``; the same ``(scene, seed)`` gives the same
     episode."""
     layout = layouts.check_layout(layout)
@@ -133,11 +133,11 @@ def synth_episode(
             "rate_hz": HAND_RATE_HZ,
         },
     )
-    return Episode(header, t, tracked, out, phases, frames, gestures, changing)
+    return SynthEpisode(header, t, tracked, out, phases, frames, gestures, changing)
 
 
-def write_handlog(path: str | Path, ep: Episode) -> Path:
-    """Write an :class:`Episode` as a hand log (JSON Lines, coordinates rounded to 10 µm)."""
+def write_handlog(path: str | Path, ep: SynthEpisode) -> Path:
+    """Write a :class:`SynthEpisode` as a hand log (JSON Lines, coordinates rounded to 10 µm)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w") as f:
