@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from mimicrete.experiments import report, stats
 from mimicrete.experiments.paper import PAPER_TABLE3
-from mimicrete.experiments.runs import Run
+from mimicrete.experiments.sweep_runs import Run
 from mimicrete.learn.run_files import read_scalars
 
 from ._synthetic import write_run as _write_run

@@ -30,7 +30,7 @@ from mimicrete.learn.run_files import atomic_write
 
 from .markdown import steps
 from .paper import PAPER_TABLE5
-from .runs import load_runs, missing_dir
+from .sweep_runs import load_runs, missing_dir
 
 DEFAULT_COUNTS = (60, 20, 10, 5)
 DEFAULT_SEEDS = (0, 1, 2)

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 
 from .paper import FIG7_PANELS, PAPER_GAIL_LOSS
-from .runs import Run
 from .stats import (
     TAG_GAIL_LOSS,
     TAG_INSTALLED,
@@ -17,6 +16,7 @@ from .stats import (
     curve_band,
     held_to_budget,
 )
+from .sweep_runs import Run
 
 
 def _plot_panel(

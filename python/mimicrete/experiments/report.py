@@ -25,7 +25,6 @@ from .markdown import pct as _pct
 from .markdown import steps as _steps
 from .markdown import table as _table
 from .paper import FIG7_PANELS, PAPER_GAIL_LOSS, PAPER_MAX_STEPS, PAPER_TABLE3, PAPER_TABLE5
-from .runs import Run, _json, load_runs, missing_dir, sweep_parts
 from .stats import (
     GAIL_WINDOW,
     LENGTH_TOL,
@@ -37,6 +36,7 @@ from .stats import (
     group_stats,
     mean_sd,
 )
+from .sweep_runs import Run, _json, load_runs, missing_dir, sweep_parts
 from .verdicts import comparison_lines
 
 WHY_MARK = "<!-- WHY: human-written explanation goes here -->"

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .runs import Run
+from .sweep_runs import Run
 
 TAG_REWARD = "Environment/Cumulative Reward"
 TAG_INSTALLED = "Environment/Installed Rate"

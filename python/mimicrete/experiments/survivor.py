@@ -33,7 +33,7 @@ from typing import Any
 from .markdown import steps
 from .markdown import table as md_table
 from .paper import PAPER_TABLE5
-from .runs import load_run, missing_dir
+from .sweep_runs import load_run, missing_dir
 
 NAME_RE = re.compile(r"^group(\d+)-(?:.+-)?seed(\d+)$")
 DEFAULT_GROUPS = (2, 5, 6, 7)  # GAIL strength 0.1 or more
