@@ -4,7 +4,7 @@ The built page runs in Debian's Chromium (Playwright, headless) with IWER emulat
 its WebSocket is answered inside Playwright (:class:`~mimicrete.testing.page_driver.FrameSink`). The
 emulated right hand shows IWER's ``pinch``, ``default`` (relaxed) and ``point`` poses in turn
 while it moves and turns about the workspace; the joints the page sends are the samples
-(:func:`mimicrete.gestures.record.record`)."""
+(:func:`mimicrete.gestures.recorder.record`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 
 from mimicrete import gestures as g
 from mimicrete.cli import main as cli_main
-from mimicrete.gestures import record as gr
+from mimicrete.gestures import recorder as gr
 from mimicrete.testing import page_driver as br
 
 POSES = {"closing": "pinch", "opening": "default", "fixed": "point"}

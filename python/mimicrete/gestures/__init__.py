@@ -24,7 +24,7 @@ of frames (median and change) into the same SVM, trained on labelled sequences
 (:mod:`.sequences`: the scripted demonstrator's episodes and gesture drills); a model file's
 ``kind`` (``per-frame``/``temporal``) says which it is, ``load_model`` returns the right class,
 and :data:`DEFAULT_KIND` picks the shipped default per task. Labelled CSVs may carry a
-``sequence`` column (:mod:`.data`). Recording samples from a live hand: :mod:`.record`.
+``sequence`` column (:mod:`.data`). Recording samples from a live hand: :mod:`.recorder`.
 
 The built-in data come from the parametric hand (:mod:`mimicrete.hands.model`): each class's
 shapes drawn from wide ranges (:data:`~mimicrete.hands.model.GESTURE_RANGES`: any pinch, any

@@ -4,12 +4,12 @@ The page asks for each class of the task in turn (suction / grip: ``closing``, `
 ``fixed``; screw: the paper's five tuples). While a class records, every usable right-hand frame
 that arrives at least ``min_interval_s`` after the previous sample (and ``settle_s`` after the
 class started, while the hand forms the gesture) becomes a labelled sample
-(:class:`mimicrete.gestures.record.GestureRecorder`); the user holds the gesture and moves and
+(:class:`mimicrete.gestures.recorder.GestureRecorder`); the user holds the gesture and moves and
 turns the hand about the workspace. A class can be redone. When every class has its samples the
 server trains, in a worker thread (the frame loop keeps running): it writes the labelled CSV that
 ``mimicrete gesture train --data`` reads (``label,sequence,t,handedness`` + 75 WebXR coordinates)
 to ``DIR/gesture_<task>_user.csv``, fits the per-frame SVM with a stratified 80/20 split and a
-5-fold CV grid search (:func:`mimicrete.gestures.record.train_samples`), and saves it as
+5-fold CV grid search (:func:`mimicrete.gestures.recorder.train_samples`), and saves it as
 ``DIR/gesture_<task>_user.joblib`` (+ ``.json``). The live session uses it from then on, and the
 next ``mimicrete teleop --out DIR`` picks it up (:func:`user_model_path`).
 
@@ -35,7 +35,7 @@ from mimicrete.gestures import (
     read_gesture_csv,
     write_gesture_csv,
 )
-from mimicrete.gestures.record import GestureRecorder, train_samples
+from mimicrete.gestures.recorder import GestureRecorder, train_samples
 
 from .provenance import file_sha256
 
@@ -95,7 +95,7 @@ class GestureMode:
         task: ``suction`` / ``grip`` / ``screw``.
         out: the demo folder (the CSV and the model are written there).
         per_class: samples per class.
-        settle_s, min_interval_s: see :class:`~mimicrete.gestures.record.GestureRecorder`.
+        settle_s, min_interval_s: see :class:`~mimicrete.gestures.recorder.GestureRecorder`.
         grid: the C × gamma grid of the SVM's 5-fold CV search (default: the full one).
     """
 

@@ -460,7 +460,7 @@ IWER_POSES: tuple[str, ...] = ("default", "pinch", "point")
 
 
 class IwerPoseSource:
-    """A :class:`mimicrete.gestures.record.FrameSource` made of IWER's emulated hand in a page
+    """A :class:`mimicrete.gestures.recorder.FrameSource` made of IWER's emulated hand in a page
     that is in VR: ``prompt(label)`` sets the hand's pose (``poses[label]``, an IWER poseId),
     ``frames()`` moves and turns the hand about the workspace (a smooth random path, set with
     ``page.evaluate`` on ``window.__mimicrete.device``) and yields the right-hand frames the page
