@@ -50,7 +50,7 @@ web: $(WEB_STAMP) $(CHROMIUM) ## build the teleop page into $(WEB_STATIC); insta
 HANDS := data/hands/suction
 DEMOS := demos/suction
 
-$(DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/teleop/*.py python/mimicrete/gestures/*.py python/mimicrete/hands/*.py)
+$(DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/demonstrator/*.py python/mimicrete/teleop/*.py python/mimicrete/gestures/*.py python/mimicrete/hands/*.py)
 	$(VENV)/bin/mimicrete synth-hands --task suction --episodes 60 --seed 0 --out $(HANDS)
 	$(VENV)/bin/mimicrete convert $(HANDS) --task suction --out $(DEMOS)
 	touch $@

@@ -92,6 +92,6 @@ def figures_dir(pytestconfig) -> Path | None:
 def scene_fn():
     """``(task, seed) -> mimicrete.synth.Scene``: the simulator's own scene
     (``synth.scene_from_env``; the package is always built with the simulator)."""
-    from mimicrete.teleop import synth as sy
+    from mimicrete import demonstrator as sy
 
     return sy.scene_from_env

@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from _cli_run import run_cli as run
+from mimicrete import demonstrator as sy
 from mimicrete import demos
-from mimicrete.teleop import synth as sy
 
 
 def no_traceback(p: subprocess.CompletedProcess[str]) -> None:

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from mimicrete import _native
+from mimicrete import demonstrator as sy
 from mimicrete.teleop import convert as cv
-from mimicrete.teleop import synth as sy
 
 ROOT = Path(__file__).resolve().parent.parent
 SCHEMAS = Path(

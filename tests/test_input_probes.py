@@ -25,7 +25,7 @@ import pytest
 import mimicrete
 from _cli_run import run_cli as run
 from mimicrete import LogFormatError, demos
-from mimicrete.teleop import synth as sy
+from mimicrete import demonstrator as sy
 
 #: A probe that hangs fails after this many seconds instead of blocking the suite.
 HANG_S = 30

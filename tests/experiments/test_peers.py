@@ -24,7 +24,8 @@ LEROBOT_PY = Path(os.environ.get("MIMICRETE_LEROBOT_PYTHON", REPO / ".venv-expor
 
 @pytest.fixture(scope="module")
 def one_demo(tmp_path_factory) -> Path:
-    from mimicrete.teleop import convert, synth
+    from mimicrete import demonstrator as synth
+    from mimicrete.teleop import convert
 
     root = tmp_path_factory.mktemp("peers-demos")
     out = root / "demos"

@@ -9,7 +9,8 @@ import pytest
 
 
 def _demos(root: Path, task: str, episodes: int, seed: int) -> Path:
-    from mimicrete.teleop import convert, synth
+    from mimicrete import demonstrator as synth
+    from mimicrete.teleop import convert
 
     hands = root / f"hands-{task}"
     out = root / f"demos-{task}"

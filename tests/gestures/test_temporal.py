@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mimicrete import demonstrator as sy
 from mimicrete import gestures as g
 from mimicrete.cli import main as cli_main
 from mimicrete.gestures import metrics as mt
@@ -17,7 +18,6 @@ from mimicrete.gestures import recorder as gr
 from mimicrete.gestures import sequences as sq
 from mimicrete.gestures import temporal as tp
 from mimicrete.hands import model as hm
-from mimicrete.teleop import synth as sy
 
 QUICK = {"svc__C": [10.0], "svc__gamma": [0.003]}
 

@@ -11,11 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mimicrete import LogFormatError, kin
+from mimicrete import demonstrator as sy
 from mimicrete.cli import main as cli_main
 from mimicrete.hands import log as handlog
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import session as ss
-from mimicrete.teleop import synth as sy
 
 
 def _log(tmp_path, scene_fn, task="suction", seed=0, layout="openxr", handedness="right"):

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mimicrete import demonstrator as sy
 from mimicrete import demos
 from mimicrete import gestures as g
 from mimicrete.cli import main as cli_main
@@ -22,7 +23,6 @@ from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop import provenance as pv
-from mimicrete.teleop import synth as sy
 from mimicrete.teleop.gesturemode import user_model_path
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.protocol import HandFrame

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from aiohttp.test_utils import TestClient, TestServer
 
+from mimicrete import demonstrator as sy
 from mimicrete import demos
 from mimicrete.hands.log import HandLogData
 from mimicrete.teleop import convert as cv
-from mimicrete.teleop import synth as sy
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.protocol import FRAME_BYTES, pack_frame
 from mimicrete.teleop.server import TeleopServer

@@ -9,12 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mimicrete import demonstrator as sy
 from mimicrete import gestures as g
 from mimicrete import kin
 from mimicrete.hands import layouts
 from mimicrete.hands import log as handlog
 from mimicrete.hands import model as hm
-from mimicrete.teleop import synth as sy
 
 
 def _rot_from(seed: int) -> np.ndarray:

@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mimicrete import demonstrator as sy
 from mimicrete import gestures as gest
 from mimicrete import tasks
 from mimicrete.teleop import convert as cv
-from mimicrete.teleop import synth as sy
 from mimicrete.teleop.record import DemoSink, episode_meta
 from mimicrete.teleop.session import CONTROL_DT, Session
 

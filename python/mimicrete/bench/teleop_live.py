@@ -55,11 +55,11 @@ def _hands(folder: Path) -> tuple[np.ndarray, np.ndarray, Any, int]:
     """Right: a scripted suction demonstration (WebXR joints, ``local``, 90 Hz) standing at the
     table; left: an open hand held still beside it (no pinch, so no episode control). Also the
     calibration and the simulator seed the demonstration was made for."""
+    from mimicrete import demonstrator as sy
+    from mimicrete.demonstrator.scene import scene_from_env
     from mimicrete.hands.layouts import to_layout
     from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
     from mimicrete.teleop import convert as cv
-    from mimicrete.teleop import synth as sy
-    from mimicrete.teleop.synth_scene import scene_from_env
     from mimicrete.teleop.view import standing_calibration
 
     calib = standing_calibration()

@@ -1,4 +1,4 @@
-"""`mimicrete synth-hands`: hand logs of the scripted demonstrator (`mimicrete.teleop.synth`)."""
+"""`mimicrete synth-hands`: hand logs of the scripted demonstrator (`mimicrete.demonstrator`)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete synth-hands``."""
-    from mimicrete.teleop.synth import synth_hands
+    from mimicrete.demonstrator import synth_hands
 
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")

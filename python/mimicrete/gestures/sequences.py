@@ -1,13 +1,13 @@
 """Labelled gesture **sequences** (frames in time, each with the class the person shows), for the
 temporal model and for comparing models on streams rather than on single poses.
 
-Two sources, both from the scripted demonstrator's person (:mod:`mimicrete.teleop.synth`,
-:mod:`mimicrete.teleop.synth_motion`: minimum-jerk reaches, tremor and sway, gestures changing
+Two sources, both from the scripted demonstrator's person (:mod:`mimicrete.demonstrator`,
+:mod:`mimicrete.demonstrator.motion`: minimum-jerk reaches, tremor and sway, gestures changing
 through in-between finger shapes, one-frame tracking glitches, short dropouts):
 
 * **episodes** (:func:`demo_sequences`): whole task demonstrations, exactly as
   ``mimicrete synth-hands`` makes them; the demonstrator labels each frame
-  (:attr:`mimicrete.teleop.synth.SynthEpisode.gestures`). They show only the classes a task uses
+  (:attr:`mimicrete.demonstrator.SynthEpisode.gestures`). They show only the classes a task uses
   (suction/grip: ``closing``/``opening``; screw: ``opening_stopped`` → ``closing_fixed`` →
   ``closing_tightening`` → ``closing_fixed`` → ``opening_stopped``).
 * **drills** (:func:`drill_sequence`): the same person cycling through every class of a model
@@ -68,7 +68,7 @@ def demo_sequences(
     """One demonstrator episode per seed for each demonstrator task of model task ``task``
     (``grip``: suction and grip episodes; ``screw``: screw episodes). The seed is both the
     simulator's episode seed and the person's."""
-    from mimicrete.teleop import synth as sy
+    from mimicrete import demonstrator as sy
 
     out = []
     for demo in MODEL_TASK_DEMOS[TASK_MODEL.get(task, task)]:
@@ -121,8 +121,8 @@ def drill_sequence(
     −z ahead), turned up to ~±45° about every axis from palm-down, slowly; handedness right
     (80 %) or left unless given. Same ``(task, seed)``, same drill.
     """
-    from mimicrete.teleop.synth_motion import Motion, Person, _slow_noise, _tremor, tracked_hand
-    from mimicrete.teleop.synth_scene import HAND_RATE_HZ
+    from mimicrete.demonstrator.motion import Motion, Person, _slow_noise, _tremor, tracked_hand
+    from mimicrete.demonstrator.scene import HAND_RATE_HZ
 
     task = TASK_MODEL.get(task, task)
     classes = TASK_CLASSES[task]

@@ -1,5 +1,5 @@
 """How the scripted person moves: minimum-jerk reaches, pauses, gestures, tremor and slow drift,
-planned per task from the scene (:mod:`.synth_scene`)."""
+planned per task from the scene (:mod:`.scene`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 
 from mimicrete.hands import model as hm
 
-from .synth_scene import (
+from .scene import (
     HAND_RATE_HZ,
     SHAPE_OF,
     TASKS,

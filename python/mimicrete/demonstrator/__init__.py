@@ -23,6 +23,10 @@ How a motion is made:
    origin at the wrist; headset OpenXR space → Base by :class:`mimicrete.kin.Calibration`), so the
    hand pose is that map inverted (:func:`hand_pose_for_tool0`; the forward map is only ever
    ur3-kin's), and the parametric hand (:mod:`mimicrete.hands.model`) adds the fingers.
+
+Here: the episodes and their hand logs (:class:`SynthEpisode`, :func:`synth_episode`,
+:func:`synth_hands`); :mod:`.motion`, how the person moves (steps 2-3); :mod:`.scene`, what the
+person sees and the hand pose for a tool0 pose (steps 1 and 4).
 """
 
 from __future__ import annotations
@@ -38,8 +42,8 @@ from mimicrete.hands import layouts
 from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
-from .synth_motion import Person, _slow_noise, _tremor, plan_task, tracked_hand
-from .synth_scene import (  # noqa: F401  (re-exported: the demonstrator's public names)
+from .motion import Person, _slow_noise, _tremor, plan_task, tracked_hand
+from .scene import (  # noqa: F401  (re-exported: the demonstrator's public names)
     HAND_RATE_HZ,
     SHAPE_OF,
     TASKS,
