@@ -1,7 +1,7 @@
 // Desktop emulation (loaded only for ?emulate=quest3 or ?emulate=quest2): Meta's IWER runtime
 // replaces navigator.xr with an emulated headset whose hands are tracked, and its dev UI lets a
 // person drive the hands with mouse and keyboard. Tests replay recorded hands through IWER's
-// ActionPlayer (see python/mimicrete/teleop/browser.py, which builds the recordings).
+// ActionPlayer (see python/mimicrete/testing/page_driver.py, which builds the recordings).
 import { XRDevice, metaQuest2, metaQuest3 } from 'iwer';
 import { DevUI } from '@iwer/devui';
 
@@ -20,7 +20,7 @@ export function installEmulator(kind, { devui = true } = {}) {
 }
 
 /**
- * Play a recording (IWER's ActionRecorder format, built by browser.py) from the next XR frame on.
+ * Play a recording (IWER's ActionRecorder format, built by page_driver.py) from the next XR frame on.
  *
  * IWER facts this relies on (iwer 2.5.0, lib/action/ActionPlayer.js and device/XRDevice.js):
  * - while a player is `playing`, XRDevice.inputSources are the player's, and at the start of every
