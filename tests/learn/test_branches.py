@@ -185,8 +185,8 @@ def test_branch_class_weights_use_each_branch_own_frequencies():
 @pytest.fixture(scope="module")
 def screw_demos(tmp_path_factory):
     """Three converted screw demos (scripted hand logs through the teleoperation converter)."""
+    from mimicrete import demonstrator as sy
     from mimicrete.teleop import convert as cv
-    from mimicrete.teleop import synth as sy
 
     tmp = tmp_path_factory.mktemp("screw")
     for i, p in enumerate(sy.synth_hands("screw", 3, 500, tmp / "logs")):
@@ -229,14 +229,18 @@ def test_short_two_branch_run_on_screw(tmp_path, screw_demos):
     cfg = _screw_config()
     run = tmp_path / "run"
     tr = learn.train(cfg, run, demos=str(screw_demos), max_steps=1536, progress=False)
-    assert tr.step == 1536 and tr.n_branches == 2 and tr.actor.logits.out_features == 6
-    ro = tr.rollout
+    assert tr.step == 1536 and tr.n_branches == 2 and tr.state.actor.logits.out_features == 6
+    ro = tr.state.rollout
     assert ro.k.shape == (64, 8, 2) and ro.logp.shape == (64, 8, 8)
     assert set(np.unique(ro.env_actions[..., 7])) <= {-1.0, 0.0, 1.0}
     assert np.array_equal(ro.env_actions[..., 6:], ro.k - 1.0)
-    assert tr.bc is not None and tr.bc.ee_weight is not None and tr.bc.ee_weight.shape == (2, 3)
+    assert (
+        tr.state.bc is not None
+        and tr.state.bc.ee_weight is not None
+        and tr.state.bc.ee_weight.shape == (2, 3)
+    )
     # the spin branch has its own weights: "tighten" is rarer than "stop" in the demos
-    assert tr.bc.ee_weight[1, 2] > tr.bc.ee_weight[1, 1]
+    assert tr.state.bc.ee_weight[1, 2] > tr.state.bc.ee_weight[1, 1]
     rows = list(csv.DictReader((run / "scalars.csv").open()))
     assert len(rows) == 3
     # entropy: the Gaussian's (sigma ~ 1/3 or less after BC) + two 3-way branches, at most ln 3
@@ -247,7 +251,7 @@ def test_short_two_branch_run_on_screw(tmp_path, screw_demos):
     assert len(list((run / "checkpoints").glob("step_*.pt"))) == 3
     actor, _ = run_files.load_policy(run)
     assert actor.n_branches == 2
-    for key, v in tr.actor.state_dict().items():
+    for key, v in tr.state.actor.state_dict().items():
         assert torch.equal(actor.state_dict()[key], v), key
     res = evaluate.evaluate_run(run, 4)
     assert res["episodes"] == 4 and res["env_id"] == "Screw-v0"
@@ -290,10 +294,10 @@ def test_two_branch_resume_is_exact(tmp_path, screw_demos):
     learn.train(cfg, tmp_path / "b", stop_after_updates=1, **kw)
     res = learn.train(cfg, tmp_path / "b", resume=True, **kw)
     assert res.step == full.step == 1024
-    for key, v in full.actor.state_dict().items():
-        assert torch.equal(res.actor.state_dict()[key], v), key
-    for key, v in full.critic.state_dict().items():
-        assert torch.equal(res.critic.state_dict()[key], v), key
+    for key, v in full.state.actor.state_dict().items():
+        assert torch.equal(res.state.actor.state_dict()[key], v), key
+    for key, v in full.state.critic.state_dict().items():
+        assert torch.equal(res.state.critic.state_dict()[key], v), key
 
 
 def test_demos_of_another_task_are_refused(tmp_path, screw_demos):

@@ -114,15 +114,15 @@ def test_init_std_sets_the_policys_initial_sigma_and_is_range_checked(tmp_path):
     import torch
 
     from mimicrete.learn.networks import Actor
-    from mimicrete.learn.toyenv import toy_config
     from mimicrete.learn.trainer import Trainer
+    from mimicrete.testing.toyenv import toy_config
 
     base = toy_config(tmp_path)
     assert base.behavior.init_std == 1.0 / 3.0
     assert torch.equal(Actor(4, 6, 8, 1, False).log_std.data, torch.full((6,), -math.log(3.0)))
     cfg = config.with_overrides(base, ["behavior.init_std=0.05"])
     tr = Trainer(cfg, tmp_path / "run", None, 10_000)
-    assert torch.allclose(tr.actor.log_std.exp(), torch.full((6,), 0.05))
-    tr.env.close()
+    assert torch.allclose(tr.state.actor.log_std.exp(), torch.full((6,), 0.05))
+    tr.state.env.close()
     with pytest.raises(config.ConfigError, match=r"init_std: 0.0 is"):
         config.with_overrides(base, ["behavior.init_std=0.0"])

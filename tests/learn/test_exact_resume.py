@@ -20,7 +20,7 @@ from mimicrete.learn import config as config_mod
 from mimicrete.learn import run_files
 from mimicrete.learn.checkpoint import ResumeError
 from mimicrete.learn.run_files import WALL_CLOCK_TAGS
-from mimicrete.learn.toyenv import toy_config
+from mimicrete.testing.toyenv import toy_config
 
 UPDATES = 5
 WALL_CLOCK = set(WALL_CLOCK_TAGS)
@@ -75,7 +75,7 @@ def reference(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path,
     for env in ENVS:
         tmp = tmp_path_factory.mktemp(f"ref-{env}")
         tr = learn.train(_config(tmp, env, UPDATES), tmp / "run", progress=False)
-        assert tr.update_idx == UPDATES
+        assert tr.state.update_idx == UPDATES
         out[env] = (tmp / "run", tr.state_dict())
     return out
 
@@ -93,7 +93,7 @@ def test_interrupted_and_resumed_equals_uninterrupted(
     cfg = _config(tmp_path, env, ckpt_updates)
     run = tmp_path / "run"
     first = learn.train(cfg, run, progress=False, stop_after_updates=stop)
-    assert first.update_idx == stop
+    assert first.state.update_idx == stop
     ck = run_files.latest_checkpoint(run)
     assert ck is not None
     saved = run_files.load_checkpoint(ck)
@@ -102,7 +102,7 @@ def test_interrupted_and_resumed_equals_uninterrupted(
     if env == "sim":  # the checkpoint holds running episodes, replayed on resume
         assert all(len(a) > 0 for a in envs["actions"])
     tr = learn.train(cfg, run, progress=False, resume=True)
-    assert tr.update_idx == UPDATES and tr.step == ref["step"]
+    assert tr.state.update_idx == UPDATES and tr.step == ref["step"]
     got = tr.state_dict()
     if env == "sim":  # every env had an auto-reset (episode count 1) during the run
         assert list(got["envs"]["env"]["episodes"]) == [1] * ENVS["sim"]["num_envs"]
@@ -151,5 +151,5 @@ def test_a_checkpoint_of_an_older_version_resumes_with_a_warning(tmp_path: Path)
     torch.save(s, ck)
     with pytest.warns(UserWarning, match="older version .* not exact"):
         tr = learn.train(cfg, run, progress=False, resume=True)
-    assert tr.update_idx == UPDATES
+    assert tr.state.update_idx == UPDATES
     assert learn.ResumeError is ResumeError

@@ -14,6 +14,7 @@ import torch
 from mimicrete.learn import bc as bc_mod
 from mimicrete.learn import config, curriculum
 from mimicrete.learn.curriculum import DemoTrack, ReverseCurriculum, start_schedule
+from mimicrete.learn.demo_data import read_demos
 from mimicrete.learn.networks import Actor
 
 from ._small import SMALL_RUN
@@ -22,8 +23,8 @@ from ._small import SMALL_RUN
 @pytest.fixture(scope="module")
 def hand_demos(tmp_path_factory) -> Path:
     """Three demos through the real teleoperation path (synth-hands + convert), seed 300."""
+    from mimicrete.demonstrator import synth_hands
     from mimicrete.teleop import convert as cv
-    from mimicrete.teleop.synth import synth_hands
 
     root = tmp_path_factory.mktemp("fewdemo")
     logs = synth_hands("suction", 3, 300, root / "hands", progress=False)
@@ -190,7 +191,7 @@ def test_replay_reaches_the_recorded_demo_states(hand_demos):
     from mimicrete import demos, envs
 
     d = demos.load(hand_demos)
-    tracks = curriculum.demo_tracks(hand_demos, None)
+    tracks = curriculum.demo_tracks(read_demos(hand_demos, None))
     assert [t.seed for t in tracks] == [int(m["seed"]) for m in d.metas]
     venv = envs.make_vec("TileSuction-v0", num_envs=3, seed=0)
     obs0, _ = venv.reset(seed=5)
@@ -262,7 +263,7 @@ def test_short_fewdemo_run(hand_demos, tmp_path):
     )
     run = tmp_path / "run"
     tr = learn.train(cfg, run, demos=str(hand_demos), progress=False)
-    cur = tr.curriculum
+    cur = tr.state.curriculum
     assert cur is not None and len(cur.tracks) == 3 and tr.step == 3072
     assert cur.replayed_steps > 0
     sc = run_files.read_scalars(run)
@@ -274,15 +275,15 @@ def test_short_fewdemo_run(hand_demos, tmp_path):
     # curriculum's per-env demo starts are in the checkpoint beside the envs' own state
     run2 = tmp_path / "run2"
     b1 = learn.train(cfg, run2, demos=str(hand_demos), progress=False, stop_after_updates=2)
-    assert b1.curriculum is not None and b1.step == 2048
+    assert b1.state.curriculum is not None and b1.step == 2048
     ck = run_files.load_checkpoint(run_files.latest_checkpoint(run2))
-    assert ck["curriculum"]["stage"] == b1.curriculum.stage
+    assert ck["curriculum"]["stage"] == b1.state.curriculum.stage
     assert (ck["curriculum"]["env_demo"] >= 0).any()  # some envs were inside a demo
     b2 = learn.train(cfg, run2, demos=str(hand_demos), progress=False, resume=True)
     assert b2.step == tr.step == 3072
-    for k, v in tr.actor.state_dict().items():
-        assert torch.equal(v, b2.actor.state_dict()[k]), k
-    a, b = tr.curriculum.state_dict(), b2.curriculum.state_dict()
+    for k, v in tr.state.actor.state_dict().items():
+        assert torch.equal(v, b2.state.actor.state_dict()[k]), k
+    a, b = tr.state.curriculum.state_dict(), b2.state.curriculum.state_dict()
     assert a["stage"] == b["stage"] and a["results"] == b["results"]
     assert a["replayed_steps"] == b["replayed_steps"] and a["rng"] == b["rng"]
     np.testing.assert_array_equal(a["env_demo"], b["env_demo"])
@@ -294,7 +295,9 @@ def test_short_fewdemo_run(hand_demos, tmp_path):
             np.testing.assert_array_equal(s1[k][1], s2[k][1], err_msg=k)
     tr2 = learn.train(cfg, run2, demos=str(hand_demos), progress=False, resume=True)
     assert tr2.step == 3072
-    assert all(a >= b for a, b in zip(tr2.curriculum.stage, b1.curriculum.stage, strict=True))
+    assert all(
+        a >= b for a, b in zip(tr2.state.curriculum.stage, b1.state.curriculum.stage, strict=True)
+    )
 
 
 def test_max_demos_walks_back_the_first_demos_only(hand_demos, tmp_path):
@@ -306,9 +309,9 @@ def test_max_demos_walks_back_the_first_demos_only(hand_demos, tmp_path):
         1024, "behavior.checkpoint_interval=1024", "behavior.demo_curriculum.max_demos=2"
     )
     tr = learn.train(cfg, tmp_path / "run", demos=str(hand_demos), progress=False)
-    assert tr.curriculum is not None
-    every = curriculum.demo_tracks(hand_demos, None)
-    assert [t.seed for t in tr.curriculum.tracks] == [t.seed for t in every[:2]]
+    assert tr.state.curriculum is not None
+    every = curriculum.demo_tracks(read_demos(hand_demos, None))
+    assert [t.seed for t in tr.state.curriculum.tracks] == [t.seed for t in every[:2]]
     assert len(every) == 3 and len({t.seed for t in every}) == 3
-    assert set(tr.curriculum.env_demo.tolist()) <= {-1, 0, 1}
+    assert set(tr.state.curriculum.env_demo.tolist()) <= {-1, 0, 1}
     assert tr.demo_steps_loaded == sum(t.length for t in every)  # BC read all three

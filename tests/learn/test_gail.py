@@ -100,8 +100,8 @@ def test_overlapped_gail_steps_give_the_same_training_bit_for_bit(tmp_path):
     import threading
 
     from mimicrete.learn import config as config_mod
-    from mimicrete.learn.toyenv import toy_config
     from mimicrete.learn.trainer import Trainer
+    from mimicrete.testing.toyenv import toy_config
 
     states = {}
     for overlap in (False, True):
@@ -112,25 +112,25 @@ def test_overlapped_gail_steps_give_the_same_training_bit_for_bit(tmp_path):
         )
         tr = Trainer(cfg, tmp_path / f"run-{overlap}", None, 100_000)
         threads: set[str] = set()
-        step = tr.gail.step
+        step = tr.state.gail.step
 
         def spy(*a, _step=step, _seen=threads, **k):
             _seen.add(threading.current_thread().name)
             return _step(*a, **k)
 
-        tr.gail.step = spy
+        tr.state.gail.step = spy
         for _ in range(3):
             tr.iterate()
         assert (threading.main_thread().name in threads) is not overlap
         states[overlap] = (
-            [p.detach().clone() for p in tr.actor.parameters()]
-            + [p.detach().clone() for p in tr.critic.parameters()]
-            + [p.detach().clone() for p in tr.gail.disc.parameters()],
-            {k: list(v) for k, v in tr._update_stats.items()},
-            tr.rng.bit_generator.state,
+            [p.detach().clone() for p in tr.state.actor.parameters()]
+            + [p.detach().clone() for p in tr.state.critic.parameters()]
+            + [p.detach().clone() for p in tr.state.gail.disc.parameters()],
+            {k: list(v) for k, v in tr.state.pending.update_stats.items()},
+            tr.state.rng.bit_generator.state,
             torch.get_rng_state(),
         )
-        tr.env.close()
+        tr.state.env.close()
     (w0, s0, r0, t0), (w1, s1, r1, t1) = states[False], states[True]
     assert len(w0) == len(w1) and all(torch.equal(a, b) for a, b in zip(w0, w1, strict=True))
     assert sorted(s0) == sorted(s1) and "Losses/GAIL Loss" in s0
@@ -144,7 +144,7 @@ def test_a_finished_run_leaves_no_gail_thread_behind(tmp_path):
     import threading
 
     from mimicrete import learn
-    from mimicrete.learn.toyenv import toy_config
+    from mimicrete.testing.toyenv import toy_config
 
     def gail_threads() -> int:
         return sum(t.name.startswith("gail") for t in threading.enumerate())
@@ -153,5 +153,5 @@ def test_a_finished_run_leaves_no_gail_thread_behind(tmp_path):
     for i in range(2):
         tr = learn.train(toy_config(tmp_path, gail=0.05, max_steps=1024), tmp_path / f"r{i}",
                          progress=False)  # fmt: skip
-        assert tr.cfg.torch_settings.overlap_gail and tr.gail is not None
+        assert tr.cfg.torch_settings.overlap_gail and tr.state.gail is not None
     assert gail_threads() == before

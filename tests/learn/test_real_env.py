@@ -9,13 +9,12 @@ import torch
 from mimicrete import learn
 from mimicrete.learn import config, demo_data, evaluate
 
+from ._expert_demos import scripted_demos
 from ._rollout import evaluated_first_episode, first_episode
 from ._small import SMALL_RUN
 
 
 def test_short_run_on_tile_suction(tmp_path):
-    from mimicrete.learn.scripted_demos import scripted_demos
-
     demos = scripted_demos(6, seed=100)
     assert set(np.unique(demos["actions"][:, 6])) <= {-1.0, 0.0, 1.0}
     assert demos["terminated"].sum() == 6  # every scripted episode installs
@@ -35,13 +34,17 @@ def test_short_run_on_tile_suction(tmp_path):
     )
     run = tmp_path / "run"
     tr = learn.train(cfg, run, demos=str(tmp_path / "d.npz"), progress=False)
-    assert tr.step == 2048 and tr.signals == ["extrinsic", "gail"]
+    assert tr.step == 2048 and tr.state.signals == ["extrinsic", "gail"]
     # group 4 leaves the expert's pauses out of BC and GAIL (demo_drop_idle 0.1), and says so
     info = json.loads((run / "run.json").read_text())
     idle = demo_data.idle_steps(demos["actions"], demos["episode"], 0.1)
     assert info["demo_steps_loaded"] == len(demos["actions"])
-    assert info["demo_steps_idle_dropped"] == idle.sum() == len(demos["actions"]) - len(tr.bc.obs)
-    assert tr.gail is not None and len(tr.gail.expert) == len(tr.bc.obs)
+    assert (
+        info["demo_steps_idle_dropped"]
+        == idle.sum()
+        == len(demos["actions"]) - len(tr.state.bc.obs)
+    )
+    assert tr.state.gail is not None and len(tr.state.gail.expert) == len(tr.state.bc.obs)
     res = evaluate.evaluate_run(run, 8)
     assert res["episodes"] == 8
     # the length eval reports is the policy's: its first episode counted by stepping it by hand
@@ -62,6 +65,6 @@ def test_short_run_on_tile_suction(tmp_path):
     obs = demos["obs"][:200]
     (out,) = sess.run(["actions"], {"obs": obs})
     with torch.no_grad():
-        ref = tr.actor.deterministic(torch.from_numpy(obs)).numpy()
+        ref = tr.state.actor.deterministic(torch.from_numpy(obs)).numpy()
     np.testing.assert_allclose(out[:, :6], ref[:, :6], atol=1e-5)
     np.testing.assert_array_equal(out[:, 6], ref[:, 6])

@@ -7,8 +7,8 @@ import torch
 from mimicrete import learn
 from mimicrete.learn.networks import Actor
 from mimicrete.learn.run_files import export_onnx
-from mimicrete.learn.toyenv import toy_config
 from mimicrete.learn.trainer import Trainer
+from mimicrete.testing.toyenv import toy_config
 
 
 def _flat(sd: dict) -> dict:
@@ -27,7 +27,7 @@ def test_resume_equals_uninterrupted(tmp_path):
     b1 = learn.train(cfg, tmp_path / "b", progress=False, stop_after_updates=2)
     assert b1.step == 1024 and (tmp_path / "b/checkpoints/step_000001024.pt").exists()
     b = learn.train(cfg, tmp_path / "b", progress=False, resume=True)
-    assert a.step == b.step == 2048 and a.update_idx == b.update_idx == 4
+    assert a.step == b.step == 2048 and a.state.update_idx == b.state.update_idx == 4
     sa, sb = a.state_dict(), b.state_dict()
     for part in ("actor", "critic", "opt", "gail", "bc_opt"):
         fa, fb = _flat(sa[part]), _flat(sb[part])
@@ -37,7 +37,7 @@ def test_resume_equals_uninterrupted(tmp_path):
     assert torch.equal(sa["torch_rng"], sb["torch_rng"])
     # the run actually changed the weights (not a trivially equal comparison)
     b0 = Trainer(cfg, tmp_path / "c", None, 2048)
-    assert not torch.allclose(b0.actor.mu.weight, a.actor.mu.weight)
+    assert not torch.allclose(b0.state.actor.mu.weight, a.state.actor.mu.weight)
     # and the logs of the two runs agree after the resume point
     rows_a = (tmp_path / "a/scalars.csv").read_text().splitlines()
     rows_b = (tmp_path / "b/scalars.csv").read_text().splitlines()

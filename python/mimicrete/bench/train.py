@@ -61,20 +61,20 @@ def _update_breakdown(cfg, tmp: Path) -> None:
 
     timed(tr, "_ppo_step", "PPO minibatch steps")
     timed(tr, "_gail_steps", "GAIL discriminator steps")
-    timed(tr.gail, "rewards", "GAIL rewards on the rollout")
+    timed(tr.state.gail, "rewards", "GAIL rewards on the rollout")
     timed(tr, "_bc_round", "BC round")
     timed(tr, "advantages", "GAE (critic pass + GAE)")
     gae_old = gae_new = 0.0
     for _ in range(UPDATES):
         tr.collect()
-        ro = tr.rollout
+        ro = tr.state.rollout
         T, N, D = tr.T, tr.N, tr.obs_dim
         with torch.no_grad():
             t0 = time.perf_counter()
-            tr.critic(torch.from_numpy(ro.obs.reshape(T * N, D)))
-            tr.critic(torch.from_numpy(ro.next_obs().reshape(T * N, D)))
+            tr.state.critic(torch.from_numpy(ro.obs.reshape(T * N, D)))
+            tr.state.critic(torch.from_numpy(ro.next_obs().reshape(T * N, D)))
             t1 = time.perf_counter()
-            ro.values_and_next(lambda x: tr.critic(torch.from_numpy(x)).numpy())
+            ro.values_and_next(lambda x: tr.state.critic(torch.from_numpy(x)).numpy())
             t2 = time.perf_counter()
         gae_old += t1 - t0
         gae_new += t2 - t1
@@ -92,7 +92,7 @@ def _update_breakdown(cfg, tmp: Path) -> None:
 
 def _toy_cfg(tmp: Path, gail: float, bc: float, overlap_gail: bool = False):
     from mimicrete.learn import config
-    from mimicrete.learn.toyenv import toy_config
+    from mimicrete.testing.toyenv import toy_config
 
     c = toy_config(tmp, buffer=BUFFER, batch=512, num_envs=NUM_ENVS, gail=gail, bc=bc)
     return config.with_overrides(
@@ -121,7 +121,7 @@ def _sb3_steps_per_s() -> float | None:
         from stable_baselines3.common.vec_env import DummyVecEnv
     except ImportError:
         return None
-    from mimicrete.learn import toyenv
+    from mimicrete.testing import toyenv
 
     class One(gym.Env):
         """One toy env as a plain gymnasium Env (SB3 vectorises it itself)."""

@@ -7,8 +7,9 @@
 
 Modules, by what they own: ``config`` (the YAML schema), ``env`` (which env an id names),
 ``demo_data`` (demos as the trainer reads them), ``episodes`` (episode statistics), ``networks``,
-``normalizer``, ``buffer`` (rollout, GAE), ``ppo``, ``gail``, ``bc``, ``trainer`` (one update),
-``checkpoint`` (what a checkpoint holds), ``loop`` (a run: resume, summaries, checkpoints),
+``normalizer``, ``buffer`` (rollout, GAE), ``ppo``, ``gail``, ``bc``, ``run_state`` (what a run
+changes), ``trainer`` (one update), ``checkpoint`` (what a checkpoint holds), ``loop`` (a run:
+resume, summaries, checkpoints),
 ``run_files`` (what a run dir holds), ``evaluate``, ``video`` (rollout videos), ``plots``. The
 numpy toy env of the tests and smoke runs (env ids ``Toy…``) is ``mimicrete.testing.toyenv``. The
 names below are imported on first use, so importing the package does not import torch.
@@ -37,7 +38,8 @@ _EXPORTS = {
 
 _SUBMODULES = {
     "bc", "buffer", "checkpoint", "config", "demo_data", "env", "episodes", "evaluate", "gail",
-    "loop", "networks", "normalizer", "plots", "ppo", "run_files", "trainer", "video",
+    "loop", "networks", "normalizer", "plots", "ppo", "run_files", "run_state",
+    "trainer", "video",
 }  # fmt: skip
 
 __all__ = sorted(_EXPORTS)

@@ -41,7 +41,6 @@ count towards ``max_steps`` (RFCL sets states directly); ``Curriculum/Replayed S
 
 from __future__ import annotations
 
-import os
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
@@ -49,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from .config import DemoCurriculumSettings
+from .demo_data import LoadedDemos
 
 
 @dataclass(frozen=True)
@@ -63,25 +63,23 @@ class DemoTrack:
         return int(len(self.actions))
 
 
-def demo_tracks(path: str | os.PathLike[str], episodes: int | None) -> list[DemoTrack]:
-    """The first ``episodes`` demos of an MCAP file or directory as :class:`DemoTrack` (seed from
-    each file's ``episode`` metadata), in the same order as the trainer's demo arrays."""
-    from mimicrete import demos
-
-    d = demos.load(os.fspath(path))
+def demo_tracks(demos: LoadedDemos) -> list[DemoTrack]:
+    """The demos as the trainer read them (:func:`demo_data.read_demos`), as :class:`DemoTrack`:
+    each episode's seed (from its file's ``episode`` metadata) and every recorded action, idle
+    steps included, in the order of the trainer's demo arrays."""
+    ep = np.asarray(demos.arrays["episode"])
     tracks = []
-    for i, sl in enumerate(d.episode_slices()):
-        if episodes is not None and i >= episodes:
-            break
-        meta = d.metas[i] if i < len(d.metas) else {}
+    for e in np.unique(ep):
+        meta = demos.metas[e] if e < len(demos.metas) else {}
         if "seed" not in meta:
-            raise ValueError(f"{d.files[i]}: no episode seed in its metadata; cannot replay it")
-        acts = np.asarray(d.actions[sl], np.float32)
+            where = demos.tasks[e][0] if e < len(demos.tasks) else f"demo episode {e}"
+            raise ValueError(f"{where}: no episode seed in its metadata; cannot replay it")
+        acts = np.asarray(demos.arrays["actions"][ep == e], np.float32)
         if len(acts) < 2:
             continue
         tracks.append(DemoTrack(int(meta["seed"]), acts))
     if not tracks:
-        raise ValueError(f"{path}: no demo to start a curriculum from")
+        raise ValueError("no demo to start a curriculum from")
     return tracks
 
 

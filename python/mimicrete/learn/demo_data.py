@@ -15,7 +15,7 @@ import numpy as np
 from mimicrete._native import MimicreteError
 
 from .config import ConfigError
-from .env import N_CONT
+from .env import N_CONT, sim_task_of
 
 DEMO_KEYS = ("obs", "actions", "rewards", "terminated", "truncated", "episode")
 
@@ -30,8 +30,11 @@ class LoadedDemos:
 
     arrays: dict[str, np.ndarray]
     skipped: list[str] = field(default_factory=list)  # "file: reason" of each bad file skipped
-    #: (file, the simulator task its metadata names, or None) of each loaded MCAP demo
+    #: (file, the simulator task its metadata names, or None) of each loaded MCAP demo, by the
+    #: episode index of ``arrays["episode"]``
     tasks: list[tuple[str, str | None]] = field(default_factory=list)
+    #: each loaded MCAP demo's ``episode`` metadata record (its ``seed``), by episode index
+    metas: list[dict[str, str]] = field(default_factory=list)
 
     def check_task(self, sim: str, path: str | os.PathLike[str]) -> None:
         """:class:`DemoDataError` naming the first demo file recorded on another task than ``sim``
@@ -69,16 +72,17 @@ def read_demos(
     used and the bad ones listed in ``skipped``."""
     p = Path(path)
     skipped: list[str] = []
+    file_tasks: list[tuple[str, str | None]] = []
+    metas: list[dict[str, str]] = []
     if p.suffix == ".npz":
         d = _npz_arrays(p)
-        file_tasks: list[tuple[str, str | None]] = []
     else:
         if not p.exists():
             raise FileNotFoundError(
                 f"demo path {p} does not exist (make demos with `mimicrete synth-hands` and "
                 "`mimicrete convert`, or `make demos`, or pass --demos DIR)"
             )
-        d, skipped, file_tasks = _mcap_read(p, skip_bad)
+        d, skipped, file_tasks, metas = _mcap_read(p, skip_bad)
     ep = np.asarray(d["episode"])
     if episodes is not None:
         uniq = np.unique(ep)
@@ -86,7 +90,7 @@ def read_demos(
             raise ConfigError(f"{path}: {len(uniq)} demo episodes, the config asks for {episodes}")
         keep = np.isin(ep, uniq[:episodes])
         d = {k: np.asarray(v)[keep] for k, v in d.items()}
-    return LoadedDemos(d, skipped, [] if p.suffix == ".npz" else file_tasks)
+    return LoadedDemos(d, skipped, file_tasks, metas)
 
 
 def _npz_arrays(p: Path) -> dict[str, np.ndarray]:
@@ -103,31 +107,35 @@ def _npz_arrays(p: Path) -> dict[str, np.ndarray]:
 
 def _file_tasks(loaded: Any) -> list[tuple[str, str | None]]:
     files = list(getattr(loaded, "files", []) or [])
-    metas = list(getattr(loaded, "metas", []) or [])
-    return [(f, (m or {}).get("task") or None) for f, m in zip(files, metas, strict=False)]
+    return [(f, m.get("task") or None) for f, m in zip(files, _file_metas(loaded), strict=False)]
+
+
+def _file_metas(loaded: Any) -> list[dict[str, str]]:
+    return [dict(m or {}) for m in getattr(loaded, "metas", []) or []]
 
 
 def _mcap_arrays(p: Path, skip_bad: bool) -> tuple[dict[str, np.ndarray], list[str]]:
     """The demo arrays of an MCAP file or directory and the bad files skipped."""
-    d, skipped, _ = _mcap_read(p, skip_bad)
+    d, skipped, _, _ = _mcap_read(p, skip_bad)
     return d, skipped
 
 
 def _mcap_read(
     p: Path, skip_bad: bool
-) -> tuple[dict[str, np.ndarray], list[str], list[tuple[str, str | None]]]:
-    """:func:`_mcap_arrays` and the task of each file loaded."""
+) -> tuple[dict[str, np.ndarray], list[str], list[tuple[str, str | None]], list[dict[str, str]]]:
+    """The demo arrays of an MCAP file or directory, the bad files skipped, and the task and
+    ``episode`` metadata of each file loaded (by episode index)."""
     from mimicrete import LogFormatError, demos
 
     try:
         loaded = demos.load(str(p))
-        return demo_arrays(loaded), [], _file_tasks(loaded)
+        return demo_arrays(loaded), [], _file_tasks(loaded), _file_metas(loaded)
     except (LogFormatError, OSError) as e:
         if not skip_bad or not p.is_dir():
             hint = " (--skip-bad-demos trains on the other files)" if p.is_dir() else ""
             raise DemoDataError(f"{e}{hint}") from e
     # one file at a time, leaving out the bad ones; episodes renumbered in file order
-    parts, skipped, file_tasks = [], [], []
+    parts, skipped, file_tasks, metas = [], [], [], []
     for f in sorted(p.glob("*.mcap")):
         try:
             loaded = demos.load(str(f))
@@ -136,11 +144,59 @@ def _mcap_read(
             continue
         parts.append(demo_arrays(loaded))
         file_tasks += _file_tasks(loaded)
+        metas += _file_metas(loaded)
     if not parts:
         raise DemoDataError(f"{p}: no loadable demo file ({len(skipped)} bad)")
     for i, part in enumerate(parts):
         part["episode"] = np.full_like(part["episode"], i)
-    return {k: np.concatenate([q[k] for q in parts]) for k in DEMO_KEYS}, skipped, file_tasks
+    arrays = {k: np.concatenate([q[k] for q in parts]) for k in DEMO_KEYS}
+    return arrays, skipped, file_tasks, metas
+
+
+@dataclass
+class TrainingDemos:
+    """A run's demos, read once: as recorded (:attr:`loaded`: the curriculum replays every
+    step of them) and without the demonstrator's idle steps (:attr:`arrays`: what BC and GAIL
+    learn from)."""
+
+    loaded: LoadedDemos
+    arrays: dict[str, np.ndarray]  # keys DEMO_KEYS, idle steps dropped
+
+    @property
+    def steps_loaded(self) -> int:
+        return len(self.loaded.arrays["actions"])
+
+    @property
+    def skipped(self) -> list[str]:
+        return self.loaded.skipped
+
+
+def read_training_demos(
+    path: str | None,
+    episodes: int | None,
+    drop_idle: float,
+    env_id: str,
+    action_dims: int,
+    *,
+    skip_bad: bool = False,
+) -> TrainingDemos:
+    """The first ``episodes`` demos at ``path`` for a run on ``env_id`` (whose actions have
+    ``action_dims`` dimensions): :class:`ConfigError` without a path or for actions of another
+    size, :class:`DemoDataError` for demos recorded on another simulator task."""
+    if not path:
+        raise ConfigError("gail/behavioral_cloning/demo_curriculum need a demo_path or --demos")
+    loaded = read_demos(path, episodes, skip_bad=skip_bad)
+    arrays = drop_idle_steps(loaded.arrays, drop_idle)
+    got = arrays["actions"].shape[1]
+    if got != action_dims:
+        raise ConfigError(
+            f"{path}: demo actions of {got} dims, {env_id} takes {action_dims} (demos of "
+            "another task?)"
+        )
+    sim = sim_task_of(env_id)
+    if sim is not None:  # the sizes can match across tasks (grip and suction do)
+        loaded.check_task(sim, path)
+    return TrainingDemos(loaded, arrays)
 
 
 def demo_arrays(loaded: Any) -> dict[str, np.ndarray]:
@@ -236,8 +292,8 @@ def ensure_demos(
         f"demos: {demo_dir} has {have} episodes, making {n} (synth-hands into {hand_dir}, then "
         f"convert into {demo_dir}, as `make demos`)"
     )
+    from mimicrete.demonstrator import synth_hands
     from mimicrete.teleop import convert as cv
-    from mimicrete.teleop.synth import synth_hands
 
     logs = synth_hands(task, n, seed, hand_dir, progress=True)
     plan = cv.plan_outputs(logs, demo_dir, overwrite=True)  # the same logs give the same demos

@@ -107,7 +107,7 @@ def _train(
         info = {**run_files.read_run_info(run_dir), **info}
     if tr.demos is not None:
         info["demo_steps_loaded"] = tr.demo_steps_loaded
-        info["demo_steps_idle_dropped"] = tr.demo_steps_loaded - len(tr.demos["actions"])
+        info["demo_steps_idle_dropped"] = tr.demo_steps_loaded - len(tr.demos.arrays["actions"])
     if skip_bad_demos:
         info["skip_bad_demos"] = True
         info["demo_files_skipped"] = tr.demo_files_skipped
@@ -122,7 +122,7 @@ def _train(
             info["bc_warm_start"] = warm
     conv = cfg.behavior.stop_on_convergence
     # a resumed run that had already converged stays converged (its streak is in the checkpoint)
-    converged = conv is not None and tr.converged_streak >= conv.summaries
+    converged = conv is not None and tr.state.converged_streak >= conv.summaries
     if conv is not None and not converged:
         info["convergence"] = {**dataclasses.asdict(conv), "converged_at_step": None}
     run_files.write_run_info(run_dir, info)
@@ -136,11 +136,12 @@ def _train(
             before = tr.step
             tr.iterate()
             updates += 1
-            if tr.step - tr.last_summary_step >= cfg.behavior.summary_freq or tr.step >= total:
+            st = tr.state
+            if tr.step - st.last_summary_step >= cfg.behavior.summary_freq or tr.step >= total:
                 row = tr.summary()
                 if row:
                     log_.write(tr.step, row)
-                tr.last_summary_step = tr.step
+                st.last_summary_step = tr.step
                 if conv is not None and _converged(tr, conv, row or {}):
                     info["convergence"] = {**dataclasses.asdict(conv), "converged_at_step": tr.step}
                     run_files.write_run_info(run_dir, info)
@@ -152,7 +153,7 @@ def _train(
             if bar is not None:
                 bar.update(tr.step - before)
                 bar.set_postfix(
-                    picked=f"{tr.recent_picked:.0%}", installed=f"{tr.recent_installed:.0%}"
+                    picked=f"{st.recent_picked:.0%}", installed=f"{st.recent_installed:.0%}"
                 )
             if stop_after_updates is not None and updates >= stop_after_updates:
                 break
@@ -161,7 +162,7 @@ def _train(
             bar.close()
         log_.close()
         tr.close()
-    run_files.save_policy(run_dir, tr.actor, tr.obs_dim, tr.step, cfg)
+    run_files.save_policy(run_dir, tr.state.actor, tr.obs_dim, tr.step, cfg)
     return tr
 
 
@@ -199,8 +200,8 @@ def _converged(tr: Trainer, conv: config_mod.ConvergenceSettings, row: dict[str,
         row.get("Environment/Episodes", 0.0) >= conv.min_episodes
         and row.get("Environment/Installed Rate", 0.0) >= conv.installed_rate
     )
-    tr.converged_streak = tr.converged_streak + 1 if ok else 0
-    return tr.converged_streak >= conv.summaries
+    tr.state.converged_streak = tr.state.converged_streak + 1 if ok else 0
+    return tr.state.converged_streak >= conv.summaries
 
 
 def _progress_bar(total: int, initial: int) -> Any:
