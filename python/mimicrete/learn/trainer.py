@@ -320,10 +320,6 @@ class Trainer:
             returns=np.stack(rets, -1).reshape(T * N, -1).astype(np.float32),
         )
 
-    def process(self) -> UpdateBuffer:
-        """Steps 2 and 3 (reward signals, GAE) on the collected rollout."""
-        return self.advantages(self.reward_signals())
-
     # -- 4.-6. PPO, GAIL, BC ----------------------------------------------------------------------
 
     def update(self, buf: UpdateBuffer) -> None:
