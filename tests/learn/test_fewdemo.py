@@ -315,3 +315,27 @@ def test_max_demos_walks_back_the_first_demos_only(hand_demos, tmp_path):
     assert len(every) == 3 and len({t.seed for t in every}) == 3
     assert set(tr.state.curriculum.env_demo.tolist()) <= {-1, 0, 1}
     assert tr.demo_steps_loaded == sum(t.length for t in every)  # BC read all three
+
+
+def test_the_curriculum_starts_from_the_demos_bc_reads(hand_demos, tmp_path):
+    """The demos are read once, for BC and the curriculum alike: with ``--skip-bad-demos`` a
+    damaged file in the directory is left out of both (the curriculum used to read the
+    directory again by itself, and stopped at the damaged file)."""
+    import json
+    import shutil
+
+    from mimicrete import learn
+
+    demos = tmp_path / "demos"
+    shutil.copytree(hand_demos, demos)
+    (demos / "zz_cut.mcap").write_bytes(b"\x89MCAP0\r\n cut short")
+    cfg = _small_fewdemo(1024, "behavior.checkpoint_interval=1024")
+    run = tmp_path / "run"
+    tr = learn.train(cfg, run, demos=str(demos), progress=False, skip_bad_demos=True)
+    assert tr.state.curriculum is not None and len(tr.state.curriculum.tracks) == 3
+    assert tr.demos is not None
+    assert [t.seed for t in tr.state.curriculum.tracks] == [
+        int(m["seed"]) for m in tr.demos.loaded.metas
+    ]
+    info = json.loads((run / "run.json").read_text())
+    assert len(info["demo_files_skipped"]) == 1 and "zz_cut.mcap" in info["demo_files_skipped"][0]
