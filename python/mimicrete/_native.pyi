@@ -648,6 +648,7 @@ class TeleopSession:
         calibration: _Calibration,
         seed: int,
         writer: DemoWriter | None = None,
+        mapping: str = "absolute",
     ) -> TeleopSession: ...
     def push(
         self,
@@ -657,10 +658,17 @@ class TeleopSession:
         raw: str | None,
         gesture: str | None,
         view: bool = False,
+        clutch: str | None = None,
     ) -> tuple[list[_TeleopStep], _TeleopView | None]:
         """One hand frame → (the control steps that fell due, the page's view or None)."""
     def observe(
-        self, t: float, tracked: bool, joints: _F64, raw: str | None, gesture: str | None
+        self,
+        t: float,
+        tracked: bool,
+        joints: _F64,
+        raw: str | None,
+        gesture: str | None,
+        clutch: str | None = None,
     ) -> None:
         """The hand half of ``push`` alone: the gesture and the target, no steps."""
     def finish(self) -> list[_TeleopStep]:
@@ -675,6 +683,8 @@ class TeleopSession:
     def counts(self) -> _TeleopCounts: ...
     @property
     def target(self) -> _F64 | None: ...
+    @property
+    def engaged(self) -> bool: ...
     @property
     def gesture(self) -> str | None: ...
     @property

@@ -15,14 +15,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+from mimicrete import demonstrator as sy
 from mimicrete import demos
+from mimicrete.demonstrator.scene import scene_from_env
 from mimicrete.kin import Calibration
 from mimicrete.teleop import convert as cv
-from mimicrete.teleop import synth as sy
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
 from mimicrete.teleop.session import Session
-from mimicrete.teleop.synth_scene import scene_from_env
 from mimicrete.teleop.view import standing_calibration, view_from_base
 from mimicrete.testing import page_driver as br
 
@@ -50,8 +50,14 @@ def _standing_log(task: str, folder: Path, seed: int = 5) -> Path:
 
 def _record_one(chromium, tmp_path, task: str, screenshot: Path | None = None):
     log = cv.load_log(_standing_log(task, tmp_path / "hands"))
+    # the scripted person's log puts the hand where the tool is to go (the absolute mapping);
+    # the clutch's page path: tests/teleop/test_clutch.py
     live = Live(
-        task, tmp_path / "out", calibration=cv.calibration_of(log), seed=log.header["episode_seed"]
+        task,
+        tmp_path / "out",
+        calibration=cv.calibration_of(log),
+        seed=log.header["episode_seed"],
+        mapping="absolute",
     )
     server = TeleopServer(live)
     shot: dict = {}
@@ -119,7 +125,10 @@ def test_suction_episode_recorded_live_in_the_browser(chromium, tmp_path, figure
     # lit cups, the right hand tracked and the robot following it
     assert drawn["spectator"] == "block"
     assert drawn["state"]["recording"] and drawn["state"]["ee"]["on"]
-    assert drawn["state"]["following"] and "right hand" in drawn["hud"]
+    assert drawn["state"]["following"] and "right hand" in drawn["hud"], (
+        drawn["state"]["why"],
+        drawn["hud"],
+    )
     assert drawn["scene"]["cupsLit"] == 4
     # the server received 25-joint frames (binary, protocol v1) and dropped none
     assert server.stats.frames > 100
@@ -173,9 +182,9 @@ def test_grip_and_screw_pages_record_a_demo(chromium, tmp_path, task):
 def _still_hand(tool0_base: np.ndarray, calib, seconds: float = 60.0) -> br.Track:
     """An open right hand held still where it would put tool0 (pointing down) at
     ``tool0_base`` through ``calib``; WebXR joints in the ``local`` space, 10 Hz."""
+    from mimicrete.demonstrator.scene import TOOL_DOWN, hand_pose_for_tool0
     from mimicrete.hands.log import HandLogData
     from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
-    from mimicrete.teleop.synth_scene import TOOL_DOWN, hand_pose_for_tool0
 
     pose = np.eye(4)
     pose[:3, :3], pose[:3, 3] = TOOL_DOWN, tool0_base
@@ -195,13 +204,14 @@ def test_recentre_maps_the_hand_onto_the_tool(chromium, tmp_path):
     view_from_base, the hand's target is now tool0 (within 1 mm) and the robot follows; drawn
     through the new view_from_base, tool0 sits at the hand's wrist."""
     calib = standing_calibration()
-    live = Live("suction", tmp_path / "out", calibration=calib, seed=11)
+    # a recentre maps the hand onto the tool: the absolute mapping's remedy (the clutch needs none)
+    live = Live("suction", tmp_path / "out", calibration=calib, seed=11, mapping="absolute")
     far = np.array([0.95, 0.30, 0.25])  # Base; the UR3 reaches ~0.5 m
     hand = _still_hand(far, calib)
     wrist_local = hand.joints[0, 0]
     with ServerThread(TeleopServer(live)) as run:
         with br.vr_page(
-            chromium, f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0", viewport=(320, 240)
+            chromium, f"http://127.0.0.1:{run.port}/?emulate=quest3&devui=0", viewport=(480, 360)
         ) as page:
             br.replay(page, br.build_recording(right=hand))
             page.wait_for_function(

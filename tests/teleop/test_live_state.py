@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from mimicrete import _native
+from mimicrete.demonstrator.scene import TOOL_DOWN, hand_pose_for_tool0
 from mimicrete.hands.layouts import to_layout
 from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.protocol import HandFrame
-from mimicrete.teleop.synth_scene import TOOL_DOWN, hand_pose_for_tool0
 from mimicrete.teleop.view import standing_calibration
 
 RATE_HZ = 90.0
@@ -40,9 +40,14 @@ def _push(live: Live, joints: np.ndarray, t0: float, seconds: float) -> float:
 def test_why_comes_from_the_newest_step_of_the_current_session(tmp_path):
     live = Live("suction", tmp_path / "out", calibration=standing_calibration(), seed=11)
     assert live.last_step is None and live.state()["why"] == "no hand yet"
-    far = _hand_at(np.array([0.95, 0.30, 0.25]))  # Base; the UR3 reaches ~0.5 m
-    t = _push(live, far, 0.0, 1.0)
+    tool0 = np.asarray(live.session.snapshot()["tool0"]["t"])
+    t = _push(live, _hand_at(tool0), 0.0, 0.5)  # the clutch engages on the first frame
+    assert live.state()["engaged"] and live.state()["why"] == "not recording"
+    # the hand moves 0.8 m away: the tool walks toward it (2 cm a step) to the arm's reach
+    far = _hand_at(tool0 + np.array([0.8, 0.0, 0.0]))
+    t = _push(live, far, t, 2.0)
     state = live.state()
+    assert state["hint"].startswith("out of the arm's reach")
     assert live.last_step is not None and live.last_step.why == "target unreachable"
     assert state["why"] == "target unreachable" and not state["following"]
     # a frame that runs no control step keeps the newest step's reason

@@ -20,6 +20,8 @@ export function hudLines(v) {
     : '–';
   let follow = '–';
   if (v.state) follow = s.following ? 'following' : `not following: ${s.why ?? '?'}`;
+  // what to do about it (the server's hint for the reason)
+  if (v.state && s.hint && s.why) follow += ` · ${s.hint}`;
   const rec = s.recording ? `REC step ${s.step ?? 0}` : 'idle';
   const g = v.gestures;
   const mode = g?.active

@@ -2,7 +2,7 @@
 // mimicrete server over one WebSocket; the server's states pose the robot and fill the HUD.
 import * as THREE from 'three';
 import {
-  HandFramePacker, controlMessage, gesturesMessage, helloMessage, parseServerMessage, socketUrl,
+  CONTROL_ACTIONS, HandFramePacker, controlMessage, gesturesMessage, helloMessage, parseServerMessage, socketUrl,
   unpackHandFrame,
 } from './protocol.js';
 import { RobotScene } from './scene.js';
@@ -169,6 +169,7 @@ function onMessage(msg) {
       hook.counts.statesReceived++;
       view.state = msg;
       robot.update(msg);
+      clutchButton.textContent = msg.engaged ? 'Release' : 'Engage';
       if (Number.isFinite(msg.sent_ms)) {
         const rtt = performance.now() - msg.sent_ms;
         if (hook.rtt.length < MAX_SAMPLES) hook.rtt.push(rtt);
@@ -212,9 +213,12 @@ function reframe() {
 function control(action) {
   if (socket?.readyState === WebSocket.OPEN) socket.send(controlMessage(action));
 }
-for (const action of ['start', 'stop', 'discard', 'recentre']) {
+for (const action of CONTROL_ACTIONS.filter((a) => a !== 'engage' && a !== 'release')) {
   document.getElementById(`btn-${action}`).addEventListener('click', () => control(action));
 }
+// one button works the clutch: Release while it is engaged, Engage while released
+const clutchButton = document.getElementById('btn-clutch');
+clutchButton.addEventListener('click', () => control(view.state?.engaged ? 'release' : 'engage'));
 
 // The gesture mode: teach the SVM your own gestures (the server records, trains and reports).
 function sendGestures(action, opts) {

@@ -79,8 +79,11 @@ export function helloMessage(role = 'driver') {
   return JSON.stringify({ type: 'hello', protocol: PROTOCOL_VERSION, role, client: CLIENT_NAME });
 }
 
+/** The driver's control actions (docs/formats.md §3); engage / release work the clutch. */
+export const CONTROL_ACTIONS = ['start', 'stop', 'discard', 'engage', 'release', 'recentre'];
+
 export function controlMessage(action) {
-  if (!['start', 'stop', 'discard', 'recentre'].includes(action)) {
+  if (!CONTROL_ACTIONS.includes(action)) {
     throw new Error(`unknown control action ${action}`);
   }
   return JSON.stringify({ type: 'control', action });

@@ -214,6 +214,10 @@ export class RobotScene {
     const t = state.target;
     this.target.visible = Array.isArray(t) && t.length >= 3;
     if (this.target.visible) this.target.position.set(t[0], t[1], t[2]);
+    // the ghost of the target: yellow while the tool follows, red where it cannot get there
+    const stuck = state.why === 'target unreachable';
+    this.target.material.color.set(stuck ? 0xff3333 : 0xffcc00);
+    this.target.scale.setScalar(stuck ? 1.6 : 1.0);
   }
 
   /** Per render frame: animate what moves between states (the spin ring). */

@@ -10,7 +10,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use teleop_core::{Frame, Recorder, Session, SessionConfig, Step, TeleopError};
+use teleop_core::{ClutchInput, Frame, Mapping, Recorder, Session, SessionConfig, Step, TeleopError};
 use ur3_kin::{HandLayout, Handedness};
 
 type Any<'py> = Bound<'py, PyAny>;
@@ -41,6 +41,15 @@ fn points(joints: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<[f64; 3]>> {
         return Err(PyValueError::new_err(format!("joints must be (J, 3), got {:?}", a.shape())));
     }
     Ok(a.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+}
+
+fn clutch_input(c: Option<&str>) -> PyResult<Option<ClutchInput>> {
+    match c {
+        None => Ok(None),
+        Some("engage") => Ok(Some(ClutchInput::Engage)),
+        Some("release") => Ok(Some(ClutchInput::Release)),
+        Some(o) => Err(PyValueError::new_err(format!("clutch must be 'engage' or 'release', got {o:?}"))),
+    }
 }
 
 fn step_tuple(py: Python<'_>, s: Step) -> StepTuple<'_> {
@@ -87,7 +96,7 @@ impl PyTeleopSession {
 #[pymethods]
 impl PyTeleopSession {
     #[new]
-    #[pyo3(signature = (task, layout, handedness, calibration, seed, writer = None))]
+    #[pyo3(signature = (task, layout, handedness, calibration, seed, writer = None, mapping = "absolute"))]
     fn new(
         task: &str,
         layout: &str,
@@ -95,20 +104,25 @@ impl PyTeleopSession {
         calibration: Calib<'_>,
         seed: u64,
         writer: Option<Py<PyDemoWriter>>,
+        mapping: &str,
     ) -> PyResult<Self> {
+        let mapping = Mapping::from_name(mapping).ok_or_else(|| {
+            PyValueError::new_err(format!("mapping must be 'absolute' or 'clutch', got {mapping:?}"))
+        })?;
         let cfg = SessionConfig {
             task: parse_task(task)?,
             layout: HandLayout::from_name(layout).map_err(kin_err)?,
             handedness: Handedness::from_name(handedness).map_err(kin_err)?,
             calibration: calibration.get()?,
             seed,
+            mapping,
         };
         Ok(PyTeleopSession { core: Session::new(cfg).map_err(teleop_err)?, writer })
     }
 
     /// Feed one hand frame `joints` (J, 3) at time `t` with its gesture class `raw` and the
     /// smoothed `gesture` after it → (the control steps that fell due, the page's view or None).
-    #[pyo3(signature = (t, tracked, joints, raw, gesture, view = false))]
+    #[pyo3(signature = (t, tracked, joints, raw, gesture, view = false, clutch = None))]
     #[allow(clippy::too_many_arguments)]
     fn push<'py>(
         &mut self,
@@ -119,15 +133,18 @@ impl PyTeleopSession {
         raw: Option<&str>,
         gesture: Option<&str>,
         view: bool,
+        clutch: Option<&str>,
     ) -> PyResult<(Vec<StepTuple<'py>>, Option<Any<'py>>)> {
         let pts = points(&joints)?;
-        let frame = Frame { t, tracked, joints: &pts, raw, gesture };
+        let frame = Frame { t, tracked, joints: &pts, raw, gesture, clutch: clutch_input(clutch)? };
         let steps = self.with_recorder(py, |s, rec| s.push(&frame, rec))?;
         let steps = steps.into_iter().map(|s| step_tuple(py, s)).collect();
         Ok((steps, if view { Some(self.view(py)?) } else { None }))
     }
 
     /// The hand half of `push` alone: the gesture and the target from one frame, no steps.
+    #[pyo3(signature = (t, tracked, joints, raw, gesture, clutch = None))]
+    #[allow(clippy::too_many_arguments)]
     fn observe(
         &mut self,
         py: Python<'_>,
@@ -136,9 +153,10 @@ impl PyTeleopSession {
         joints: PyReadonlyArray2<'_, f64>,
         raw: Option<&str>,
         gesture: Option<&str>,
+        clutch: Option<&str>,
     ) -> PyResult<()> {
         let pts = points(&joints)?;
-        let frame = Frame { t, tracked, joints: &pts, raw, gesture };
+        let frame = Frame { t, tracked, joints: &pts, raw, gesture, clutch: clutch_input(clutch)? };
         self.with_recorder(py, |s, rec| s.observe_only(&frame, rec))
     }
 
@@ -181,6 +199,12 @@ impl PyTeleopSession {
     #[getter]
     fn target<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray2<f64>>> {
         self.core.target().map(|m| Array2::from_shape_fn((4, 4), |(r, c)| m[(r, c)]).into_pyarray(py))
+    }
+
+    /// The clutch is engaged (always False under the absolute mapping).
+    #[getter]
+    fn engaged(&self) -> bool {
+        self.core.engaged()
     }
 
     /// The smoothed gesture the end effector obeys (None before any).

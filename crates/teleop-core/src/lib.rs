@@ -13,9 +13,11 @@
 //! raw class and the smoothed one ([`Frame`]). Everything after that is here, so a caller crosses
 //! into Rust once per hand frame.
 
+mod clutch;
 mod filter;
 mod session;
 
+pub use clutch::{Clutch, ClutchInput, MAX_STEP_M, MAX_STEP_RAD, Mapping, step_toward};
 pub use filter::OneEuro;
 pub use session::{Counts, Frame, Links, NotFollowing, Outcome, Recorder, Session, SessionConfig, Step};
 

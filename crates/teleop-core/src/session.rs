@@ -1,5 +1,6 @@
 //! One teleoperation episode: hand frames in, control steps out, a demo recorded.
 
+use crate::clutch::{Clutch, ClutchInput, Mapping};
 use crate::filter::OneEuro;
 use crate::{BRANCH_JUMP, TeleopError, command_of, joint_action, recorded_command, wrap_to_pi};
 use demo_log::{DemoError, DemoWriter, HandFrame, Pose as RecPose, StepRecord};
@@ -63,6 +64,8 @@ pub enum NotFollowing {
     NoHand,
     /// IK found no solution near the current one.
     Unreachable,
+    /// The clutch is released.
+    NotEngaged,
 }
 
 impl NotFollowing {
@@ -71,6 +74,7 @@ impl NotFollowing {
         match self {
             NotFollowing::NoHand => "no hand yet",
             NotFollowing::Unreachable => "target unreachable",
+            NotFollowing::NotEngaged => "not engaged",
         }
     }
 }
@@ -113,6 +117,8 @@ pub struct Frame<'a> {
     pub raw: Option<&'a str>,
     /// The smoothed gesture the end effector obeys from now on.
     pub gesture: Option<&'a str>,
+    /// A clutch command at this frame (under [`Mapping::Clutch`]).
+    pub clutch: Option<ClutchInput>,
 }
 
 /// How an episode starts.
@@ -128,6 +134,8 @@ pub struct SessionConfig {
     pub calibration: Calibration,
     /// The simulator seed of the episode (the paper's start of that seed).
     pub seed: u64,
+    /// How the hand's pose becomes the tool's target.
+    pub mapping: Mapping,
 }
 
 /// One episode of teleoperation (paper §3.2): every hand frame, from a file or live, goes
@@ -156,6 +164,7 @@ pub struct Session {
     q: [f64; 6],
     q_ik: [f64; 6],
     target: Option<Matrix4<f64>>,
+    clutch: Clutch,
     filter: OneEuro<9>,
     counts: Counts,
     t0: Option<f64>,
@@ -194,6 +203,7 @@ impl Session {
             q,
             q_ik: q,
             target: None,
+            clutch: Clutch::default(),
             filter: OneEuro::new(1.0, 2.0, 1.0),
             counts: Counts::default(),
             t0: None,
@@ -309,6 +319,7 @@ impl Session {
     /// The hand half of [`Session::push`]: the gesture and the target from one frame.
     fn observe(&mut self, f: &Frame<'_>, rec: Option<&mut dyn Recorder>) -> Result<(), TeleopError> {
         let t0 = self.t0.unwrap_or(f.t);
+        self.clutch.apply(f.clutch);
         let c = &mut self.counts;
         c.frames += 1;
         self.t_last = Some(f.t);
@@ -341,9 +352,18 @@ impl Session {
         let (w, i, m) = (f.joints[l.wrist()], f.joints[l.index_proximal()], f.joints[l.middle_proximal()]);
         let p = self.filter.filter([w[0], w[1], w[2], i[0], i[1], i[2], m[0], m[1], m[2]], f.t);
         let hand = HandPoints::new([p[0], p[1], p[2]], [p[3], p[4], p[5]], [p[6], p[7], p[8]]);
-        match ur3_kin::hand_to_target(&hand, self.cfg.handedness, &self.cfg.calibration) {
-            Ok(t) => self.target = Some(t.to_homogeneous()),
-            Err(_) => c.degenerate += 1, // collinear frame joints
+        let Ok(h) = ur3_kin::hand_to_target(&hand, self.cfg.handedness, &self.cfg.calibration) else {
+            c.degenerate += 1; // collinear frame joints
+            return Ok(());
+        };
+        match self.cfg.mapping {
+            Mapping::Absolute => self.target = Some(h.to_homogeneous()),
+            Mapping::Clutch => {
+                let q_ik = self.q_ik;
+                if let Some(t) = self.clutch.target(&h, || ur3_kin::fk(&UR3, &q_ik)) {
+                    self.target = Some(t.to_homogeneous());
+                }
+            }
         }
         Ok(())
     }
@@ -352,14 +372,16 @@ impl Session {
         let task = self.cfg.task;
         let mut a = vec![0.0f32; task.act_dim()];
         let mut why = None;
-        match &self.target {
+        match self.target {
             None => why = Some(NotFollowing::NoHand),
             Some(target) => {
-                match self.solve(target) {
-                    Some(d) => self.q_ik = std::array::from_fn(|i| self.q_ik[i] + d[i]),
-                    None => {
-                        self.counts.unreachable += 1;
-                        why = Some(NotFollowing::Unreachable);
+                match self.next_joints(&target) {
+                    Ok(d) => self.q_ik = std::array::from_fn(|i| self.q_ik[i] + d[i]),
+                    Err(w) => {
+                        if w == NotFollowing::Unreachable {
+                            self.counts.unreachable += 1;
+                        }
+                        why = Some(w);
                     }
                 }
                 let ja = joint_action(&self.q_ik, &self.q);
@@ -417,11 +439,26 @@ impl Session {
         Ok(step)
     }
 
+    /// This step's change of the IK answer toward `target`, wrapped. Absolute: IK of the target
+    /// itself. Clutch: IK of the commanded pose one bounded step toward it (kept on success).
+    fn next_joints(&mut self, target: &Matrix4<f64>) -> Result<[f64; 6], NotFollowing> {
+        let pose = ur3_kin::pose_from_matrix(target).map_err(|_| NotFollowing::Unreachable)?;
+        if self.cfg.mapping == Mapping::Absolute {
+            return self.solve(&pose).ok_or(NotFollowing::Unreachable);
+        }
+        if !self.clutch.engaged() {
+            return Err(NotFollowing::NotEngaged);
+        }
+        let c = self.clutch.next(&pose);
+        let d = self.solve(&c).ok_or(NotFollowing::Unreachable)?;
+        self.clutch.commit(c);
+        Ok(d)
+    }
+
     /// The IK answer's change from the last one, wrapped; None: unreachable or another branch.
-    fn solve(&self, target: &Matrix4<f64>) -> Option<[f64; 6]> {
-        let pose = ur3_kin::pose_from_matrix(target).ok()?;
+    fn solve(&self, pose: &ur3_kin::Pose) -> Option<[f64; 6]> {
         let opts = IkOptions::with_tol(None).ok()?;
-        let sol = ur3_kin::ik(&UR3, &pose, Some(&self.q_ik), &opts).ok()?;
+        let sol = ur3_kin::ik(&UR3, pose, Some(&self.q_ik), &opts).ok()?;
         let d: [f64; 6] = std::array::from_fn(|i| wrap_to_pi(sol[i] - self.q_ik[i]));
         let jump = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         (jump <= BRANCH_JUMP).then_some(d)
@@ -463,6 +500,10 @@ impl Session {
     pub fn target_pose(&self) -> Option<RecPose> {
         let m = self.target.as_ref()?;
         ur3_kin::pose_from_matrix(m).ok().map(|p| RecPose::from_isometry(&p))
+    }
+    /// The clutch is engaged (always false under [`Mapping::Absolute`]).
+    pub fn engaged(&self) -> bool {
+        self.clutch.engaged()
     }
     /// The smoothed gesture the end effector obeys.
     pub fn gesture(&self) -> Option<&str> {

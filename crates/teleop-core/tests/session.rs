@@ -1,17 +1,23 @@
 //! The session's clock, counts, refusals and recording, with the real simulator.
 
 use demo_log::{DemoError, HandFrame, StepRecord};
-use teleop_core::{Frame, Links, Recorder, Session, SessionConfig, TeleopError};
+use teleop_core::{ClutchInput, Frame, Links, Mapping, Recorder, Session, SessionConfig, TeleopError};
 use tile_sim::Task;
+use ur3_kin::nalgebra::{UnitQuaternion, Vector3};
 use ur3_kin::{Calibration, HandLayout, Handedness};
 
 fn session(task: Task) -> Session {
+    session_with(task, Mapping::Absolute)
+}
+
+fn session_with(task: Task, mapping: Mapping) -> Session {
     let cfg = SessionConfig {
         task,
         layout: HandLayout::WebXr,
         handedness: Handedness::Right,
         calibration: Calibration::default(),
         seed: 3,
+        mapping,
     };
     Session::new(cfg).unwrap()
 }
@@ -55,6 +61,7 @@ fn steps_run_at_the_control_rate_in_the_hands_clock() {
             joints: &j,
             raw: Some("opening"),
             gesture: Some("opening"),
+            clutch: None,
         };
         steps += s.push(&f, Some(&mut rec)).unwrap().len();
     }
@@ -80,7 +87,7 @@ fn unusable_frames_are_counted_and_keep_the_target() {
     let mut s = session(Task::BlockGrip);
     let j = hand();
     let garbage = vec![[0.0; 3]; 25];
-    let f = |t, tracked, joints, raw| Frame { t, tracked, joints, raw, gesture: Some("fixed") };
+    let f = |t, tracked, joints, raw| Frame { t, tracked, joints, raw, gesture: Some("fixed"), clutch: None };
     // the first frame passes the filter as it is: collinear (collapsed) joints give no target
     s.push(&f(0.0, true, &garbage, Some("fixed")), None).unwrap();
     assert!(s.target().is_none());
@@ -99,12 +106,18 @@ fn bad_frames_are_refused_by_name() {
     let mut s = session(Task::Screw);
     let j = hand();
     let short = vec![[0.0; 3]; 21];
-    let e = s.push(&Frame { t: 0.0, tracked: true, joints: &short, raw: None, gesture: None }, None);
+    let e = s
+        .push(&Frame { t: 0.0, tracked: true, joints: &short, raw: None, gesture: None, clutch: None }, None);
     assert!(matches!(e, Err(TeleopError::JointCount { expected: 25, got: 21, .. })));
-    let e = s.push(&Frame { t: f64::NAN, tracked: true, joints: &j, raw: None, gesture: None }, None);
+    let e = s.push(
+        &Frame { t: f64::NAN, tracked: true, joints: &j, raw: None, gesture: None, clutch: None },
+        None,
+    );
     assert!(matches!(e, Err(TeleopError::Time(_))));
-    let e =
-        s.push(&Frame { t: 0.0, tracked: true, joints: &j, raw: Some("weld"), gesture: Some("weld") }, None);
+    let e = s.push(
+        &Frame { t: 0.0, tracked: true, joints: &j, raw: Some("weld"), gesture: Some("weld"), clutch: None },
+        None,
+    );
     assert_eq!(e.unwrap_err().to_string(), "unknown gesture class \"weld\"");
     assert_eq!(s.counts().frames, 0, "a refused frame is not counted");
 }
@@ -115,7 +128,14 @@ fn the_gesture_commands_the_end_effector() {
     let j = hand();
     let mut cmds = Vec::new();
     for (k, g) in ["closing_tightening", "opening_stopped", "opening_stopped"].iter().enumerate() {
-        let f = Frame { t: k as f64 * 0.1, tracked: true, joints: &j, raw: Some(g), gesture: Some(g) };
+        let f = Frame {
+            t: k as f64 * 0.1,
+            tracked: true,
+            joints: &j,
+            raw: Some(g),
+            gesture: Some(g),
+            clutch: None,
+        };
         for st in s.push(&f, None).unwrap() {
             cmds.push((st.action[6], st.action[7]));
         }
@@ -125,4 +145,150 @@ fn the_gesture_commands_the_end_effector() {
     assert_eq!(cmds, vec![(1.0, 1.0), (1.0, 1.0), (1.0, 1.0), (-1.0, 0.0), (-1.0, 0.0)]);
     assert_eq!(s.counts().gesture_changes, 1);
     assert_eq!(s.command(), (-1.0, 0.0));
+}
+
+/// A right hand at `p` (tracking space) turned by `r`: wrist, index and middle knuckles.
+fn hand_at(p: Vector3<f64>, r: &UnitQuaternion<f64>) -> Vec<[f64; 3]> {
+    let mut j = vec![[0.0; 3]; 25];
+    let l = HandLayout::WebXr;
+    let put = |v: Vector3<f64>| [v.x, v.y, v.z];
+    j[l.wrist()] = put(p);
+    j[l.index_proximal()] = put(p + r * Vector3::new(0.02, 0.08, 0.0));
+    j[l.middle_proximal()] = put(p + r * Vector3::new(0.0, 0.09, 0.0));
+    j
+}
+
+fn tool(s: &Session) -> Vector3<f64> {
+    Vector3::from(s.snapshot().tool0.t)
+}
+
+/// Drive `s` with the hand moving from `a` to `b` (tracking space) over `secs` at 90 Hz, turned
+/// by `r`; returns every step's reason for not following.
+fn sweep(
+    s: &mut Session,
+    t0: f64,
+    secs: f64,
+    a: Vector3<f64>,
+    b: Vector3<f64>,
+    r: &UnitQuaternion<f64>,
+) -> Vec<Option<&'static str>> {
+    let n = (secs * 90.0) as usize;
+    let mut why = Vec::new();
+    for k in 0..n {
+        let u = k as f64 / (n - 1).max(1) as f64;
+        let j = hand_at(a + (b - a) * u, r);
+        let f = Frame {
+            t: t0 + k as f64 / 90.0,
+            tracked: true,
+            joints: &j,
+            raw: Some("fixed"),
+            gesture: Some("fixed"),
+            clutch: None,
+        };
+        why.extend(s.push(&f, None).unwrap().into_iter().map(|st| st.why.map(|w| w.text())));
+    }
+    why
+}
+
+#[test]
+fn under_the_clutch_any_hand_orientation_drives_the_tool_by_the_hands_motion() {
+    let mut seed = 11u64;
+    let mut rnd = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * std::f64::consts::PI
+    };
+    let p = Vector3::new(0.1, -0.3, -0.4);
+    let calib = Calibration::default();
+    for _ in 0..8 {
+        let r = UnitQuaternion::from_euler_angles(rnd(), rnd() / 2.0, rnd());
+        let mut s = session_with(Task::TileSuction, Mapping::Clutch);
+        let start = tool(&s);
+        let still = sweep(&mut s, 0.0, 0.5, p, p, &r);
+        assert!(still.iter().all(Option::is_none), "{r:?}: {still:?}");
+        assert!(
+            (tool(&s) - start).norm() < 1e-4,
+            "the arm jumped at engagement: {}",
+            (tool(&s) - start).norm()
+        );
+        let d = Vector3::new(0.05, 0.02, -0.03);
+        let moving = sweep(&mut s, 0.5, 0.5, p, p + d, &r);
+        let rest = sweep(&mut s, 1.0, 1.0, p + d, p + d, &r);
+        assert!(moving.iter().chain(&rest).all(Option::is_none), "{r:?}: {moving:?} {rest:?}");
+        let want = calib.point_to_base(&(p + d)) - calib.point_to_base(&p);
+        assert!((tool(&s) - start - want).norm() < 2e-3, "moved {:?}, asked {want:?}", tool(&s) - start);
+    }
+}
+
+#[test]
+fn a_far_jump_of_the_hand_is_followed_along_a_bounded_path() {
+    let r = UnitQuaternion::identity();
+    let p = Vector3::new(0.0, -0.3, -0.4);
+    let mut s = session_with(Task::BlockGrip, Mapping::Clutch);
+    sweep(&mut s, 0.0, 0.3, p, p, &r);
+    let start = tool(&s);
+    let far = p + Vector3::new(0.08, -0.06, 0.0); // 10 cm in one frame
+    let mut last = start;
+    let mut steps = 0;
+    let mut why = Vec::new();
+    for k in 0..180 {
+        let j = hand_at(far, &r);
+        let f = Frame {
+            t: 0.3 + k as f64 / 90.0,
+            tracked: true,
+            joints: &j,
+            raw: Some("fixed"),
+            gesture: Some("fixed"),
+            clutch: None,
+        };
+        for st in s.push(&f, None).unwrap() {
+            why.push(st.why);
+            let now = tool(&s);
+            assert!((now - last).norm() < 0.02 + 1e-3, "step {steps} moved {}", (now - last).norm());
+            last = now;
+            steps += 1;
+        }
+    }
+    assert!(why.iter().all(Option::is_none), "{why:?} at {:?}, q {:?}", tool(&s), s.snapshot().q);
+    let calib = Calibration::default();
+    let want = calib.point_to_base(&far) - calib.point_to_base(&p);
+    assert!((tool(&s) - start - want).norm() < 2e-3);
+}
+
+#[test]
+fn a_released_clutch_lets_the_hand_reposition() {
+    let r = UnitQuaternion::identity();
+    let p = Vector3::new(0.0, -0.3, -0.4);
+    let mut s = session_with(Task::TileSuction, Mapping::Clutch);
+    sweep(&mut s, 0.0, 0.3, p, p, &r);
+    let start = tool(&s);
+    let j = hand_at(p, &r);
+    let release = Frame {
+        t: 0.3,
+        tracked: true,
+        joints: &j,
+        raw: Some("fixed"),
+        gesture: Some("fixed"),
+        clutch: Some(ClutchInput::Release),
+    };
+    s.push(&release, None).unwrap();
+    assert!(!s.engaged());
+    let moved = p + Vector3::new(0.1, 0.1, 0.0);
+    let mut why = sweep(&mut s, 0.31, 0.5, p, moved, &r);
+    why.extend(sweep(&mut s, 0.81, 0.5, moved, moved, &r)); // settled (the filter's lag gone)
+    assert!(why[1..].iter().all(|w| *w == Some("not engaged")), "{why:?}");
+    assert!((tool(&s) - start).norm() < 1e-3, "the tool followed a released hand");
+    let j = hand_at(moved, &r);
+    let engage = Frame {
+        t: 1.32,
+        tracked: true,
+        joints: &j,
+        raw: Some("fixed"),
+        gesture: Some("fixed"),
+        clutch: Some(ClutchInput::Engage),
+    };
+    s.push(&engage, None).unwrap();
+    assert!(s.engaged());
+    let why = sweep(&mut s, 1.33, 0.5, moved, moved, &r);
+    assert!(why.iter().all(Option::is_none));
+    assert!((tool(&s) - start).norm() < 1e-3, "the tool jumped at re-engagement");
 }

@@ -69,6 +69,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help=f"samples per class in the gesture mode ({DEFAULT_PER_CLASS})",
     )
     parser.add_argument(
+        "--mapping",
+        choices=["clutch", "absolute"],
+        default="clutch",
+        help="clutch (default): Start (or Engage) captures your hand's and the tool's poses and "
+        "the tool then moves by your hand's motion, in any hand orientation; Release lets you "
+        "reposition. absolute: the tool goes where your hand is through the calibration (the "
+        "paper's; for replaying hand logs recorded that way)",
+    )
+    parser.add_argument(
         "--emulate", action="store_true", help="print the URL of the desktop emulation (IWER)"
     )
     parser.add_argument(
@@ -115,6 +124,7 @@ def main(args: argparse.Namespace) -> int:
         model=model,
         gestures=args.gestures,
         gesture_samples=args.gesture_samples,
+        mapping=args.mapping,
     )
     loopback = srv.is_loopback(args.host)
     token = None if loopback else srv.new_token()

@@ -30,7 +30,7 @@ from mimicrete.hands.log import HandLogData
 from mimicrete.kin import Calibration
 from mimicrete.safe_io import FileLock
 
-from .provenance import ModelFileError, model_of
+from .provenance import ModelFileError, driving_of, model_of
 from .record import DemoSink, episode_meta, source_keys
 from .session import Counts, Session
 
@@ -242,6 +242,7 @@ def convert_log(
                 f"{source}: hand log is for task {logged!r}, converting as {spec.name!r}"
             )
     seed = int(log.header.get("episode_seed") or 0)
+    mapping, clutch = driving_of(log.header, len(log.t), source)
     extra = log.header.get("extra")
     logged_cal = isinstance(extra, dict) and extra.get("calibration") is not None
     calib_from = "given" if calibration is not None else "handlog" if logged_cal else "default"
@@ -298,10 +299,12 @@ def convert_log(
                 seed,
                 model=model,
                 recorder=sink,
+                mapping=mapping,
             )
             skipped = 0  # frames after the end, never pushed
             for k in range(len(log.t)):
-                for st in session.push(float(log.t[k]), bool(log.tracked[k]), log.joints[k]):
+                frame = (float(log.t[k]), bool(log.tracked[k]), log.joints[k])
+                for st in session.push(*frame, clutch=clutch.get(k)):
                     rewards.append(st.reward)
                     actions.append(st.action)
                 if session.done:

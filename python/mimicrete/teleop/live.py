@@ -50,7 +50,7 @@ from .protocol import FrameError, HandFrame
 from .provenance import what_read
 from .record import DemoSink, episode_meta, source_keys
 from .session import Session, Step
-from .view import effector_state, standing_calibration, view_from_base
+from .view import HINTS, effector_state, follow_why, standing_calibration, view_from_base
 
 LAYOUT = "webxr"
 #: The hand's space as the formats name it: WebXR's axes are OpenXR's (right-handed, +Y up), and
@@ -70,6 +70,7 @@ class Episode:
     tracked: list[bool] = field(default_factory=list)
     joints: list[np.ndarray] = field(default_factory=list)
     read_by: dict[str, Any] = field(default_factory=dict)  # the hand log's extra (at the start)
+    clutch: list[list[Any]] = field(default_factory=list)  # [frame index, engage | release]
 
 
 class Live:
@@ -87,6 +88,8 @@ class Live:
         gesture_samples: samples per class in the gesture mode.
         gesture_options: more keyword arguments of :class:`.gesturemode.GestureMode`
             (``settle_s``, ``min_interval_s``, ``grid``).
+        mapping: ``clutch`` (the tool moves by the hand's motion since the clutch engaged) or
+            ``absolute`` (the tool goes where the hand is, the paper's).
     """
 
     def __init__(
@@ -100,8 +103,10 @@ class Live:
         gestures: bool = False,
         gesture_samples: int = DEFAULT_PER_CLASS,
         gesture_options: dict[str, Any] | None = None,
+        mapping: str = "clutch",
     ) -> None:
         self.task = tasks.get(task)
+        self.mapping = mapping  # how the hand drives the tool (teleop.session.Session)
         self.out = Path(out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.calib_path = self.out / "calibration.json"
@@ -127,6 +132,7 @@ class Live:
         self.scene: list[dict[str, Any]] | None = None
         self.preview = self._session(self.seed + self.next_index, None)
         self.left_hand = LeftHandControl()
+        self._clutch: str | None = None  # engage / release, applied with the next frame
         self.last_right: np.ndarray | None = None
         #: the newest control step and the session it belongs to (:attr:`last_step`)
         self._last_step: tuple[Session, Step] | None = None
@@ -176,12 +182,15 @@ class Live:
                     self.events.append({"type": "error", "message": f"gestures: {e}"})
             elif took is not None:
                 self._gesture_event("progress" if took == "sample" else took)
+        clutch, self._clutch = self._clutch, None
         if ep is not None:
+            if clutch is not None:
+                ep.clutch.append([len(ep.t), clutch])
             ep.t.append(f.t)
             ep.tracked.append(f.right_tracked)
             ep.joints.append(joints)
         s = self.session
-        steps = s.push(f.t, f.right_tracked, joints, view=True)
+        steps = s.push(f.t, f.right_tracked, joints, view=True, clutch=clutch)
         if steps:
             self._last_step = (s, steps[-1])
         if s.done:
@@ -323,6 +332,11 @@ class Live:
         self.next_index -= 1  # the index is free again
         self.preview = self._session(self.seed + self.next_index, None)
 
+    def clutch(self, engage: bool) -> None:
+        """Engage the clutch (the hand's and the tool's poses are captured at the next frame)
+        or release it (the tool stays while the hand repositions); recorded with that frame."""
+        self._clutch = "engage" if engage else "release"
+
     def recentre(self) -> list[float] | None:
         """Shift the calibration so the right hand's current target is tool0's current position
         (the robot stays where it is); saved to ``out/calibration.json`` and used from now on.
@@ -350,16 +364,7 @@ class Live:
         s = self.session
         v = s.view if s.view is not None else s.core.view()
         snap = v["snapshot"]
-        last = self.last_step
-        why = None
-        if s.target is None:
-            why = "no hand yet"
-        elif s.counts.frames and self.last_frame_untracked(s):
-            why = "hand not tracked"
-        elif last is not None and last.why == "target unreachable":
-            why = last.why
-        elif not self.recording:
-            why = "not recording"
+        why = follow_why(s, self.last_step, self.recording)
         margin = None if s.margin is None else round(s.margin, 3)
         return {
             "type": "state",
@@ -369,6 +374,8 @@ class Live:
             "margin": margin,
             "following": why in (None, "not recording"),
             "why": why,
+            "hint": HINTS.get(why),
+            "engaged": s.engaged,
             "target": v["target"],
             "episode": self.episode.index if self.episode else self.next_index,
             "recording": self.recording,
@@ -383,10 +390,6 @@ class Live:
         if self._last_step is None or self._last_step[0] is not self.session:
             return None
         return self._last_step[1]
-
-    @staticmethod
-    def last_frame_untracked(s: Session) -> bool:
-        return s.last_tracked is False
 
     # ------------------------------------------------------------------ gesture model & mode
 
@@ -556,6 +559,7 @@ class Live:
             seed,
             model=self.model,
             recorder=sink,
+            mapping=self.mapping,
         )
         scene = s.scene_entities()
         if scene != self.scene:
@@ -582,7 +586,8 @@ class Live:
             "task": self.task.name,
             "episode_seed": ep.seed,
             "source": "mimicrete teleop (WebXR page)",
-            "extra": ep.read_by,  # what read the hand: docs/formats.md §1
+            # what read the hand and how it drove (docs/formats.md §1)
+            "extra": {**ep.read_by, "mapping": self.mapping, "clutch": ep.clutch},
         }
         handlog.write(
             path,

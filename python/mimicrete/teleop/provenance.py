@@ -167,3 +167,48 @@ def model_of(
             f"says {classes}{how}"
         )
     return model
+
+
+class DrivingError(MimicreteError, ValueError):
+    """A hand log's ``extra.mapping`` or ``extra.clutch`` is malformed (names the log and the
+    field)."""
+
+
+#: The mappings a hand log may name (teleop-core's ``Mapping``).
+MAPPINGS = ("absolute", "clutch")
+
+
+def driving_of(header: dict[str, Any], frames: int, source: str) -> tuple[str, dict[int, str]]:
+    """How a hand log's hand drove the tool: ``extra.mapping`` (``absolute``, the default for a
+    log that names none, or ``clutch``) and ``extra.clutch``'s commands by frame index (``[k,
+    "engage" | "release"]``: applied with frame ``k``). Raises :class:`DrivingError` (a
+    ``ValueError``) naming the log and the field for anything else."""
+    extra = header.get("extra")
+    extra = extra if isinstance(extra, dict) else {}
+    mapping = extra.get("mapping", "absolute")
+    if mapping not in MAPPINGS:
+        raise DrivingError(
+            f"{source}: extra.mapping must be one of {', '.join(MAPPINGS)}, got {mapping!r}"
+        )
+    events: dict[int, str] = {}
+    raw = extra.get("clutch", [])
+    if not isinstance(raw, list):
+        raise DrivingError(f"{source}: extra.clutch must be a list, got {type(raw).__name__}")
+    for i, e in enumerate(raw):
+        ok = (
+            isinstance(e, list)
+            and len(e) == 2
+            and isinstance(e[0], int)
+            and not isinstance(e[0], bool)
+            and 0 <= e[0] < frames
+            and e[1] in ("engage", "release")
+        )
+        if not ok:
+            raise DrivingError(
+                f"{source}: extra.clutch[{i}] must be [frame index 0..{frames - 1}, "
+                f"'engage' | 'release'], got {e!r}"
+            )
+        events[e[0]] = e[1]
+    if events and mapping != "clutch":
+        raise DrivingError(f"{source}: extra.clutch is given but extra.mapping is {mapping!r}")
+    return mapping, events

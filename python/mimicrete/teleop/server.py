@@ -252,6 +252,8 @@ class TeleopServer:
             live.stop()
         elif action == "discard":
             live.discard()
+        elif action in ("engage", "release"):
+            live.clutch(action == "engage")
         elif action == "recentre":
             m = live.recentre()
             if m is not None:

@@ -121,6 +121,7 @@ class Session:
         *,
         model: gest.GestureModel | None = None,
         recorder: Recorder | None = None,
+        mapping: str = "absolute",
     ) -> None:
         self.task = tasks.get(task)
         self.layout = check_layout(layout)
@@ -140,7 +141,12 @@ class Session:
             kin._calib(calibration),
             self.seed,
             None if recorder is None else recorder.w,
+            mapping,
         )
+        #: ``absolute`` (the tool goes where the hand is: the paper's, and every hand log that
+        #: names no mapping) or ``clutch`` (the tool moves by the hand's motion since the clutch
+        #: engaged, along a bounded path: the live server's; teleop-core's ``clutch.rs``)
+        self.mapping = mapping
         self.raw_gesture: str | None = None
         self.margin: float | None = None  # the SVM's decision margin of raw_gesture
         #: the page's view after the newest :meth:`push` with ``view=True``
@@ -162,6 +168,11 @@ class Session:
     @property
     def counts(self) -> Counts:
         return Counts(**self.core.counts)
+
+    @property
+    def engaged(self) -> bool:
+        """The clutch is engaged (always False under the absolute mapping)."""
+        return bool(self.core.engaged)
 
     @property
     def step_index(self) -> int:
@@ -231,14 +242,24 @@ class Session:
 
     # ------------------------------------------------------------------ input
 
-    def push(self, t: float, tracked: bool, joints: np.ndarray, view: bool = False) -> list[Step]:
+    def push(
+        self,
+        t: float,
+        tracked: bool,
+        joints: np.ndarray,
+        view: bool = False,
+        clutch: str | None = None,
+    ) -> list[Step]:
         """Feed one hand frame at time ``t`` (seconds, any origin, non-decreasing).
 
         Runs every control step that fell due before the frame (their results are returned),
         then updates the gesture and the target from it. Frames after the episode has ended
-        are counted and ignored. ``view``: also take what the page draws (:attr:`view`)."""
+        are counted and ignored. ``view``: also take what the page draws (:attr:`view`).
+        ``clutch``: ``engage`` / ``release`` at this frame (the clutch mapping)."""
         joints, raw = self._read(tracked, joints)
-        steps, v = self.core.push(float(t), bool(tracked), joints, raw, self.smoother.state, view)
+        steps, v = self.core.push(
+            float(t), bool(tracked), joints, raw, self.smoother.state, view, clutch
+        )
         self.view = v
         return self._steps(steps)
 
@@ -248,11 +269,13 @@ class Session:
             self._done = True
         return out
 
-    def observe(self, t: float, tracked: bool, joints: np.ndarray) -> None:
+    def observe(
+        self, t: float, tracked: bool, joints: np.ndarray, clutch: str | None = None
+    ) -> None:
         """The hand half of :meth:`push` alone: update the gesture and the target from one frame
         (and record it), without running the control steps that fell due."""
         joints, raw = self._read(tracked, joints)
-        self.core.observe(float(t), bool(tracked), joints, raw, self.smoother.state)
+        self.core.observe(float(t), bool(tracked), joints, raw, self.smoother.state, clutch)
 
     def _read(self, tracked: bool, joints: np.ndarray) -> tuple[np.ndarray, str | None]:
         """The frame's joints as Rust takes them and its gesture (None: untracked, degenerate,

@@ -26,6 +26,29 @@ def frame_poses(snap: dict[str, Any]) -> dict[str, list[float]]:
     return _native.scene_frames(snap["q"], [*o["t"], *o["q"]])
 
 
+#: What the person should do when the robot does not follow, by the reason (the HUD's line).
+HINTS: dict[str | None, str] = {
+    "no hand yet": "show your right hand to the headset: the robot engages on it",
+    "hand not tracked": "bring your right hand back into the headset's view",
+    "not engaged": "the clutch is released: move your hand where it is comfortable, then Engage",
+    "target unreachable": "out of the arm's reach: move your hand back toward the robot "
+    "(the ghost marks where the tool is asked to go)",
+    "not recording": "following (not recorded): pinch your left hand 1 s or press Start to record",
+}
+
+
+def follow_why(session: Any, last_step: Any, recording: bool) -> str | None:
+    """Why the arm does not follow the hand now (None: it does), from the session and its
+    newest control step (None before one)."""
+    if session.target is None:
+        return "no hand yet"
+    if session.last_tracked is False:
+        return "hand not tracked"
+    if last_step is not None and last_step.why in ("target unreachable", "not engaged"):
+        return str(last_step.why)
+    return None if recording else "not recording"
+
+
 def effector_state(task: str, snap: dict[str, Any]) -> dict[str, Any]:
     """The end effector's state for the HUD and the drawing."""
     if task == "suction":

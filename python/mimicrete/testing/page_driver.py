@@ -40,6 +40,8 @@ from mimicrete.hands.layouts import WEBXR_FROM_OPENXR, WEBXR_JOINT_NAMES
 from mimicrete.teleop.session import CONTROL_DT
 
 CHROMIUM = Path("/usr/bin/chromium")
+#: the built page, where the server serves it from (``make web``)
+STATIC = Path(__file__).resolve().parent.parent / "teleop" / "static"
 #: SwiftShader gives headless Chromium WebGL without a GPU; no sandbox because tests run as root;
 #: no background traffic (the machines reach no network but package registries).
 CHROMIUM_ARGS: tuple[str, ...] = (
@@ -387,7 +389,7 @@ def serve_static(directory: str | Path | None = None) -> Iterator[str]:
     import http.server
     import threading
 
-    root = Path(directory) if directory else Path(__file__).resolve().parent / "static"
+    root = Path(directory) if directory else STATIC
     if not (root / "index.html").exists():
         raise FileNotFoundError(f"{root} has no built page: run `make web`")
 
