@@ -6,58 +6,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from mimicrete import demos
-from mimicrete.demonstrator.scene import TOOL_DOWN, hand_pose_for_tool0
-from mimicrete.hands.layouts import to_layout
-from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop.live import Live
-from mimicrete.teleop.protocol import HandFrame
 from mimicrete.teleop.view import standing_calibration
-
-RATE_HZ = 90.0
-NO_LEFT = np.zeros((25, 3))
-#: hand orientations a person uses, as turns of the tool-down hand (Base): about the vertical,
-#: and tilted; "palm down, fingers toward the robot" among them
-TURNS = [
-    Rotation.from_euler("z", a, degrees=True) * Rotation.from_euler("x", b, degrees=True)
-    for a in (0, 90, 180, -90, 45)
-    for b in (0, 30)
-]
+from mimicrete.testing.hand_poses import TURNS, Driver, hand_for_tool
 
 
-def _hand(tool0: np.ndarray, turn: Rotation) -> np.ndarray:
-    """WebXR joints of an open right hand whose absolute mapping (standing calibration) is tool0
-    at ``tool0`` turned by ``turn`` from pointing down."""
-    pose = np.eye(4)
-    pose[:3, :3], pose[:3, 3] = turn.as_matrix() @ TOOL_DOWN, tool0
-    rot, wrist = hand_pose_for_tool0(pose, "right", standing_calibration())
-    return to_layout(
-        hand_joints(GESTURE_SHAPES["opening"], rot, wrist, 1.0, "right")[None], "webxr"
-    )[0]
-
-
-class Driver:
-    """Frames into a Live at 90 Hz; remembers every step's reason for not following."""
-
-    def __init__(self, live: Live) -> None:
-        self.live, self.t, self.k, self.why = live, 0.0, 0, []
-
-    def hold(self, joints: np.ndarray, seconds: float) -> None:
-        self.move(joints, joints, seconds)
-
-    def move(self, a: np.ndarray, b: np.ndarray, seconds: float) -> None:
-        n = int(seconds * RATE_HZ)
-        for i in range(n):
-            u = i / max(n - 1, 1)
-            f = HandFrame(self.k, self.t, 0.0, True, False, a + (b - a) * u, NO_LEFT)
-            self.why += [s.why for s in self.live.push(f)]
-            self.t, self.k = self.t + 1 / RATE_HZ, self.k + 1
-
-    def tool(self) -> np.ndarray:
-        return np.asarray(self.live.session.snapshot()["tool0"]["t"])
+def _hand(tool0: np.ndarray, turn) -> np.ndarray:
+    return hand_for_tool(tool0, turn, standing_calibration())
 
 
 @pytest.mark.parametrize("turn", TURNS, ids=[str(np.round(t.as_rotvec(), 2)) for t in TURNS])

@@ -145,6 +145,44 @@ def crossings_live(task: str = "suction", frames: int = 400) -> tuple[float, flo
     return float(np.mean(per_frame)), float(np.mean(per_step))
 
 
+def following(mapping: str, task: str = "suction") -> tuple[float, float, int]:
+    """A scripted session per hand orientation a person uses
+    (:data:`mimicrete.testing.hand_poses.TURNS`): Start, the right hand held 15 cm above the tool
+    turned that way, then moved 7 cm and held. Returns the share of control steps that follow
+    the hand (all orientations), the median time from Start to the first step that follows (s,
+    hand clock; orientations that never follow left out) and how many never follow."""
+    import tempfile as tf
+
+    from mimicrete.teleop.live import Live
+    from mimicrete.teleop.view import standing_calibration
+    from mimicrete.testing.hand_poses import TURNS, Driver, hand_for_tool
+
+    calib = standing_calibration()
+    follow = total = never = 0
+    to_follow: list[float] = []
+    with tf.TemporaryDirectory(prefix="mimicrete-bench-following-") as tmp:
+        for i, turn in enumerate(TURNS):
+            live = Live(task, Path(tmp) / str(i), calibration=calib, seed=2, mapping=mapping)
+            drive = Driver(live)
+            live.start()
+            above = drive.tool() + np.array([0.0, 0.0, 0.15])
+            here = hand_for_tool(above, turn, calib)
+            there = hand_for_tool(above + np.array([0.05, -0.03, -0.04]), turn, calib)
+            drive.hold(here, 0.5)
+            drive.move(here, there, 0.6)
+            drive.hold(there, 1.0)
+            live.discard()
+            live.close()
+            ok = [w is None for w in drive.why]
+            follow, total = follow + sum(ok), total + len(ok)
+            if any(ok):
+                to_follow.append(drive.step_t[ok.index(True)])
+            else:
+                never += 1
+    median = float(np.median(to_follow)) if to_follow else float("nan")
+    return follow / max(total, 1), median, never
+
+
 def run(task: str = "suction", episodes: int = 2) -> None:
     """Print per-frame latency of the teleoperation session exactly as ``mimicrete convert`` runs
     it (:class:`mimicrete.teleop.session.Session` recording into an MCAP demo)."""
@@ -214,6 +252,12 @@ def run(task: str = "suction", episodes: int = 2) -> None:
         f"  live server (push + the page's state) per hand frame: {live_all:.2f} calls into Rust "
         f"on average, {live_step:.2f} on frames that ran a control step"
     )
+    for mapping in ("clutch", "absolute"):
+        share, first, never = following(mapping, task)
+        print(
+            f"  {mapping:8s} mapping, 10 hand orientations a person uses: {100 * share:5.1f} % of "
+            f"steps follow; Start to following {first * 1000:.0f} ms (median), {never}/10 never"
+        )
     load = os.getloadavg()[0]
     print(f"  machine load average {load:.2f} on {os.cpu_count()} cores at the end of the run")
 
