@@ -16,6 +16,7 @@ import tempfile
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -69,16 +70,14 @@ class CrossingCounter:
         sys.setprofile(None)
 
 
-def crossings(task: str = "suction") -> tuple[float, float, Counter[str]]:
-    """Calls into Rust per hand frame over one synthetic episode converted as ``mimicrete
-    convert`` does: (all frames, frames that ran a control step, calls by name)."""
-    tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-crossings-"))
-    path = sy.synth_hands(task, 1, 0, tmp / "logs")[0]
-    log = cv.load_log(path)
+def _recording(
+    task: str, log: Any, path: Path, index: int, demo: Path, model: gest.GestureModel
+) -> tuple[Session, DemoSink]:
+    """A session over hand log ``log`` (read from ``path``) recording into ``demo``, as
+    ``mimicrete convert`` makes it."""
     h = log.header
-    model = gest.load_default(tasks.get(task).name)
     meta = episode_meta(
-        episode=0,
+        episode=index,
         task_sim=tasks.get(task).sim,
         seed=h["episode_seed"],
         source=str(path),
@@ -88,7 +87,7 @@ def crossings(task: str = "suction") -> tuple[float, float, Counter[str]]:
         handedness=h["handedness"],
         extra={},
     )
-    sink = DemoSink(tmp / "demo.mcap", meta)
+    sink = DemoSink(demo, meta)
     session = Session(
         task,
         h["layout"],
@@ -98,6 +97,17 @@ def crossings(task: str = "suction") -> tuple[float, float, Counter[str]]:
         model=model,
         recorder=sink,
     )
+    return session, sink
+
+
+def crossings(task: str = "suction") -> tuple[float, float, Counter[str]]:
+    """Calls into Rust per hand frame over one synthetic episode converted as ``mimicrete
+    convert`` does: (all frames, frames that ran a control step, calls by name)."""
+    tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-crossings-"))
+    path = sy.synth_hands(task, 1, 0, tmp / "logs")[0]
+    log = cv.load_log(path)
+    model = gest.load_default(tasks.get(task).name)
+    session, sink = _recording(task, log, path, 0, tmp / "demo.mcap", model)
     total = Counter[str]()
     per_step: list[int] = []
     per_frame: list[int] = []
@@ -198,28 +208,7 @@ def run(task: str = "suction", episodes: int = 2) -> None:
         p0 = time.perf_counter()
         log = cv.load_log(path)
         parse_share = (time.perf_counter() - p0) / len(log)
-        h = log.header
-        meta = episode_meta(
-            episode=i,
-            task_sim=spec.sim,
-            seed=h["episode_seed"],
-            source=str(path),
-            model=model,
-            layout=h["layout"],
-            space=h["space"],
-            handedness=h["handedness"],
-            extra={},
-        )
-        sink = DemoSink(tmp / "demos" / f"{i}.mcap", meta)
-        session = Session(
-            task,
-            h["layout"],
-            h["handedness"],
-            cv.calibration_of(log),
-            h["episode_seed"],
-            model=model,
-            recorder=sink,
-        )
+        session, sink = _recording(task, log, path, i, tmp / "demos" / f"{i}.mcap", model)
         for k in range(len(log)):
             c0 = time.thread_time()
             t0 = time.perf_counter()
