@@ -69,6 +69,13 @@ def window_features(
     return np.concatenate([_part(p, f, win, axis=-1) for p in parts], axis=1)
 
 
+#: A window's delta this close to 0 is 0: a feature that holds still within a window (a
+#: synthetic hand's proportions) differs only by float rounding (~1e-16) between frames, and
+#: between the batch and the per-frame computation of the same frame; a scaler would blow that
+#: up to unit variance and let one rounding step change the class. Real deltas are above 1e-6.
+DELTA_FLOOR = 1e-12
+
+
 def _part(name: str, last: np.ndarray, win: np.ndarray, axis: int) -> np.ndarray:
     if name == "last":
         return last
@@ -80,8 +87,10 @@ def _part(name: str, last: np.ndarray, win: np.ndarray, axis: int) -> np.ndarray
         w = win.shape[axis]
         h = (w + 1) // 2
         if axis == -1:
-            return np.median(win[..., w - h :], axis=-1) - np.median(win[..., :h], axis=-1)
-        return np.median(win[w - h :], axis=0) - np.median(win[:h], axis=0)
+            d = np.median(win[..., w - h :], axis=-1) - np.median(win[..., :h], axis=-1)
+        else:
+            d = np.median(win[w - h :], axis=0) - np.median(win[:h], axis=0)
+        return np.where(np.abs(d) < DELTA_FLOOR, 0.0, d)
     raise ValueError(f"unknown window part {name!r}; known: {PARTS}")
 
 
