@@ -162,7 +162,7 @@ def test_concurrent_converts_into_one_folder_never_corrupt(tmp_path, hands):
     results = [(p.wait(300), p.stderr.read()) for p in procs]
     for rc, err in results:
         no_traceback(subprocess.CompletedProcess([], rc, "", err))
-        assert rc == 0 or "is in use by process" in err, err  # the --out lock
+        assert rc == 0 or "is in use by" in err, err  # the --out lock (owner maybe not written yet)
     d = demos.load(out)  # every demo there is complete and loads
     assert d.num_episodes == 2
     assert not list(out.glob("*.lock")) and not list(out.glob("*.partial"))

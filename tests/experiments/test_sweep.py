@@ -162,7 +162,7 @@ def test_sweep_trial_dirs_crash_report(tmp_path):
     assert "group3-seed0" in crashed and "group3-seed1" in crashed and "not_a_key" in crashed
     assert "Step budget per run: 2,048 env steps" in text
     assert (results.parent / "figures" / "fig7a_RL_methods.png").stat().st_size > 5000
-    assert "| 1 | PPO | - | 2k | 2 |" in text  # group 1: 2,048 steps, two evaluated seeds
+    assert "| 1 | PPO (1.0) | - | 2k | 2 |" in text  # group 1: 2,048 steps, two evaluated seeds
 
 
 def test_interrupted_sweep_resumes(tmp_path):
