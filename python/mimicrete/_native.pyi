@@ -478,6 +478,7 @@ class _SalvageReport(TypedDict):
     chunks_lost: int
     messages: int
     metadata: int
+    metadata_dropped: list[str]
     attachments: int
     complete: bool
     stopped_because: str | None

@@ -93,6 +93,10 @@ pub struct SalvageReport {
     pub messages_unattributed: u64,
     /// Metadata records recovered.
     pub metadata: u64,
+    /// Metadata records left out because a value readers rely on is damaged (metadata has no
+    /// CRC of its own): `"name: reason"`, e.g. `episode: terminated is "urue", not true or false`.
+    /// Without its `episode` record the salvaged demo reads as unfinished.
+    pub metadata_dropped: Vec<String>,
     /// Attachments recovered.
     pub attachments: u64,
     /// Half-open ranges `[a, b)` of `/demo/step` step numbers that are missing between (or
@@ -414,7 +418,12 @@ pub fn salvage_bytes(buf: &[u8], name: &Path) -> Result<Salvaged, DemoError> {
     for (_, r) in &m.records {
         match r {
             Record::Message { header, data } if !chunked => push(header, data, &mut out),
-            Record::Metadata(md) => out.metadata.push((md.name.clone(), md.metadata.clone())),
+            Record::Metadata(md) => match crate::meta::check_episode_record(&md.metadata) {
+                Err(e) if crate::meta::CHECKED_RECORDS.contains(&md.name.as_str()) => {
+                    out.report.metadata_dropped.push(format!("{}: {e}", md.name));
+                }
+                _ => out.metadata.push((md.name.clone(), md.metadata.clone())),
+            },
             Record::Attachment { header, data, .. } => out.attachments.push(mcap::Attachment {
                 log_time: header.log_time,
                 create_time: header.create_time,
@@ -665,6 +674,7 @@ pub fn salvage_to(path_in: impl AsRef<Path>, path_out: impl AsRef<Path>) -> Resu
     md.insert("complete".to_string(), r.complete.to_string());
     md.insert("step_gaps".to_string(), format_gaps(&r.step_gaps));
     md.insert("layout_assumed".to_string(), r.layout_assumed.to_string());
+    md.insert("metadata_dropped".to_string(), r.metadata_dropped.join("; "));
     let lost: Vec<String> = r
         .lost_chunks
         .iter()

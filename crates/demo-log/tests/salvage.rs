@@ -437,6 +437,22 @@ fn metadata_damage_is_found_by_the_data_crc() {
     assert_eq!(v.damaged_chunks().count(), 0);
 }
 
+/// Found by the property test: one flipped bit in the `episode` record's `terminated` ("true" →
+/// "urue"). Metadata has no CRC, so salvage carried the record over and the salvaged file did not
+/// load; the record is now left out and named in the report.
+#[test]
+fn a_damaged_episode_record_is_dropped_and_named() {
+    let (d, t) = base("md-drop", 30);
+    let at = t.buf.windows(15).rposition(|w| w == b"terminated\x04\0\0\0t").expect("terminated") + 14;
+    let mut b = t.buf.clone();
+    b[at] ^= 0x01;
+    check(&t, &b, &d, "md-drop").unwrap();
+    let s = salvage_bytes(&b, Path::new("x.mcap")).unwrap();
+    assert_eq!(s.report.metadata_dropped, ["episode: terminated is \"urue\", not true or false"]);
+    assert!(s.metadata.iter().all(|(n, _)| n != "episode"));
+    assert!(s.metadata.iter().any(|(n, _)| n == "episode_start"));
+}
+
 mod properties {
     use super::*;
     use proptest::prelude::*;
