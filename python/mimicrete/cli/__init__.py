@@ -35,6 +35,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "gesture": ("gesture", "train / evaluate the SVM gesture models"),
     "train": ("train", "train a policy with BC + GAIL + PPO from a YAML config"),
     "eval": ("eval", "evaluate a run: picked/installed rate, episode length"),
+    "demogen": ("demogen", "generate installing demos at new starts from a few (MimicGen)"),
     "inspect": ("inspect", "show what is in an MCAP demo and check it"),
     "export": ("export", "MCAP demos -> a LeRobot v3.0 or Minari dataset (one task per dataset)"),
 }
@@ -87,7 +88,7 @@ def calibration_arg(path: str | None):  # -> Calibration | None
     import json
 
     from mimicrete import LogFormatError
-    from mimicrete.teleop.convert import parse_calibration
+    from mimicrete.kin import parse_calibration
 
     try:
         with open(path, encoding="utf-8") as f:

@@ -119,6 +119,7 @@ class DemoCurriculumSettings:
     forward_step: float = 0.1  # scale step of the forward curriculum (0 = paper's, 1 = wide)
     forward_window: int = 32  # own-start episodes judged at a scale
     forward_threshold: float = 0.9  # installed share of the window that widens the starts
+    forward_start: float = 0.0  # the forward scale training starts at (1: wide from the outset)
 
 
 @dataclass
@@ -271,7 +272,7 @@ RANGES: dict[tuple[type, str], Range] = {
     (DemoCurriculumSettings, "max_demos"): COUNT,
     (DemoCurriculumSettings, "forward_step"): Range(0, 1, lo_open=True),
     (DemoCurriculumSettings, "forward_window"): COUNT,
-    (DemoCurriculumSettings, "forward_threshold"): UNIT,
+    **{(DemoCurriculumSettings, k): UNIT for k in ("forward_threshold", "forward_start")},
     (BehaviorConfig, "max_steps"): STEPS,
     (BehaviorConfig, "time_horizon"): COUNT,
     (BehaviorConfig, "summary_freq"): STEPS,

@@ -57,6 +57,9 @@ class DemoTrack:
 
     seed: int
     actions: np.ndarray  # (L, act_dim) float32, idle steps included (replay needs them all)
+    #: an explicit start (``object_pose``, ``target_offset``: a generated demo's, ``mimicrete
+    #: demogen``), replayed there instead of at the paper's start of ``seed``
+    start: dict[str, list[float]] | None = None
 
     @property
     def length(self) -> int:
@@ -77,10 +80,19 @@ def demo_tracks(demos: LoadedDemos) -> list[DemoTrack]:
         acts = np.asarray(demos.arrays["actions"][ep == e], np.float32)
         if len(acts) < 2:
             continue
-        tracks.append(DemoTrack(int(meta["seed"]), acts))
+        tracks.append(DemoTrack(int(meta["seed"]), acts, _explicit_start(meta)))
     if not tracks:
         raise ValueError("no demo to start a curriculum from")
     return tracks
+
+
+def _explicit_start(meta: dict[str, str]) -> dict[str, list[float]] | None:
+    """The explicit start a (generated) demo's metadata records, None for a seed's own start."""
+    if "object_pose" not in meta:
+        return None
+    import json
+
+    return {k: json.loads(meta[k]) for k in ("object_pose", "target_offset") if k in meta}
 
 
 def start_schedule(length: int, step_fraction: float) -> list[int]:
@@ -116,7 +128,8 @@ class ReverseCurriculum:
         self.env_frontier = np.zeros(num_envs, bool)  # started at its demo's current start
         self.replayed_steps = 0
         self.episodes_done: list[bool] = []  # curriculum episodes finished since the last summary
-        self.forward_scale = 0.0  # how far the env's own starts have widened (forward_to)
+        # how far the env's own starts have widened (forward_to); forward_start: from the outset
+        self.forward_scale = float(settings.forward_start)
         self.forward_results: deque[bool] = deque(maxlen=settings.forward_window)
         self.env_scale = np.zeros(
             num_envs
@@ -223,7 +236,8 @@ class ReverseCurriculum:
             if self.stage[d] > 0 and self.rng.random() < self.s.old_start_prob:
                 s = self.schedules[d][int(self.rng.integers(self.stage[d]))]  # a passed start
                 self.env_frontier[i] = False
-            obs[i] = env.reset_replay(int(i), tr.seed, tr.actions[:s])
+            extra = () if tr.start is None else (tr.start,)  # an explicit (generated) start
+            obs[i] = env.reset_replay(int(i), tr.seed, tr.actions[:s], *extra)
             self.replayed_steps += s
             self.env_horizon[i] = int(self.s.horizon_ratio * (tr.length - s)) + self.s.min_horizon
         if own_reset.any():

@@ -1,0 +1,303 @@
+"""Generate demos at new starts from a few source demos (MimicGen's loop) in the real simulator.
+
+For each attempt: draw a start (tile-sim's wide or training starts, or a starts file), reset the
+simulator there explicitly (``object_pose``, ``target_offset``), pick a source demo, carry each
+of its segments into the new tile / target frame (:mod:`.segment`), connect it to where the arm is
+by blending the offset out over the segment's first part (a min-jerk interpolation from the
+current pose onto the transformed path), and follow the poses with the project's IK, producing
+the joint actions a teleoperated demo records (teleop-core's ``joint_action``:
+``clip(wrap(q_ik − q) / MAX_JOINT_STEP, −1, 1)``, the IK warm-started at its last answer). The
+suction is switched on where the source switched it, once the cup is within reach of the grasp
+point. Only episodes that install are kept (MimicGen keeps successes); each is written as an MCAP
+demo with the project's writer, its metadata saying it was generated, from which source and
+where it started (``mimicrete train --demos DIR`` reads it unchanged).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mimicrete import IkError, _native, kin
+
+from .segment import TASK, DemoGenError, SourceDemo, frame
+
+MAX_JOINT_STEP = float(_native.sim_constants()["MAX_JOINT_STEP"])
+CONTROL_DT = float(_native.sim_constants()["CONTROL_DT"])
+MAX_STEPS = int(_native.sim_constants()["MAX_EPISODE_STEPS"])
+PICK_REACH = 0.03  # m: switch the suction on only with the cup this close to the grasp point
+BRANCH_JUMP = 1.5  # rad: an IK answer further than this from the last one is another branch
+
+
+def min_jerk(s: np.ndarray) -> np.ndarray:
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def joint_action(q_ik: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """teleop-core's ``joint_action``: the shortest way round, at most one full step."""
+    return np.clip(wrap(q_ik - q) / MAX_JOINT_STEP, -1.0, 1.0)
+
+
+def draw_starts(n: int, seed: int, starts: str = "wide") -> list[dict[str, list[float]]]:
+    """``n`` starts of tile-sim's ``starts`` distribution (``wide``, ``training``, ``robust``),
+    drawn by the simulator itself from episode seeds of ``seed``."""
+    sim = _native.SimEnv(TASK, 0)
+    if starts == "robust":
+        sim.set_variation(robust=True)
+    else:
+        sim.set_variation(starts=starts)
+    rng = np.random.default_rng([seed, 0xDE70])
+    out = []
+    for s in rng.integers(0, 2**62, size=n):
+        sim.reset(int(s))
+        st = sim.start()
+        out.append({
+            "object_pose": [float(v) for v in st["object_pose"]],
+            "target_offset": [float(v) for v in st["target_offset"]],
+        })
+    return out
+
+
+@dataclass
+class Episode:
+    """One generated episode: what a demo records per step, and how it went."""
+
+    source: str
+    start: dict[str, list[float]]
+    seed: int
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    installed: bool = False
+    picked: bool = False
+    why: str = ""
+
+    @property
+    def steps(self) -> int:
+        return len(self.rows)
+
+
+def _pose7(p: dict[str, Any]) -> list[float]:
+    return [*map(float, p["t"]), *map(float, p["q"])]
+
+
+class _Runner:
+    """Steps the simulator towards tool0 poses and records every step."""
+
+    def __init__(self, sim: Any, ep: Episode, obs: np.ndarray) -> None:
+        self.sim, self.ep, self.obs = sim, ep, obs
+        snap = sim.snapshot()
+        self.q = np.asarray(snap["q"], np.float64)
+        self.q_ik = self.q.copy()
+        self.done = False
+
+    def pose(self) -> np.ndarray:
+        return kin.fk(self.q, model="ur3")
+
+    def step(self, target: np.ndarray, command: float) -> None:
+        try:
+            sol = kin.ik(target, seed=self.q_ik, model="ur3")
+        except IkError:
+            raise _Abort("unreachable pose") from None
+        if np.max(np.abs(wrap(sol - self.q_ik))) > BRANCH_JUMP:
+            raise _Abort("IK jumped to another branch")
+        self.q_ik = sol
+        a = np.zeros(7, np.float32)
+        a[:6] = joint_action(self.q_ik, self.q)
+        on = self.obs[-16 + 6] > 0.0
+        a[6] = 0.0 if (command >= 0.5 and on) or (command <= -0.5 and not on) else command
+        obs_before = self.obs
+        obs, r, term, trunc, info = self.sim.step(a)
+        snap = self.sim.snapshot()
+        self.q = np.asarray(snap["q"], np.float64)
+        events = []
+        if info["picked"] and not self.ep.picked:
+            events.append("pick")
+        if info["installed"]:
+            events.append("install")
+        if info["fell"]:
+            events.append("fall")
+        self.ep.picked |= bool(info["picked"])
+        self.ep.installed |= bool(info["installed"])
+        self.ep.rows.append({
+            "obs": np.asarray(obs_before, np.float32),
+            "action": a,
+            "reward": float(r),
+            "terminated": bool(term),
+            "truncated": bool(trunc),
+            "gesture": "closing" if (on or a[6] >= 0.5) else "opening",
+            "joints": self.q.tolist(),
+            "ee_pose": _pose7(snap["tool0"]),
+            "tile_pose": _pose7(snap["object"]),
+            "events": events,
+        })
+        self.obs = obs
+        if term or trunc:
+            self.done = True
+            raise _Abort("fell" if info["fell"] else ("installed" if info["installed"] else "time"))
+
+
+class _Abort(Exception):
+    pass
+
+
+def _blended(poses: np.ndarray, start: np.ndarray, share: float) -> np.ndarray:
+    """``poses`` with the offset of their first position from ``start`` (4, 4) blended out over
+    the first ``share`` of them (min-jerk): the path leaves from where the arm is and joins the
+    transformed segment."""
+    out = poses.copy()
+    n = max(2, int(round(share * len(poses))))
+    w = min_jerk(np.arange(1, len(poses) + 1) / n)
+    offset = start[:3, 3] - poses[0, :3, 3]
+    out[:, :3, 3] += (1.0 - w)[:, None] * offset
+    return out
+
+
+def generate_episode(
+    sim: Any,
+    src: SourceDemo,
+    start: dict[str, list[float]],
+    seed: int = 0,
+    *,
+    blend: float = 0.5,
+    rotate: bool = False,
+) -> Episode:
+    """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv``)."""
+    ep = Episode(src.name, start, int(seed))
+    obs = sim.reset(int(seed), object_pose=start["object_pose"],
+                    target_offset=start.get("target_offset", [0.0, 0.0]))
+    f = np.asarray(obs, np.float64)[-16:]
+    yaw = float(start["object_pose"][2]) if rotate else 0.0
+    frames = {"object": frame(*f[13:16], yaw), "target": frame(*f[10:13])}
+    run = _Runner(sim, ep, np.asarray(obs, np.float32))
+    last = run.pose()
+    try:
+        for seg in src.segments:
+            if seg.relative_to == "target":  # the switch: wait until the cup is at the tile
+                grasp = np.asarray(sim.snapshot()["object"]["t"]) + [0.0, 0.0, 0.005]
+                for _ in range(25):
+                    if np.linalg.norm(np.asarray(sim.snapshot()["tcp"]["t"]) - grasp) < PICK_REACH:
+                        break
+                    run.step(last, 0.0)
+            poses = _blended(seg.moved_to(frames[seg.relative_to]), run.pose(), blend)
+            for p, c in zip(poses, seg.commands, strict=True):
+                run.step(p, float(c))
+            last = poses[-1]
+        for _ in range(40):  # finish the place: carry the held tile the rest of the way
+            snap = sim.snapshot()
+            gap = np.asarray(snap["target"]["t"]) - np.asarray(snap["object"]["t"])
+            n = float(np.linalg.norm(gap))
+            last = last.copy()
+            last[:3, 3] += gap * min(1.0, 0.005 / max(n, 1e-9))
+            run.step(last, 0.0)
+        ep.why = "not installed"
+    except _Abort as e:
+        ep.why = str(e)
+    return ep
+
+
+def write_episode(ep: Episode, path: Path, index: int, extra: dict[str, Any] | None = None) -> Path:
+    """Write a generated episode as an MCAP demo (the project's demo-log writer)."""
+    from mimicrete import demos
+
+    info = {
+        "generated": "true",
+        "generator": "mimicrete demogen (object-centric segments, MimicGen)",
+        "source_demo": ep.source,
+        "start": json.dumps(ep.start),
+        "object_pose": json.dumps(ep.start["object_pose"]),
+        "target_offset": json.dumps(ep.start.get("target_offset", [0.0, 0.0])),
+        **{k: (v if isinstance(v, str) else json.dumps(v)) for k, v in (extra or {}).items()},
+    }
+    meta = {"episode": int(index), "task": TASK, "seed": int(ep.seed), "robot_model": "ur3",
+            "gesture_model": "", "control_dt": CONTROL_DT, "extra": info}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    w = demos.DemoWriter(str(path), meta)
+    try:
+        for k, r in enumerate(ep.rows):
+            w.write_step(k, k * CONTROL_DT, r["obs"], r["action"], r["reward"], r["terminated"],
+                         r["truncated"], r["gesture"], r["joints"], r["ee_pose"], r["tile_pose"],
+                         r["events"] or None)
+        w.finish(ep.installed, {"steps": str(ep.steps), "picked": json.dumps(ep.picked)})
+    except BaseException:
+        w.abandon()
+        Path(str(path) + ".partial").unlink(missing_ok=True)
+        raise
+    return path
+
+
+@dataclass
+class Report:
+    """What a generation run did."""
+
+    attempts: int = 0
+    kept: int = 0
+    seconds: float = 0.0
+    failures: dict[str, int] = field(default_factory=dict)
+    files: list[Path] = field(default_factory=list)
+
+    @property
+    def yield_(self) -> float:
+        return self.kept / self.attempts if self.attempts else 0.0
+
+
+def generate(
+    sources: list[SourceDemo],
+    count: int,
+    out: str | Path,
+    *,
+    starts: str | Iterable[dict[str, list[float]]] = "wide",
+    seed: int = 0,
+    max_attempts: int | None = None,
+    progress: Callable[[Report], None] | None = None,
+    rotate: bool = False,
+) -> Report:
+    """Generate until ``count`` installing demos are written into ``out`` (or ``max_attempts``,
+    default ``4 · count + 20``, are used up). ``starts``: a named distribution (drawn with
+    ``seed``) or explicit starts, used in order and cycled."""
+    if not sources:
+        raise DemoGenError("no source demo")
+    if count < 1:
+        raise DemoGenError(f"--count must be at least 1, got {count}")
+    out = Path(out)
+    limit = max_attempts if max_attempts is not None else 4 * count + 20
+    if isinstance(starts, str):
+        pool = draw_starts(limit, seed, starts)
+    else:
+        pool = list(starts)
+        if not pool:
+            raise DemoGenError("no start to generate at")
+    rng = np.random.default_rng([seed, 0x6E4])
+    sim = _native.SimEnv(TASK, 0)
+    rep = Report()
+    t0 = time.monotonic()
+    while rep.kept < count and rep.attempts < limit:
+        start = pool[rep.attempts % len(pool)]
+        src = sources[int(rng.integers(len(sources)))]
+        ep_seed = int(rng.integers(0, 2**62))
+        try:
+            ep = generate_episode(sim, src, start, ep_seed, rotate=rotate)
+        except ValueError as e:  # the simulator refused the start (off the table, out of reach)
+            raise DemoGenError(f"start {rep.attempts}: {e}") from None
+        rep.attempts += 1
+        if ep.installed:
+            name = out / f"gen_{rep.kept:05d}.mcap"
+            write_episode(ep, name, rep.kept, {"attempt": rep.attempts - 1,
+                                               "demogen_seed": seed})
+            rep.files.append(name)
+            rep.kept += 1
+        else:
+            rep.failures[ep.why] = rep.failures.get(ep.why, 0) + 1
+        rep.seconds = time.monotonic() - t0
+        if progress is not None:
+            progress(rep)
+    return rep
