@@ -51,6 +51,7 @@ __all__ = [
     "kin_points_to_base",
     "kin_default_calibration",
     "kin_urdf",
+    "kin_hand_layouts",
     "SimEnv",
     "SimVecEnv",
     "SimExpert",
@@ -190,6 +191,11 @@ def kin_default_calibration() -> tuple[_F64, float, str]:
 
 def kin_urdf(model_name: str) -> str:
     """The URDF text of a model, written from its DH table."""
+
+def kin_hand_layouts() -> dict[str, dict[str, Any]]:
+    """Every hand layout (ur3-kin's ``HandLayout``): name → ``joints`` (the runtime's joint names),
+    ``openxr`` (each joint's OpenXR index, None where OpenXR has none), ``wrist``,
+    ``index_proximal``, ``middle_proximal`` (the joints the hand frame reads)."""
 
 # ---------------------------------------------------------------------------------------------
 # Simulator (sim.rs). Tasks: "TileSuction" | "BlockGrip" | "Screw" (or "suction" | "grip" |

@@ -16,11 +16,11 @@ from aiohttp.test_utils import TestClient, TestServer
 from mimicrete import gestures as g
 from mimicrete.hands import layouts
 from mimicrete.teleop.gesturemode import task_classes, user_csv_path, user_model_path
+from mimicrete.teleop.left_hand import INDEX_TIP, THUMB_TIP
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.protocol import pack_frame
 from mimicrete.teleop.server import TeleopServer
 
-THUMB_TIP, INDEX_TIP = 4, 9
 QUICK = {"svc__C": [1.0, 10.0], "svc__gamma": ["scale"]}
 
 

@@ -30,6 +30,7 @@ from mimicrete import demos
 from mimicrete import gestures as g
 from mimicrete.cli import main as cli_main
 from mimicrete.teleop.gesturemode import user_csv_path, user_model_path
+from mimicrete.teleop.left_hand import INDEX_TIP, THUMB_TIP  # WebXR joints
 from mimicrete.teleop.live import Live
 from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
 from mimicrete.teleop.view import standing_calibration
@@ -39,7 +40,6 @@ POSES = {"closing": "pinch", "opening": "default", "fixed": "point"}
 #: the shipped suction/grip model's sidecar: its held-out accuracy is what teleop prints
 SHIPPED_SIDECAR = Path(g.__file__).parent / "models" / "gesture_grip.joblib.json"
 PER_CLASS = 100
-THUMB_TIP, INDEX_TIP = 4, 9  # WebXR joints
 
 
 class HandMover:

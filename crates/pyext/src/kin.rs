@@ -8,8 +8,9 @@ use numpy::{
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use ur3_kin::nalgebra::Matrix4;
-use ur3_kin::{Calibration, HandPoints, Handedness, IkOptions, Joints, KinError, Pose, UrModel};
+use ur3_kin::{Calibration, HandLayout, HandPoints, Handedness, IkOptions, Joints, KinError, Pose, UrModel};
 
 type F1<'py> = PyReadonlyArray1<'py, f64>;
 type F2<'py> = PyReadonlyArray2<'py, f64>;
@@ -251,6 +252,20 @@ fn kin_default_calibration<'py>(py: Python<'py>) -> (Arr2<'py>, f64, &'static st
     (arr2(&c.base_from_space).into_pyarray(py), c.scale, c.space.name())
 }
 
+/// Every hand layout (ur3-kin's `HandLayout` table): name → dict `joints` (the runtime's joint
+/// names), `openxr` (each joint's OpenXR index, None where OpenXR has none), `wrist`,
+/// `index_proximal`, `middle_proximal` (the indices the hand frame reads).
+#[pyfunction]
+fn kin_hand_layouts(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let out = PyDict::new(py);
+    for l in HandLayout::ALL {
+        let d = dict!(py; "joints" => l.joint_names(), "openxr" => l.openxr_joints(), "wrist" => l.wrist(),
+            "index_proximal" => l.index_proximal(), "middle_proximal" => l.middle_proximal());
+        out.set_item(l.name(), d)?;
+    }
+    Ok(out)
+}
+
 /// The URDF (string) of a model, written from its DH table.
 #[pyfunction]
 fn kin_urdf(model_name: &str) -> PyResult<String> {
@@ -260,6 +275,6 @@ fn kin_urdf(model_name: &str) -> PyResult<String> {
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     add_functions!(m => kin_models, kin_dh, kin_fk, kin_fk_batch, kin_fk_all, kin_jacobian, kin_ik, kin_ik_gn,
         kin_ik_all, kin_ik_batch, kin_hand_to_target, kin_hand_to_target_batch, kin_points_to_base,
-        kin_default_calibration, kin_urdf);
+        kin_default_calibration, kin_urdf, kin_hand_layouts);
     Ok(())
 }

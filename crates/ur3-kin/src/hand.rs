@@ -1,4 +1,5 @@
-//! Hand-tracking joint layouts and the hand → end-effector target mapping (paper §3.2).
+//! The hand → end-effector target mapping (paper §3.2); which joints of a frame it reads is the
+//! frame's [`HandLayout`]'s.
 //!
 //! # The hand frame (paper §3.2)
 //! From three tracked joint positions, all converted to the robot Base frame first (see
@@ -19,89 +20,9 @@
 //! x axis forward: the pose for picking a tile from above with the suction cups.
 
 use crate::fk::Frame;
+use crate::layout::HandLayout;
 use crate::{KinError, Pose};
 use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
-
-/// A hand-tracking runtime's joint order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum HandLayout {
-    /// OpenXR `XrHandJointEXT`: 26 joints, 0 palm, 1 wrist, then thumb (4) and four fingers (5 each).
-    OpenXr,
-    /// WebXR Hand Input `XRHandJoint`: 25 joints, OpenXR without the palm.
-    WebXr,
-    /// Meta OVRSkeleton legacy `BoneId`: 24 bones (19 skinnable + 5 tips).
-    MetaOvr,
-    /// MediaPipe Hands landmarks: 21 points.
-    MediaPipe,
-}
-
-impl HandLayout {
-    /// Every layout, in a fixed order.
-    pub const ALL: [HandLayout; 4] =
-        [HandLayout::OpenXr, HandLayout::WebXr, HandLayout::MetaOvr, HandLayout::MediaPipe];
-
-    /// The name used in hand-log headers and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            HandLayout::OpenXr => "openxr",
-            HandLayout::WebXr => "webxr",
-            HandLayout::MetaOvr => "meta_ovr",
-            HandLayout::MediaPipe => "mediapipe",
-        }
-    }
-
-    /// Parse a layout name (case-insensitive; `-` and `_` are equivalent).
-    ///
-    /// # Errors
-    /// [`KinError::UnknownLayout`] for any other name.
-    pub fn from_name(name: &str) -> Result<HandLayout, KinError> {
-        let n = name.to_ascii_lowercase().replace('-', "_");
-        HandLayout::ALL
-            .into_iter()
-            .find(|l| l.name() == n)
-            .ok_or_else(|| KinError::UnknownLayout(name.to_string()))
-    }
-
-    /// Number of joints a frame in this layout carries.
-    pub fn joint_count(self) -> usize {
-        match self {
-            HandLayout::OpenXr => 26,
-            HandLayout::WebXr => 25,
-            HandLayout::MetaOvr => 24,
-            HandLayout::MediaPipe => 21,
-        }
-    }
-
-    /// Index of the wrist joint.
-    pub fn wrist(self) -> usize {
-        match self {
-            HandLayout::OpenXr => 1,
-            HandLayout::WebXr => 0,
-            HandLayout::MetaOvr => 0,
-            HandLayout::MediaPipe => 0,
-        }
-    }
-
-    /// Index of the index finger's proximal joint (the MCP knuckle).
-    pub fn index_proximal(self) -> usize {
-        match self {
-            HandLayout::OpenXr => 7,
-            HandLayout::WebXr => 6,
-            HandLayout::MetaOvr => 6,
-            HandLayout::MediaPipe => 5,
-        }
-    }
-
-    /// Index of the middle finger's proximal joint (the MCP knuckle).
-    pub fn middle_proximal(self) -> usize {
-        match self {
-            HandLayout::OpenXr => 12,
-            HandLayout::WebXr => 11,
-            HandLayout::MetaOvr => 9,
-            HandLayout::MediaPipe => 9,
-        }
-    }
-}
 
 /// Which hand a frame belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -11,7 +11,8 @@
 //!   row an `Err` in its slot (the policy the Python binding exposes as NaN rows and `ok` flags);
 //! - [`urdf::link_transforms`] / [`urdf::link_poses`]: every URDF link at a configuration;
 //! - [`urdf::to_urdf_string`]: a URDF of any model;
-//! - [`hand_to_target`] with [`Calibration`]: tracked hand joints → tool0 target (paper §3.2).
+//! - [`hand_to_target`] with [`Calibration`]: tracked hand joints → tool0 target (paper §3.2);
+//! - [`HandLayout`]: each tracking runtime's joint order, named, as OpenXR joints ([`OPENXR_JOINTS`]).
 //!
 //! Errors: one enum, [`KinError`]; [`IkError`] is an alias of it.
 
@@ -21,6 +22,7 @@ mod fk;
 mod hand;
 mod ik;
 mod jacobian;
+mod layout;
 mod model;
 pub mod urdf;
 
@@ -28,14 +30,15 @@ pub use batch::{fk_batch, hand_to_target_batch, ik_batch_matrices, split_failure
 pub use error::{IkError, KinError};
 pub use fk::{fk, fk_all, fk_matrix};
 pub use hand::{
-    Calibration, HandLayout, HandPoints, Handedness, Space, hand_frame, hand_to_target,
-    hand_to_target_layout, tool_from_hand_rotation,
+    Calibration, HandPoints, Handedness, Space, hand_frame, hand_to_target, hand_to_target_layout,
+    tool_from_hand_rotation,
 };
 pub use ik::{
     IkOptions, ik, ik_all, ik_all_with_q6, ik_batch, ik_gn, joint_distance, pose_distance, pose_from_matrix,
     pose_residual, wrap_angle, wrap_joints,
 };
 pub use jacobian::jacobian;
+pub use layout::{HandLayout, OPENXR_JOINTS};
 pub use model::{ALPHA, MODELS, UR3, UR3E, UR5, UR5E, UR10, UR10E, UrModel};
 pub use nalgebra;
 

@@ -263,3 +263,37 @@ fn hand_points_from_layout_pick_the_layouts_joints() {
         ));
     }
 }
+
+#[test]
+fn every_layout_names_its_joints_and_maps_them_to_openxr() {
+    use ur3_kin::OPENXR_JOINTS;
+    for layout in HandLayout::ALL {
+        let (names, map) = (layout.joint_names(), layout.openxr_joints());
+        assert_eq!((names.len(), map.len()), (layout.joint_count(), layout.joint_count()), "{layout:?}");
+        let mut seen: Vec<usize> = map.iter().flatten().copied().collect();
+        let n = seen.len();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen.len(), n, "{layout:?} maps two joints to one OpenXR joint");
+        assert!(seen.iter().all(|&j| j < OPENXR_JOINTS.len()));
+        for (name, at) in [
+            ("wrist", layout.wrist()),
+            ("index_proximal", layout.index_proximal()),
+            ("middle_proximal", layout.middle_proximal()),
+        ] {
+            assert_eq!(layout.index_of(name), Some(at), "{layout:?} {name}");
+            assert_eq!(map[at].map(|j| OPENXR_JOINTS[j]), Some(name));
+        }
+        assert_eq!(layout.index_of("thumb_tip").map(|i| map[i]), Some(Some(5)));
+        assert_eq!(layout.index_of("elbow"), None);
+    }
+    assert_eq!(HandLayout::WebXr.index_of("palm"), None);
+    assert_eq!(
+        HandLayout::WebXr.joint_names()[HandLayout::WebXr.index_of("thumb_tip").unwrap()],
+        "thumb-tip"
+    );
+    let ovr = HandLayout::MetaOvr;
+    let missing: Vec<&str> =
+        (0..24).filter(|&i| ovr.openxr_joints()[i].is_none()).map(|i| ovr.joint_names()[i]).collect();
+    assert_eq!(missing, ["ForearmStub", "Thumb0"]);
+}

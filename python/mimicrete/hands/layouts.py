@@ -2,142 +2,76 @@
 
 OpenXR (``XrHandJointEXT``, 26: 0 palm, 1 wrist, 2-5 thumb metacarpal/proximal/distal/tip, then
 index, middle, ring, little with metacarpal, proximal, intermediate, distal, tip), WebXR (25: OpenXR
-without the palm), Meta OVR legacy (24) and MediaPipe (21). ur3-kin's ``HandLayout`` is the same
-table on the Rust side (the hand-log parser checks joint counts with it)."""
+without the palm), Meta OVR legacy (24) and MediaPipe (21). The table is ur3-kin's ``HandLayout``
+(``mimicrete._native.kin_hand_layouts()``: each layout's joint names and each joint's OpenXR
+joint); everything here is read or derived from it, so no index is stated twice."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from mimicrete import _native
+
 # ----------------------------------------------------------------------------------------------
-# Layouts
+# Layouts (ur3-kin's table)
 # ----------------------------------------------------------------------------------------------
 
-LAYOUT_JOINTS: dict[str, int] = {"openxr": 26, "webxr": 25, "meta_ovr": 24, "mediapipe": 21}
+_TABLE: dict[str, dict] = _native.kin_hand_layouts()
+
+LAYOUT_JOINTS: dict[str, int] = {name: len(d["joints"]) for name, d in _TABLE.items()}
 """Joint count of each hand-log layout."""
 
-OPENXR_NAMES: tuple[str, ...] = (
-    "palm",
-    "wrist",
-    "thumb_metacarpal",
-    "thumb_proximal",
-    "thumb_distal",
-    "thumb_tip",
-    "index_metacarpal",
-    "index_proximal",
-    "index_intermediate",
-    "index_distal",
-    "index_tip",
-    "middle_metacarpal",
-    "middle_proximal",
-    "middle_intermediate",
-    "middle_distal",
-    "middle_tip",
-    "ring_metacarpal",
-    "ring_proximal",
-    "ring_intermediate",
-    "ring_distal",
-    "ring_tip",
-    "little_metacarpal",
-    "little_proximal",
-    "little_intermediate",
-    "little_distal",
-    "little_tip",
-)
+JOINT_NAMES: dict[str, tuple[str, ...]] = {name: tuple(d["joints"]) for name, d in _TABLE.items()}
+"""Each layout's joint names in its order, as its runtime names them (OpenXR: the names below;
+WebXR: ``XRHandJoint``; Meta OVR: ``BoneId`` without ``Hand_``; MediaPipe: ``HandLandmark``)."""
+
+OPENXR_NAMES: tuple[str, ...] = JOINT_NAMES["openxr"]
+"""The OpenXR joints in OpenXR order (``palm``, ``wrist``, ``thumb_metacarpal``, …,
+``little_tip``): the names :func:`joint_index` takes."""
+
+WEBXR_JOINT_NAMES: tuple[str, ...] = JOINT_NAMES["webxr"]
+"""WebXR's ``XRHandJoint`` joint names in its order (``layout: webxr`` and the wire format)."""
+
+FROM_OPENXR: dict[str, tuple[int | None, ...]] = {
+    name: tuple(d["openxr"]) for name, d in _TABLE.items()
+}
+"""The OpenXR index of each joint of each layout (None: a joint OpenXR has not)."""
 
 #: OpenXR index of each MediaPipe landmark (WRIST, THUMB_CMC/MCP/IP/TIP, then per finger
 #: MCP, PIP, DIP, TIP). MCP is the OpenXR *proximal* joint; the thumb CMC is its *metacarpal*.
-MEDIAPIPE_FROM_OPENXR: tuple[int, ...] = (
-    1,
-    2,
-    3,
-    4,
-    5,
-    7,
-    8,
-    9,
-    10,
-    12,
-    13,
-    14,
-    15,
-    17,
-    18,
-    19,
-    20,
-    22,
-    23,
-    24,
-    25,
-)
+MEDIAPIPE_FROM_OPENXR: tuple[int, ...] = tuple(int(i) for i in FROM_OPENXR["mediapipe"])
 #: OpenXR index of each WebXR joint (OpenXR without the palm).
-WEBXR_JOINT_NAMES: tuple[str, ...] = (
-    "wrist",
-    "thumb-metacarpal",
-    "thumb-phalanx-proximal",
-    "thumb-phalanx-distal",
-    "thumb-tip",
-    *(
-        f"{finger}-{part}"
-        for finger in ("index-finger", "middle-finger", "ring-finger", "pinky-finger")
-        for part in (
-            "metacarpal",
-            "phalanx-proximal",
-            "phalanx-intermediate",
-            "phalanx-distal",
-            "tip",
-        )
-    ),
-)
-"""WebXR's ``XRHand`` joint names in its order (``layout: webxr`` and the wire format)."""
-
-WEBXR_FROM_OPENXR: tuple[int, ...] = tuple(range(1, 26))
+WEBXR_FROM_OPENXR: tuple[int, ...] = tuple(int(i) for i in FROM_OPENXR["webxr"])
 #: OpenXR index of each OVR legacy bone that has an OpenXR counterpart, ``-1`` for the two OVR
-#: bones OpenXR lacks (1 ForearmStub, 2 Thumb0/trapezium), which :func:`to_layout` synthesises.
-#: OVR order: 0 WristRoot, 1 ForearmStub, 2-5 Thumb0-3, 6-8 Index1-3, 9-11 Middle1-3,
-#: 12-14 Ring1-3, 15-18 Pinky0-3, 19-23 Thumb/Index/Middle/Ring/Pinky tips.
-OVR_FROM_OPENXR: tuple[int, ...] = (
-    1,
-    -1,
-    -1,
-    2,
-    3,
-    4,
-    7,
-    8,
-    9,
-    12,
-    13,
-    14,
-    17,
-    18,
-    19,
-    21,
-    22,
-    23,
-    24,
-    5,
-    10,
-    15,
-    20,
-    25,
-)
+#: bones OpenXR lacks (ForearmStub, Thumb0/trapezium), which :func:`to_layout` synthesises.
+OVR_FROM_OPENXR: tuple[int, ...] = tuple(-1 if i is None else i for i in FROM_OPENXR["meta_ovr"])
 
 #: The 21 landmarks every layout carries, in MediaPipe order, as indices into each layout.
 CANONICAL21: dict[str, tuple[int, ...]] = {
-    "openxr": MEDIAPIPE_FROM_OPENXR,
-    "webxr": tuple(i - 1 for i in MEDIAPIPE_FROM_OPENXR),
-    "meta_ovr": (0, 3, 4, 5, 19, 6, 7, 8, 20, 9, 10, 11, 21, 12, 13, 14, 22, 16, 17, 18, 23),
-    "mediapipe": tuple(range(21)),
+    name: tuple(m.index(i) for i in MEDIAPIPE_FROM_OPENXR) for name, m in FROM_OPENXR.items()
 }
 
-#: (wrist, index proximal, middle proximal) indices per layout (reference note §4).
+#: (wrist, index proximal, middle proximal) indices per layout (reference note §4): the joints
+#: the hand frame (ur3-kin's ``hand_to_target``) reads.
 FRAME_JOINTS: dict[str, tuple[int, int, int]] = {
-    "openxr": (1, 7, 12),
-    "webxr": (0, 6, 11),
-    "meta_ovr": (0, 6, 9),
-    "mediapipe": (0, 5, 9),
+    name: (d["wrist"], d["index_proximal"], d["middle_proximal"]) for name, d in _TABLE.items()
 }
+
+
+def joint_index(layout: str, joint: str) -> int:
+    """Where the OpenXR joint named ``joint`` (one of :data:`OPENXR_NAMES`) sits in ``layout``.
+
+    Raises:
+        ValueError: for an unknown layout or joint name, or a joint the layout lacks.
+    """
+    layout = check_layout(layout)
+    if joint not in OPENXR_NAMES:
+        raise ValueError(f"unknown OpenXR joint {joint!r}; known: {', '.join(OPENXR_NAMES)}")
+    m = FROM_OPENXR[layout]
+    ox = OPENXR_NAMES.index(joint)
+    if ox not in m:
+        raise ValueError(f"layout {layout} has no {joint} joint")
+    return m.index(ox)
 
 
 def check_layout(layout: str) -> str:
@@ -152,6 +86,14 @@ def check_layout(layout: str) -> str:
     return name
 
 
+_OX_WRIST, _OX_MIDDLE_PROXIMAL, _OX_THUMB_METACARPAL = (
+    OPENXR_NAMES.index(n) for n in ("wrist", "middle_proximal", "thumb_metacarpal")
+)
+_OVR_FOREARM_STUB, _OVR_TRAPEZIUM = (
+    JOINT_NAMES["meta_ovr"].index(n) for n in ("ForearmStub", "Thumb0")
+)
+
+
 def to_layout(openxr: np.ndarray, layout: str) -> np.ndarray:
     """Map OpenXR joints ``(..., 26, 3)`` to another layout ``(..., N, 3)``.
 
@@ -161,8 +103,9 @@ def to_layout(openxr: np.ndarray, layout: str) -> np.ndarray:
     """
     layout = check_layout(layout)
     j = np.asarray(openxr, dtype=np.float64)
-    if j.shape[-2:] != (26, 3):
-        raise ValueError(f"expected OpenXR joints of shape (..., 26, 3), got {j.shape}")
+    n = LAYOUT_JOINTS["openxr"]
+    if j.shape[-2:] != (n, 3):
+        raise ValueError(f"expected OpenXR joints of shape (..., {n}, 3), got {j.shape}")
     if layout == "openxr":
         return j.copy()
     if layout == "webxr":
@@ -171,9 +114,9 @@ def to_layout(openxr: np.ndarray, layout: str) -> np.ndarray:
         return j[..., MEDIAPIPE_FROM_OPENXR, :].copy()
     idx = np.array([max(i, 0) for i in OVR_FROM_OPENXR])
     out = j[..., idx, :].copy()
-    wrist, mid = j[..., 1, :], j[..., 12, :]
-    out[..., 1, :] = wrist - 0.55 * (mid - wrist)
-    out[..., 2, :] = 0.5 * (wrist + j[..., 2, :])
+    wrist, mid = j[..., _OX_WRIST, :], j[..., _OX_MIDDLE_PROXIMAL, :]
+    out[..., _OVR_FOREARM_STUB, :] = wrist - 0.55 * (mid - wrist)
+    out[..., _OVR_TRAPEZIUM, :] = 0.5 * (wrist + j[..., _OX_THUMB_METACARPAL, :])
     return out
 
 

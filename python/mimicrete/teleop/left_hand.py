@@ -7,12 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from mimicrete.hands.layouts import joint_index
+
 from .protocol import HandFrame
 
 PINCH_M = 0.02  # thumb tip to index tip, left hand
 PINCH_HOLD_S = 1.0
-THUMB_TIP, INDEX_TIP = 4, 9  # WebXR joint indices
-FINGERTIPS, WRIST, MIDDLE_PROXIMAL = (9, 14, 19, 24), 0, 11
+#: the WebXR joints read (a frame's ``left`` is in WebXR order; indices from ur3-kin's layout table)
+THUMB_TIP, INDEX_TIP = joint_index("webxr", "thumb_tip"), joint_index("webxr", "index_tip")
+FINGERTIPS = tuple(joint_index("webxr", f"{f}_tip") for f in ("index", "middle", "ring", "little"))
+WRIST, MIDDLE_PROXIMAL = joint_index("webxr", "wrist"), joint_index("webxr", "middle_proximal")
 #: a left fist: the four fingertips' mean distance to the wrist under this share of the
 #: wrist → middle-knuckle length (an open hand is about 1.9, a fist about 0.7)
 FIST_RATIO = 0.85

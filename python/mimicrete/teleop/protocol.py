@@ -15,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from mimicrete._native import MimicreteError
+from mimicrete.hands.layouts import LAYOUT_JOINTS
 
 VERSION = 1
 MAGIC = b"MHF1"
-JOINTS = 25  # WebXR hand joints
+JOINTS = LAYOUT_JOINTS["webxr"]  # WebXR hand joints (25)
 HEADER = struct.Struct("<4sIddII")
 FRAME_BYTES = HEADER.size + 2 * JOINTS * 3 * 4  # 632
 RIGHT_TRACKED, LEFT_TRACKED = 1, 2
