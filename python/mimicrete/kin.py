@@ -37,11 +37,14 @@ __all__ = [
     "ik_batch",
     "ik_gn",
     "jacobian",
+    "parse_calibration",
     "points_to_base",
     "urdf",
 ]
 
 MODELS: tuple[str, ...] = tuple(_native.kin_models())
+#: The spaces a stored calibration (:func:`parse_calibration`) may name.
+SPACES: tuple[str, ...] = ("openxr", "webxr", "unity", "robot_base")
 
 
 def _arr(x: Any, name: str) -> np.ndarray:
@@ -164,7 +167,8 @@ class Calibration:
     OpenXR LOCAL space, operator behind the robot facing Base +X, so a hand 0.4 m in front of and
     below the head maps to (0.3, 0, 0.2) m in Base.
 
-    Hand-log headers store it under ``extra.calibration`` as :meth:`to_dict` gives it.
+    Hand-log headers store it under ``extra.calibration`` as :meth:`to_dict` gives it;
+    :func:`parse_calibration` reads it back.
     """
 
     rotation: np.ndarray = field(default_factory=lambda: _DEFAULT_BASE_FROM_SPACE[:3, :3].copy())
@@ -194,11 +198,56 @@ class Calibration:
         }
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Calibration:
-        """Inverse of :meth:`to_dict`."""
-        return cls(
-            np.array(d["rotation"]), np.array(d["translation"]), float(d["scale"]), d["space"]
-        )
+    def from_dict(
+        cls,
+        d: Any,
+        file: str = "calibration",
+        line: int | None = None,
+        field: str | None = None,
+    ) -> Calibration:
+        """Inverse of :meth:`to_dict`, checked: :func:`parse_calibration`."""
+        return parse_calibration(d, file, line, field)
+
+
+def parse_calibration(
+    d: Any, file: str = "calibration", line: int | None = None, field: str | None = None
+) -> Calibration:
+    """A calibration from its JSON form (:meth:`Calibration.to_dict`: ``rotation`` 3×3,
+    ``translation`` 3 numbers, ``scale`` > 0, ``space``), checked: the one parser of a stored
+    calibration (hand-log headers' ``extra.calibration``, ``--calibration FILE``, a recentre's
+    ``calibration.json``).
+
+    Raises:
+        mimicrete.LogFormatError: ``file:line: field: reason`` (``line`` None: no line;
+            ``field`` None: no field) for anything that is not such a calibration.
+    """
+
+    def bad(reason: str) -> Exception:
+        return _native.log_format_error(file, line, f"{field}: {reason}" if field else reason)
+
+    if not isinstance(d, dict):
+        raise bad("must be an object with rotation, translation, scale, space")
+    missing = [k for k in ("rotation", "translation", "scale", "space") if k not in d]
+    if missing:
+        raise bad(f"missing {', '.join(missing)}")
+    try:
+        rot = np.asarray(d["rotation"], dtype=np.float64)
+        tr = np.asarray(d["translation"], dtype=np.float64)
+        scale = float(d["scale"])
+    except (TypeError, ValueError) as e:
+        raise bad(f"not numbers ({e})") from None
+    if rot.shape != (3, 3) or tr.shape != (3,):
+        raise bad(f"rotation must be 3×3 and translation 3 numbers, got {rot.shape}, {tr.shape}")
+    if not (np.all(np.isfinite(rot)) and np.all(np.isfinite(tr)) and np.isfinite(scale)):
+        raise bad("NaN or infinite values")
+    if not scale > 0:
+        raise bad(f"scale must be > 0, got {scale}")
+    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+        raise bad("rotation is not a rotation matrix")
+    space = d["space"]
+    if space not in SPACES:
+        raise bad(f"unknown space {space!r} ({', '.join(SPACES)})")
+    return Calibration(rot, tr, scale, space)
 
 
 def _calib(c: Any) -> tuple[np.ndarray | None, float, str]:

@@ -8,7 +8,7 @@ import signal
 import sys
 from typing import TYPE_CHECKING
 
-from mimicrete.cli import UsageError, gesture_model_arg
+from mimicrete.cli import UsageError, calibration_arg, gesture_model_arg
 from mimicrete.teleop.gesturemode import DEFAULT_PER_CLASS, MIN_PER_CLASS
 
 if TYPE_CHECKING:
@@ -89,11 +89,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     import asyncio
-    import json
     from pathlib import Path
 
     from mimicrete.teleop import server as srv
-    from mimicrete.teleop.convert import parse_calibration
     from mimicrete.teleop.gesturemode import user_model_path
     from mimicrete.teleop.live import Live
 
@@ -102,17 +100,7 @@ def main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out}: exists and is not a directory")
-    calib = None
-    if args.calibration:
-        try:
-            calib = parse_calibration(
-                json.loads(Path(args.calibration).read_text()),
-                args.calibration,
-                None,
-                "calibration",
-            )
-        except (OSError, ValueError) as e:
-            raise UsageError(f"--calibration {args.calibration}: {e}") from None
+    calib = calibration_arg(args.calibration)
     model = gesture_model_arg(args.gesture_model)
     if not MIN_PER_CLASS <= args.gesture_samples <= 5000:
         raise UsageError(f"--gesture-samples must be in {MIN_PER_CLASS}..5000")

@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -27,7 +26,7 @@ from mimicrete import gestures as gest
 from mimicrete._native import MimicreteError
 from mimicrete.hands import log as handlog
 from mimicrete.hands.log import HandLogData
-from mimicrete.kin import Calibration
+from mimicrete.kin import Calibration, parse_calibration  # live.py takes it from here
 from mimicrete.safe_io import FileLock
 
 from .provenance import ModelFileError, driving_of, model_of
@@ -76,38 +75,6 @@ def calibration_of(log: HandLogData, source: str = "handlog") -> Calibration:
     if space == "robot_base":
         return Calibration(np.eye(3), np.zeros(3), 1.0, "robot_base")
     return Calibration(space="openxr" if space in ("openxr", "webxr") else space)
-
-
-def parse_calibration(d: Any, file: str, line: int | None, field: str) -> Calibration:
-    """A calibration from its JSON form (:meth:`Calibration.to_dict`). Errors are
-    ``mimicrete.LogFormatError`` naming ``file``, ``line`` and the ``field``."""
-
-    def bad(reason: str) -> Exception:
-        return _native.log_format_error(file, line, f"{field}: {reason}")
-
-    if not isinstance(d, dict):
-        raise bad("must be an object with rotation, translation, scale, space")
-    missing = [k for k in ("rotation", "translation", "scale", "space") if k not in d]
-    if missing:
-        raise bad(f"missing {', '.join(missing)}")
-    try:
-        rot = np.asarray(d["rotation"], dtype=np.float64)
-        tr = np.asarray(d["translation"], dtype=np.float64)
-        scale = float(d["scale"])
-    except (TypeError, ValueError) as e:
-        raise bad(f"not numbers ({e})") from None
-    if rot.shape != (3, 3) or tr.shape != (3,):
-        raise bad(f"rotation must be 3×3 and translation 3 numbers, got {rot.shape}, {tr.shape}")
-    if not (np.all(np.isfinite(rot)) and np.all(np.isfinite(tr)) and np.isfinite(scale)):
-        raise bad("NaN or infinite values")
-    if not scale > 0:
-        raise bad(f"scale must be > 0, got {scale}")
-    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
-        raise bad("rotation is not a rotation matrix")
-    space = d["space"]
-    if space not in ("openxr", "webxr", "unity", "robot_base"):
-        raise bad(f"unknown space {space!r} (openxr, webxr, unity, robot_base)")
-    return Calibration(rot, tr, scale, space)
 
 
 def path_text(path: str | os.PathLike[str]) -> str:
