@@ -22,7 +22,7 @@ class TaskSpec:
 
     name: str  # suction | grip | screw: the CLI's and the hand logs' name
     sim: str  # tile-sim's name
-    gesture_model: str  # the gesture classifier it uses (grip: 3 classes, screw: 5)
+    gesture_model: str  # the gesture classifier it uses (its classes: gestures.TASK_CLASSES)
     success: str  # what its success is called in results ("installed", "placed", "screwed")
     obs_frame_dim: int
     obs_dim: int

@@ -5,8 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from mimicrete import tasks
 from mimicrete._native import MimicreteError
 
+#: The classes of each gesture model (``grip``, ``screw``); which model a task uses is the task
+#: table's (:attr:`mimicrete.tasks.TaskSpec.gesture_model`, :data:`TASK_MODEL`).
 TASK_CLASSES: dict[str, tuple[str, ...]] = {
     "grip": ("closing", "opening", "fixed"),
     "screw": (
@@ -51,8 +54,8 @@ PAPER_COUNTS: dict[str, tuple[int, ...]] = {
 PAPER_TEST_SIZE: dict[str, float] = {"grip": 0.2, "screw": 0.3}
 #: Paper Table 1: held-out accuracy.
 PAPER_ACCURACY: dict[str, float] = {"grip": 0.9819, "screw": 0.9928}
-#: Task names the rest of the package uses → gesture model.
-TASK_MODEL: dict[str, str] = {"suction": "grip", "grip": "grip", "screw": "screw"}
+#: Task names the rest of the package uses → gesture model (from :data:`mimicrete.tasks.TABLE`).
+TASK_MODEL: dict[str, str] = {t.name: t.gesture_model for t in tasks.TABLE.values()}
 
 DEFAULT_GRID: dict[str, list[Any]] = {
     "svc__C": [0.3, 1.0, 10.0, 100.0],
