@@ -120,6 +120,24 @@ def test_bad_calibration_is_named_not_defaulted(tmp_path, hands, edit, says):
     assert "0 demos" in p.stdout and not list((tmp_path / "o").glob("*.mcap*"))
 
 
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        ({"mapping": "clutch", "clutch": [[0, "grab"]]}, "extra.clutch[0] must be [frame index"),
+        ({"mapping": "clutch", "clutch": {"0": "engage"}}, "extra.clutch must be a list, got dict"),
+        ({"clutch": [[0, "engage"]]}, "extra.clutch is given but extra.mapping is 'absolute'"),
+        ({"mapping": "teleport"}, "extra.mapping must be one of absolute, clutch"),
+    ],
+)
+def test_a_malformed_clutch_is_bad_input_naming_the_field(tmp_path, hands, extra, says):
+    bad = _with_header(first_log(hands), tmp_path / "bad.jsonl", lambda h: h["extra"].update(extra))
+    p = run("convert", str(bad), "--task", "suction", "--out", str(tmp_path / "o"))
+    no_traceback(p)
+    assert p.returncode == 2, (p.returncode, p.stderr)
+    assert f"mimicrete convert: error: {bad}:1: {says}" in p.stderr, p.stderr
+    assert "0 demos" in p.stdout and not list((tmp_path / "o").glob("*.mcap*"))
+
+
 def test_a_log_the_robot_never_followed_is_a_failure(tmp_path, hands):
     lines = first_log(hands).read_text().splitlines()
     frames = [json.loads(x) for x in lines[1:]]

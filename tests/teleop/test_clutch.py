@@ -79,6 +79,7 @@ def test_a_released_hand_repositions_and_the_live_log_converts_to_its_demo(tmp_p
 
 
 def test_a_malformed_clutch_entry_is_refused_by_name(tmp_path):
+    from mimicrete import LogFormatError
     from mimicrete.teleop.provenance import DrivingError, driving_of
 
     for extra, field in [
@@ -89,7 +90,9 @@ def test_a_malformed_clutch_entry_is_refused_by_name(tmp_path):
         ({"clutch": [[1, "release"]]}, "extra.clutch"),
     ]:
         with pytest.raises(
-            DrivingError, match=rf"^log\.jsonl: {field.replace('[', '.').replace(']', '.')}"
-        ):
+            DrivingError, match=rf"^log\.jsonl:1: {field.replace('[', '.').replace(']', '.')}"
+        ) as e:
             driving_of({"extra": extra}, 10, "log.jsonl")
+        assert isinstance(e.value, LogFormatError)  # bad input: `convert` exits 2
+        assert (e.value.file, e.value.line, e.value.reason.split(" ")[0]) == ("log.jsonl", 1, field)
     assert driving_of({}, 10, "x") == ("absolute", {})

@@ -17,8 +17,9 @@ import re
 from pathlib import Path
 from typing import Any
 
+from mimicrete import _native
 from mimicrete import gestures as gest
-from mimicrete._native import MimicreteError
+from mimicrete._native import LogFormatError, MimicreteError
 
 #: The header's ``extra`` key naming the gesture model.
 KEY = "gesture_model"
@@ -169,9 +170,18 @@ def model_of(
     return model
 
 
-class DrivingError(MimicreteError, ValueError):
-    """A hand log's ``extra.mapping`` or ``extra.clutch`` is malformed (names the log and the
-    field)."""
+class DrivingError(LogFormatError, ValueError):
+    """A hand log's ``extra.mapping`` or ``extra.clutch`` is malformed: a ``LogFormatError``
+    (bad input, like any malformed hand log) naming the log, its header line and the field."""
+
+
+def _driving_error(source: str, reason: str) -> DrivingError:
+    """A :class:`DrivingError` about the header (line 1) of hand log ``source``, with the message
+    and the ``file``, ``line``, ``reason`` fields of ``mimicrete.LogFormatError``."""
+    like = _native.log_format_error(source, 1, reason)
+    e = DrivingError(str(like))
+    e.file, e.line, e.reason = like.file, like.line, like.reason
+    return e
 
 
 #: The mappings a hand log may name (teleop-core's ``Mapping``).
@@ -182,18 +192,18 @@ def driving_of(header: dict[str, Any], frames: int, source: str) -> tuple[str, d
     """How a hand log's hand drove the tool: ``extra.mapping`` (``absolute``, the default for a
     log that names none, or ``clutch``) and ``extra.clutch``'s commands by frame index (``[k,
     "engage" | "release"]``: applied with frame ``k``). Raises :class:`DrivingError` (a
-    ``ValueError``) naming the log and the field for anything else."""
+    ``mimicrete.LogFormatError``) naming the log and the field for anything else."""
     extra = header.get("extra")
     extra = extra if isinstance(extra, dict) else {}
     mapping = extra.get("mapping", "absolute")
     if mapping not in MAPPINGS:
-        raise DrivingError(
-            f"{source}: extra.mapping must be one of {', '.join(MAPPINGS)}, got {mapping!r}"
+        raise _driving_error(
+            source, f"extra.mapping must be one of {', '.join(MAPPINGS)}, got {mapping!r}"
         )
     events: dict[int, str] = {}
     raw = extra.get("clutch", [])
     if not isinstance(raw, list):
-        raise DrivingError(f"{source}: extra.clutch must be a list, got {type(raw).__name__}")
+        raise _driving_error(source, f"extra.clutch must be a list, got {type(raw).__name__}")
     for i, e in enumerate(raw):
         ok = (
             isinstance(e, list)
@@ -204,11 +214,12 @@ def driving_of(header: dict[str, Any], frames: int, source: str) -> tuple[str, d
             and e[1] in ("engage", "release")
         )
         if not ok:
-            raise DrivingError(
-                f"{source}: extra.clutch[{i}] must be [frame index 0..{frames - 1}, "
-                f"'engage' | 'release'], got {e!r}"
+            raise _driving_error(
+                source,
+                f"extra.clutch[{i}] must be [frame index 0..{frames - 1}, "
+                f"'engage' | 'release'], got {e!r}",
             )
         events[e[0]] = e[1]
     if events and mapping != "clutch":
-        raise DrivingError(f"{source}: extra.clutch is given but extra.mapping is {mapping!r}")
+        raise _driving_error(source, f"extra.clutch is given but extra.mapping is {mapping!r}")
     return mapping, events
