@@ -8,11 +8,12 @@
 Modules, by what they own: ``config`` (the YAML schema), ``env`` (which env an id names),
 ``demo_data`` (demos as the trainer reads them), ``episodes`` (episode statistics), ``networks``,
 ``normalizer``, ``buffer`` (rollout, GAE), ``ppo``, ``gail``, ``bc``, ``run_state`` (what a run
-changes), ``trainer`` (one update), ``checkpoint`` (what a checkpoint holds), ``loop`` (a run:
-resume, summaries, checkpoints),
-``run_files`` (what a run dir holds), ``evaluate``, ``video`` (rollout videos), ``plots``. The
-numpy toy env of the tests and smoke runs (env ids ``Toy…``) is ``mimicrete.testing.toyenv``. The
-names below are imported on first use, so importing the package does not import torch.
+changes), ``update`` (one update, read top to bottom), ``trainer`` (the update's fixed setup,
+summaries, checkpoints), ``checkpoint`` (what a checkpoint holds), ``loop`` (a run: resume,
+summaries, checkpoints), ``run_files`` (what a run dir holds), ``evaluate``, ``video`` (rollout
+videos), ``plots``. The numpy toy env of the tests and smoke runs (env ids ``Toy…``) is
+``mimicrete.testing.toyenv``. The names below are imported on first use, so importing the package
+does not import torch.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 _EXPORTS = {
     "train": ("loop", "train"),
     "Trainer": ("trainer", "Trainer"),
-    "NonFiniteLossError": ("trainer", "NonFiniteLossError"),
+    "NonFiniteLossError": ("update", "NonFiniteLossError"),
     "ResumeError": ("checkpoint", "ResumeError"),
     "evaluate_run": ("evaluate", "evaluate_run"),
     "format_row": ("evaluate", "format_row"),
@@ -39,7 +40,7 @@ _EXPORTS = {
 _SUBMODULES = {
     "bc", "buffer", "checkpoint", "config", "demo_data", "env", "episodes", "evaluate", "gail",
     "loop", "networks", "normalizer", "plots", "ppo", "run_files", "run_state",
-    "trainer", "video",
+    "trainer", "update", "video",
 }  # fmt: skip
 
 __all__ = sorted(_EXPORTS)

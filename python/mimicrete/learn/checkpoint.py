@@ -23,7 +23,7 @@ from mimicrete._native import MimicreteError
 
 from . import config as config_mod
 from .bc import bc_learning_rate
-from .episodes import Episode
+from .episodes import EpisodeResult
 from .run_state import RunState
 
 
@@ -95,7 +95,7 @@ def _load_envs_state(st: RunState, s: dict[str, Any] | None) -> None:
     ep.picked[:], ep.installed[:] = s["episode_picked"], s["episode_installed"]
     st.signal_sums = {k: np.array(v) for k, v in s["sig_acc"].items()}
     pending = st.pending
-    pending.episodes = [Episode(*e) for e in s["window"]]
+    pending.episodes = [EpisodeResult(*e) for e in s["window"]]
     pending.signal_returns = {k: list(v) for k, v in s["sig_window"].items()}
     pending.update_stats = {k: list(v) for k, v in s["update_stats"].items()}
     st.recent_picked, st.recent_installed = s["recent"]

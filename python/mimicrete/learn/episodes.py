@@ -12,8 +12,9 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class Episode:
-    """One finished episode."""
+class EpisodeResult:
+    """What one finished episode came to: its return, its length in steps, and whether the tile
+    was picked and installed in it."""
 
     ret: float
     length: int
@@ -49,7 +50,7 @@ class EpisodeTracker:
 
     def step(
         self, infos: dict, rewards: np.ndarray, terminated: np.ndarray, truncated: np.ndarray
-    ) -> list[tuple[int, Episode]]:
+    ) -> list[tuple[int, EpisodeResult]]:
         """Account one vector-env step; returns the episodes that ended in it as (env index,
         episode), in env order, and starts those envs' next episodes."""
         picked, installed = episode_flags(infos, rewards, terminated)
@@ -61,7 +62,7 @@ class EpisodeTracker:
         done = [
             (
                 int(i),
-                Episode(
+                EpisodeResult(
                     float(self.ret[i]),
                     int(self.length[i]),
                     bool(self.picked[i]),
@@ -89,7 +90,7 @@ class EpisodeStats:
     installed_rate: float
 
     @classmethod
-    def of(cls, episodes: Sequence[Episode]) -> EpisodeStats:
+    def of(cls, episodes: Sequence[EpisodeResult]) -> EpisodeStats:
         if not episodes:
             raise ValueError("no finished episodes")
         return cls(

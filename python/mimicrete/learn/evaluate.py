@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from .env import make_env
-from .episodes import Episode, EpisodeStats, EpisodeTracker
+from .episodes import EpisodeResult, EpisodeStats, EpisodeTracker
 from .networks import Actor, env_action
 from .run_files import atomic_write, load_policy
 from .starts import StartList, label
@@ -66,7 +66,7 @@ def _policy_action(actor: Actor, obs: np.ndarray, stochastic: bool) -> np.ndarra
     return actor.deterministic(o).numpy()
 
 
-def _stats(results: list[Episode]) -> dict[str, float]:
+def _stats(results: list[EpisodeResult]) -> dict[str, float]:
     st = EpisodeStats.of(results)
     return {
         "episodes": st.episodes,
@@ -109,7 +109,7 @@ def _run_listed(
     todo = list(starts.starts)
     n = min(max_envs, len(todo))
     env = make_env(env_id, n, seed)
-    results: list[Episode] = []
+    results: list[EpisodeResult] = []
     for b in range(0, len(todo), n):
         batch = todo[b : b + n]
         padded = batch + [batch[0]] * (n - len(batch))
@@ -156,7 +156,7 @@ def _run_episodes(
     obs = np.asarray(obs, np.float32)
     tracker = EpisodeTracker(n)
     done_count = np.zeros(n, np.int64)
-    results: list[Episode] = []
+    results: list[EpisodeResult] = []
     while (done_count < per_env).any():
         obs, r, term, trunc, infos = env.step(_policy_action(actor, obs, stochastic))
         obs = np.asarray(obs, np.float32)

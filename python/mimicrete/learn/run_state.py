@@ -1,9 +1,9 @@
 """Everything a training run changes as it goes, in one typed place: :class:`RunState`.
 
-The trainer (``trainer.py``) reads and updates it, one update at a time; ``checkpoint.py`` saves
-it and puts it back (``--resume``). What stays fixed during a run (the config, the demos, the
-run dir) is not in it. Besides what is here, a checkpoint holds the process's global random
-streams (torch, numpy's and Python's), which the networks' sampling and initialisation draw from.
+One update (``update.py``) reads and changes it; ``checkpoint.py`` saves it and puts it back
+(``--resume``). What stays fixed during a run (the config, the demos, the run dir) is not in it.
+Besides what is here, a checkpoint holds the process's global random streams (torch, numpy's and
+Python's), which the networks' sampling and initialisation draw from.
 
 :func:`new_run_state` builds the state of a fresh run from its config: the networks, their
 optimisers, the reward signals, BC and the curriculum, in the order that fixes their random
@@ -24,7 +24,7 @@ from .buffer import Rollout
 from .curriculum import ReverseCurriculum, demo_tracks
 from .demo_data import TrainingDemos
 from .env import N_CONT
-from .episodes import Episode, EpisodeTracker
+from .episodes import EpisodeResult, EpisodeTracker
 from .gail import Gail
 from .networks import Actor, Critic
 
@@ -33,7 +33,7 @@ from .networks import Actor, Critic
 class Pending:
     """What the next summary row averages (gathered since the last one)."""
 
-    episodes: list[Episode] = field(default_factory=list)  # finished from the env's own starts
+    episodes: list[EpisodeResult] = field(default_factory=list)  # ended, from the env's own starts
     signal_returns: dict[str, list[float]] = field(default_factory=dict)  # per signal, episode sums
     update_stats: dict[str, list[float]] = field(default_factory=dict)  # per scalar key, values
 
