@@ -571,6 +571,20 @@ class DemoWriter:
         """Record a raw hand frame: joints (J, 3) m, orientations (J, 4) or None."""
     def write_event(self, t: float, name: str, properties: dict[str, Any] | None = None) -> None:
         """Record an event ("pick", "install", "fall", ...) at episode time t."""
+    def write_stage_times(
+        self,
+        step: int,
+        seq: int,
+        capture_ms: float,
+        sent_ms: float,
+        server_recv_ms: float,
+        state_sent_ms: float | None = None,
+        page_recv_ms: float | None = None,
+    ) -> None:
+        """Record when live control step `step`'s hand frame passed each stage
+        (/teleop/stage_times): client clock capture_ms, sent_ms, page_recv_ms (None: the state
+        was not acknowledged); server clock server_recv_ms, state_sent_ms (None: the episode ended
+        on this frame, before its state went out)."""
     @property
     def steps(self) -> int:
         """Steps written so far."""

@@ -12,6 +12,7 @@ the CLI doubles as an independent check, and ``verify`` (Rust) checks every chun
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -36,6 +37,8 @@ __all__ = [
 ]
 
 STEP_TOPIC = "/demo/step"
+#: A live demo's per-step stage times (docs/formats.md §2; written by ``mimicrete teleop``).
+STAGE_TIMES_TOPIC = "/teleop/stage_times"
 #: The per-step arrays of :class:`Demos` (and of a demo ``.npz``) and their dtypes.
 STEP_DTYPES: dict[str, Any] = {
     "obs": np.float32,
@@ -226,6 +229,10 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
                     }
                 )
             metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            stage_times = [
+                json.loads(msg.data)
+                for _, _, msg in reader.iter_messages(topics=[STAGE_TIMES_TOPIC])
+            ]
             attachments = [
                 {"name": a.name, "media_type": a.media_type, "bytes": len(a.data)}
                 for a in reader.iter_attachments()
@@ -257,4 +264,41 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
         "finished": "episode" in metadata,
         "metadata": metadata,
         "attachments": attachments,
+        "stages": stage_durations(stage_times),
     }
+
+
+#: The stages ``inspect`` reports from a live demo's stage times, each ``(name, later,
+#: earlier)``: the difference of two times on one clock, ms.
+STAGES = (
+    ("page: capture -> sent", "sent_ms", "capture_ms"),
+    ("server: received -> state sent", "state_sent_ms", "server_recv_ms"),
+    ("round trip: sent -> state received", "page_recv_ms", "sent_ms"),
+    ("hand age when its state arrived", "page_recv_ms", "capture_ms"),
+)
+
+
+def stage_durations(records: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """``{stage: {n, p50, p99}}`` (ms) of each of :data:`STAGES` over the ``/teleop/stage_times``
+    records where both its times are known, and ``network: round trip - server``; empty for a
+    demo without stage times."""
+    out: dict[str, dict[str, float]] = {}
+
+    def add(name: str, values: list[float]) -> None:
+        if values:
+            v = np.asarray(values)
+            out[name] = {
+                "n": len(v),
+                "p50": float(np.percentile(v, 50)),
+                "p99": float(np.percentile(v, 99)),
+            }
+
+    for name, later, earlier in STAGES:
+        add(name, [r[later] - r[earlier] for r in records if r.get(later) is not None])
+    rtt_minus_server = [
+        (r["page_recv_ms"] - r["sent_ms"]) - (r["state_sent_ms"] - r["server_recv_ms"])
+        for r in records
+        if r.get("page_recv_ms") is not None and r.get("state_sent_ms") is not None
+    ]
+    add("network: round trip - server", rtt_minus_server)
+    return out

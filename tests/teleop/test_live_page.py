@@ -139,6 +139,15 @@ def test_suction_episode_recorded_live_in_the_browser(chromium, tmp_path, figure
     assert "installed" in hud
     d = demos.load(saved["demo"])
     assert d.num_episodes == 1 and float(d.rewards.sum()) == pytest.approx(2.0)
+    # the page acknowledged the states: each control step says how stale its hand was
+    stages = demos.inspect(saved["demo"])["stages"]
+    steps = len(d.actions)
+    assert stages["page: capture -> sent"]["n"] == steps
+    assert 0.8 * steps <= stages["hand age when its state arrived"]["n"] < steps
+    for name in ("page: capture -> sent", "round trip: sent -> state received"):
+        assert 0.0 <= stages[name]["p50"] <= stages[name]["p99"] < 1000.0, (name, stages)
+    age = stages["hand age when its state arrived"]
+    assert age["p50"] >= stages["round trip: sent -> state received"]["p50"], stages
     # live and offline are one pipeline: the saved hand log converts to the same demo
     again = cv.convert_log(saved["handlog"], "suction", tmp_path / "again")
     np.testing.assert_array_equal(again.actions, d.actions)

@@ -2,8 +2,8 @@
 // mimicrete server over one WebSocket; the server's states pose the robot and fill the HUD.
 import * as THREE from 'three';
 import {
-  CONTROL_ACTIONS, HandFramePacker, controlMessage, gesturesMessage, helloMessage, parseServerMessage, socketUrl,
-  unpackHandFrame,
+  CONTROL_ACTIONS, HandFramePacker, ackMessage, controlMessage, gesturesMessage, helloMessage, parseServerMessage,
+  socketUrl, unpackHandFrame,
 } from './protocol.js';
 import { RobotScene } from './scene.js';
 import { HandReader, HandSpheres } from './hands.js';
@@ -27,7 +27,7 @@ const hook = {
   device: null, // the IWER XRDevice when emulating
   hello: null,
   state: null, // the last state message
-  counts: { framesSent: 0, statesReceived: 0, skipped: 0, messages: 0, untracked: 0 },
+  counts: { framesSent: 0, statesReceived: 0, skipped: 0, messages: 0, untracked: 0, acksSent: 0 },
   rtt: [], // round-trip samples, ms (state received − echoed sent_ms)
   replaySamples: [], // [seq, playback ms, record index | null] per frame sent during a replay
   events: [], // episode / calibration / error messages, gestures messages but progress
@@ -148,6 +148,7 @@ function onMessage(msg) {
       view.role = msg.role;
       view.task = msg.task;
       view.gestureModel = msg.gesture_model ?? null;
+      clutchButton.hidden = msg.mapping === 'absolute'; // no clutch: the hand's pose is the target
       robot.build(msg.scene, msg.view_from_base);
       if (msg.frames) robot.update({ frames: msg.frames });
       reframe();
@@ -170,6 +171,7 @@ function onMessage(msg) {
       view.state = msg;
       robot.update(msg);
       clutchButton.textContent = msg.engaged ? 'Release' : 'Engage';
+      if (Number.isInteger(msg.seq) && view.role === 'driver') ack(msg.seq);
       if (Number.isFinite(msg.sent_ms)) {
         const rtt = performance.now() - msg.sent_ms;
         if (hook.rtt.length < MAX_SAMPLES) hook.rtt.push(rtt);
@@ -288,6 +290,23 @@ function readHands(frame) {
     if (reader.read(frame, source.hand, ref)) out[side] = reader;
   }
   return out;
+}
+
+// States received, acknowledged in batches (every ACK_BATCH states or ACK_MS).
+const ACK_BATCH = 16;
+const ACK_MS = 250;
+let acks = [];
+let ackSince = 0;
+
+function ack(stateSeq) {
+  const now = performance.now();
+  acks.push([stateSeq, now]);
+  if (acks.length >= ACK_BATCH || now - ackSince >= ACK_MS) {
+    if (socket?.readyState === WebSocket.OPEN) socket.send(ackMessage(acks));
+    hook.counts.acksSent++;
+    acks = [];
+    ackSince = now;
+  }
 }
 
 function sendFrame(time, hands) {

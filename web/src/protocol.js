@@ -103,6 +103,14 @@ export function gesturesMessage(action, { cls = null, perClass = null } = {}) {
   return JSON.stringify(msg);
 }
 
+/**
+ * The driver's acknowledgement of the states it received: [[seq, performance.now() at receipt],
+ * ...]. The server records, per control step, how stale the hand was (docs/formats.md §3).
+ */
+export function ackMessage(states) {
+  return JSON.stringify({ type: 'ack', states });
+}
+
 const KNOWN_TYPES = new Set(['hello', 'state', 'scene', 'calibration', 'episode', 'error', 'gestures']);
 
 /**

@@ -9,6 +9,8 @@
 pub const STEP_SCHEMA_NAME: &str = "mimicrete.DemoStep.v1";
 /// Schema name of `/hand/joints`.
 pub const HAND_SCHEMA_NAME: &str = "mimicrete.HandFrame.v1";
+/// Schema name of `/teleop/stage_times`.
+pub const STAGE_TIMES_SCHEMA_NAME: &str = "mimicrete.StageTimes.v1";
 /// Schema name of `/tf`.
 pub const TF_SCHEMA_NAME: &str = "foxglove.FrameTransforms";
 /// Schema name of `/scene`.
@@ -164,6 +166,34 @@ pub fn hand_schema() -> String {
         body,
         "A raw tracked-hand frame: t is the hand log's own time (s), joints are metres in the hand log's \
          space and layout (see the channel metadata), orientations are quaternions xyzw.",
+    )
+}
+
+/// `mimicrete.StageTimes.v1`: when one control step's hand frame passed each stage of a live
+/// session. Page times (`capture_ms`, `sent_ms`, `page_recv_ms`) are on the client's clock, server
+/// times on the server's; only differences within one clock mean anything.
+pub fn stage_times_schema() -> String {
+    let opt_num = r#"{"type":["number","null"]}"#;
+    let body = object(
+        Some(STAGE_TIMES_SCHEMA_NAME),
+        &[
+            ("step", UINT.into()),
+            ("seq", UINT.into()),
+            ("capture_ms", NUM.into()),
+            ("sent_ms", NUM.into()),
+            ("server_recv_ms", NUM.into()),
+            ("state_sent_ms", opt_num.into()),
+            ("page_recv_ms", opt_num.into()),
+        ],
+        &["step", "seq", "capture_ms", "sent_ms", "server_recv_ms", "state_sent_ms", "page_recv_ms"],
+    );
+    with_schema_header(
+        body,
+        "The stages of one live control step's hand frame: capture_ms (the frame's t) and sent_ms on \
+         the client's clock; server_recv_ms and state_sent_ms (the state answering the frame handed \
+         to the socket; null when the episode ended on that frame) on the server's; page_recv_ms \
+         (the client's clock) when the client acknowledged the state, else null. Written after the step, at the log time of the latest \
+         message.",
     )
 }
 

@@ -27,6 +27,8 @@ pub const TOPIC_TF: &str = "/tf";
 pub const TOPIC_SCENE: &str = "/scene";
 /// Topic of the events.
 pub const TOPIC_EVENTS: &str = "/events";
+/// Topic of a live session's per-step stage times (only live demos carry it).
+pub const TOPIC_STAGE_TIMES: &str = "/teleop/stage_times";
 
 /// Name of the root frame (the UR controller's Base frame, Z up, metres).
 pub const BASE_FRAME: &str = urdf::LINKS[0];
@@ -520,6 +522,31 @@ struct Channels {
     tf: u16,
     scene: u16,
     events: u16,
+    /// Added by the first [`DemoWriter::write_stage_times`], so other demos keep five channels.
+    stage_times: Option<u16>,
+}
+
+/// When one control step's hand frame passed each stage of a live session
+/// (`mimicrete.StageTimes.v1`, topic [`TOPIC_STAGE_TIMES`]). `capture_ms` (the frame's own time),
+/// `sent_ms` and `page_recv_ms` are on the client's clock; `server_recv_ms` and `state_sent_ms` on
+/// the server's. `page_recv_ms` is `None` when the client did not acknowledge the state.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StageTimes {
+    /// The control step (its `/demo/step` number).
+    pub step: u64,
+    /// The hand frame's sequence number.
+    pub seq: u64,
+    /// The frame's capture time, ms.
+    pub capture_ms: f64,
+    /// When the client sent the frame, ms.
+    pub sent_ms: f64,
+    /// When the server received it, ms.
+    pub server_recv_ms: f64,
+    /// When the server handed the state answering it to the socket, ms (`None`: the episode
+    /// ended on this frame, before its state went out).
+    pub state_sent_ms: Option<f64>,
+    /// When the client received that state, ms.
+    pub page_recv_ms: Option<f64>,
 }
 
 /// Records one episode into an MCAP file.
@@ -536,7 +563,7 @@ pub struct DemoWriter {
     meta: EpisodeMeta,
     model: &'static UrModel,
     ch: Channels,
-    seq: [u32; 5],
+    seq: [u32; 6],
     last_log_time: u64,
     steps: u64,
     messages: u64,
@@ -653,6 +680,7 @@ impl DemoWriter {
             tf: w.add_channel(s_tf, TOPIC_TF, "json", &none).map_err(&me)?,
             scene: w.add_channel(s_scene, TOPIC_SCENE, "json", &none).map_err(&me)?,
             events: w.add_channel(s_ev, TOPIC_EVENTS, "json", &none).map_err(&me)?,
+            stage_times: None,
         };
         Ok(DemoWriter {
             w,
@@ -661,7 +689,7 @@ impl DemoWriter {
             meta: meta.clone(),
             model,
             ch,
-            seq: [0; 5],
+            seq: [0; 6],
             last_log_time: 0,
             steps: 0,
             messages: 0,
@@ -703,7 +731,9 @@ impl DemoWriter {
     }
 
     fn put(&mut self, which: usize, log_time: u64, data: &[u8]) -> Result<(), DemoError> {
-        let channel_id = [self.ch.step, self.ch.hand, self.ch.tf, self.ch.scene, self.ch.events][which];
+        let stage = self.ch.stage_times.unwrap_or(0);
+        let channel_id =
+            [self.ch.step, self.ch.hand, self.ch.tf, self.ch.scene, self.ch.events, stage][which];
         let sequence = self.seq[which];
         self.seq[which] = sequence.wrapping_add(1);
         self.w
@@ -918,6 +948,37 @@ impl DemoWriter {
         let ns = self.check_time(t, &format!("event {name}"))?;
         let props = properties.iter().map(|(k, v)| (k.as_str(), v.clone(), 0u8)).collect();
         self.event_at(ns, name, props)
+    }
+
+    /// Record when a live control step's hand frame passed each stage, on
+    /// [`TOPIC_STAGE_TIMES`] at the log time of the latest message (a step's times are complete
+    /// only after its state reached the client, so they are written after the step).
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] for a step not yet written or a non-finite time.
+    pub fn write_stage_times(&mut self, st: &StageTimes) -> Result<(), DemoError> {
+        if st.step >= self.steps {
+            return Err(DemoError::Invalid(format!(
+                "stage times of step {}: only {} steps written",
+                st.step, self.steps
+            )));
+        }
+        let times = [st.capture_ms, st.sent_ms, st.server_recv_ms];
+        if times.iter().chain(st.state_sent_ms.iter()).chain(st.page_recv_ms.iter()).any(|x| !x.is_finite()) {
+            return Err(DemoError::Invalid(format!("stage times of step {}: a non-finite time", st.step)));
+        }
+        if self.ch.stage_times.is_none() {
+            let me = mcap_err(&self.partial);
+            let schema = schemas::stage_times_schema();
+            let sid = self
+                .w
+                .add_schema(schemas::STAGE_TIMES_SCHEMA_NAME, "jsonschema", schema.as_bytes())
+                .map_err(&me)?;
+            self.ch.stage_times =
+                Some(self.w.add_channel(sid, TOPIC_STAGE_TIMES, "json", &BTreeMap::new()).map_err(&me)?);
+        }
+        let bytes = serde_json::to_vec(st).map_err(|e| DemoError::Invalid(e.to_string()))?;
+        self.put(5, self.last_log_time, &bytes)
     }
 
     /// Record a raw hand frame on `/hand/joints` at log time `t` (episode seconds; the frame keeps

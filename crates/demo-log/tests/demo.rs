@@ -434,3 +434,58 @@ fn steps_with_their_link_transforms_given_write_the_same_bytes() {
     let e = w.write_step_with_links(&s, &links).unwrap_err().to_string();
     assert!(e.contains("step 0: 7 link transforms, the arm's chain has 8"), "{e}");
 }
+
+/// A live session's stage times: a sixth channel added at the first one (other demos keep five),
+/// written after their steps at the latest log time, recovered by salvage; the demo still loads.
+#[test]
+fn stage_times_get_their_own_channel_after_the_steps() {
+    let d = tmpdir("stage-times");
+    let p = d.join("live.mcap");
+    let mut w = DemoWriter::create(&p, &meta(0)).unwrap();
+    let st = |step: u64, page: Option<f64>| StageTimes {
+        step,
+        seq: 100 + step,
+        capture_ms: 1000.0 + 40.0 * step as f64,
+        sent_ms: 1001.5 + 40.0 * step as f64,
+        server_recv_ms: 5.0 + 40.0 * step as f64,
+        state_sent_ms: Some(5.4 + 40.0 * step as f64),
+        page_recv_ms: page,
+    };
+    let err = w.write_stage_times(&st(0, None)).unwrap_err().to_string();
+    assert!(err.contains("stage times of step 0: only 0 steps written"), "{err}");
+    for i in 0..6 {
+        w.write_step(&step(i, 6, 8, 7)).unwrap();
+        if i >= 2 {
+            // Step i - 2's state was acknowledged two frames later; the last two never.
+            w.write_stage_times(&st(i - 2, Some(1010.0 + 40.0 * (i - 2) as f64))).unwrap();
+        }
+    }
+    w.write_stage_times(&st(4, None)).unwrap();
+    let bad = StageTimes { sent_ms: f64::NAN, ..st(5, None) };
+    assert!(w.write_stage_times(&bad).unwrap_err().to_string().contains("non-finite"));
+    w.write_stage_times(&st(5, None)).unwrap();
+    w.finish(&EpisodeSummary { success: false, extra: BTreeMap::new() }).unwrap();
+    assert_eq!(read_demo(&p).unwrap().len(), 6);
+    let (msgs, r) = salvage(&p).unwrap();
+    assert!(r.complete && r.messages_unattributed == 0);
+    let stage: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == TOPIC_STAGE_TIMES)
+        .map(|m| serde_json::from_slice(&m.data).unwrap())
+        .collect();
+    assert_eq!(stage.len(), 6);
+    assert_eq!(stage[1]["step"], 1);
+    assert_eq!(stage[1]["seq"], 101);
+    assert_eq!(stage[1]["page_recv_ms"], 1050.0);
+    assert!(stage[5]["page_recv_ms"].is_null());
+    let mut last = 0;
+    for m in &msgs {
+        assert!(m.log_time >= last, "log times do not decrease");
+        last = m.log_time;
+    }
+    // A demo without stage times has no such channel.
+    let q = d.join("plain.mcap");
+    write_demo(&q, 0, 6, 8, 7, opts_small());
+    let (msgs, _) = salvage(&q).unwrap();
+    assert!(msgs.iter().all(|m| m.topic != TOPIC_STAGE_TIMES));
+}

@@ -165,6 +165,33 @@ impl PyDemoWriter {
         self.open()?.write_event(t, name, &p).map_err(demo_err)
     }
 
+    /// Record when a live control step's hand frame passed each stage (`/teleop/stage_times`):
+    /// client times `capture_ms`, `sent_ms`, `page_recv_ms` (None: not acknowledged), server
+    /// times `server_recv_ms`, `state_sent_ms` (None: the episode ended on the frame).
+    #[pyo3(signature = (step, seq, capture_ms, sent_ms, server_recv_ms, state_sent_ms = None, page_recv_ms = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn write_stage_times(
+        &mut self,
+        step: u64,
+        seq: u64,
+        capture_ms: f64,
+        sent_ms: f64,
+        server_recv_ms: f64,
+        state_sent_ms: Option<f64>,
+        page_recv_ms: Option<f64>,
+    ) -> PyResult<()> {
+        let st = demo_log::StageTimes {
+            step,
+            seq,
+            capture_ms,
+            sent_ms,
+            server_recv_ms,
+            state_sent_ms,
+            page_recv_ms,
+        };
+        self.open()?.write_stage_times(&st).map_err(demo_err)
+    }
+
     /// Steps written so far.
     #[getter]
     fn steps(&self) -> u64 {

@@ -35,6 +35,12 @@ def _print_report(info: dict[str, Any]) -> None:
     print("  attachments:")
     for a in info["attachments"]:
         print(f"    {a['name']}  {a['media_type']}  {a['bytes']} bytes")
+    if info["stages"]:
+        print("  stage times (ms, over the control steps where both times are known):")
+        width = max(len(k) for k in info["stages"])
+        print(f"    {'stage':<{width}}  {'p50':>8}  {'p99':>8}  {'steps':>6}")
+        for name, d in info["stages"].items():
+            print(f"    {name:<{width}}  {d['p50']:>8.2f}  {d['p99']:>8.2f}  {d['n']:>6}")
 
 
 def _print_integrity(f: str, rep: dict[str, Any]) -> None:

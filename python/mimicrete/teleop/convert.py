@@ -26,7 +26,7 @@ from mimicrete import gestures as gest
 from mimicrete._native import MimicreteError
 from mimicrete.hands import log as handlog
 from mimicrete.hands.log import HandLogData
-from mimicrete.kin import Calibration, parse_calibration  # live.py takes it from here
+from mimicrete.kin import Calibration, parse_calibration
 from mimicrete.safe_io import FileLock
 
 from .provenance import ModelFileError, driving_of, model_of

@@ -25,7 +25,6 @@ import os
 import warnings
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,8 +32,7 @@ import numpy as np
 
 from mimicrete import gestures as gest
 from mimicrete import tasks
-from mimicrete.hands import log as handlog
-from mimicrete.kin import Calibration
+from mimicrete.kin import Calibration, parse_calibration
 
 from .gesturemode import (
     DEFAULT_PER_CLASS,
@@ -48,29 +46,9 @@ from .gesturemode import (
 from .left_hand import LeftHandControl
 from .protocol import FrameError, HandFrame
 from .provenance import what_read
-from .record import DemoSink, episode_meta, source_keys
+from .record import LAYOUT, SPACE, DemoSink, Recording, episode_meta, source_keys, write_handlog
 from .session import Session, Step
 from .view import HINTS, effector_state, follow_why, standing_calibration, view_from_base
-
-LAYOUT = "webxr"
-#: The hand's space as the formats name it: WebXR's axes are OpenXR's (right-handed, +Y up), and
-#: the hand-log format reads ``webxr`` as ``openxr`` and writes ``openxr`` (docs/formats.md §1)
-SPACE = "openxr"
-
-
-@dataclass
-class Episode:
-    """The recording in progress: its session and the raw frames for the hand log."""
-
-    index: int
-    seed: int
-    session: Session
-    sink: DemoSink
-    t: list[float] = field(default_factory=list)
-    tracked: list[bool] = field(default_factory=list)
-    joints: list[np.ndarray] = field(default_factory=list)
-    read_by: dict[str, Any] = field(default_factory=dict)  # the hand log's extra (at the start)
-    clutch: list[list[Any]] = field(default_factory=list)  # [frame index, engage | release]
 
 
 class Live:
@@ -111,8 +89,6 @@ class Live:
         self.out.mkdir(parents=True, exist_ok=True)
         self.calib_path = self.out / "calibration.json"
         if calibration is None and self.calib_path.exists():
-            from .convert import parse_calibration
-
             calibration = parse_calibration(
                 json.loads(self.calib_path.read_text()), str(self.calib_path), None, "calibration"
             )
@@ -120,7 +96,7 @@ class Live:
         self.model, self.model_source = self._pick_model(model)
         self.next_index = self._first_free_index()
         self.seed = int(seed)
-        self.episode: Episode | None = None
+        self.episode: Recording | None = None
         self.last_result: str | None = None
         self._last_saved: dict[str, Any] | None = None
         # closing a demo and writing its hand log take tens of ms (more on a loaded machine): a
@@ -157,11 +133,12 @@ class Live:
     def recording(self) -> bool:
         return self.episode is not None
 
-    def push(self, f: HandFrame) -> list[Step]:
-        """One hand frame from the driving client. Raises :class:`.protocol.FrameError`
-        (``backwards``) for a frame whose ``t`` is before the previous one of the episode being
-        recorded: it is not a frame of this episode (the hand log's times never decrease), so
-        nothing of it is used, not even its left hand."""
+    def push(self, f: HandFrame, recv_ms: float | None = None) -> list[Step]:
+        """One hand frame from the driving client, received at ``recv_ms`` (the server's clock;
+        None: no stage times). Raises :class:`.protocol.FrameError` (``backwards``) for a frame
+        whose ``t`` is before the previous one of the episode being recorded: it is not a frame
+        of this episode (the hand log's times never decrease), so nothing of it is used, not even
+        its left hand."""
         ep = self.episode
         if ep is not None and ep.t and f.t < ep.t[-1]:
             raise FrameError("backwards", f"frame time {f.t} before the previous {ep.t[-1]}")
@@ -193,12 +170,25 @@ class Live:
         steps = s.push(f.t, f.right_tracked, joints, view=True, clutch=clutch)
         if steps:
             self._last_step = (s, steps[-1])
+            if ep is not None and recv_ms is not None:
+                idx = [st.index for st in steps]
+                ep.stages.answered(f.seq, idx, f.t * 1000.0, f.sent_ms, recv_ms)
         if s.done:
             if ep is not None:
                 self.stop()
             else:
                 self.preview = self._session(self.seed + self.next_index, None)
         return steps
+
+    def state_sent(self, seq: int, ms: float) -> None:
+        """The state answering frame ``seq`` went out at ``ms`` (the server's clock)."""
+        if self.episode is not None:
+            self.episode.stages.state_sent(seq, ms)
+
+    def acked(self, states: list[tuple[int, float]]) -> None:
+        """The page's ``ack``: it received the states of frames ``seq`` at ``ms`` (its clock)."""
+        if self.episode is not None:
+            self.episode.stages.acked(states)
 
     def _left_hand_control(self, f: HandFrame) -> None:
         event = self.left_hand.update(f)
@@ -241,7 +231,7 @@ class Live:
         sink = DemoSink(self.out / f"{name}.mcap", meta)
         hand = self.out / f"{name}.handlog.jsonl"
         read_by = what_read(self.model, self.model_source, self.calibration, hand)
-        self.episode = Episode(index, seed, self._session(seed, sink), sink, read_by=read_by)
+        self.episode = Recording(index, seed, self._session(seed, sink), sink, read_by=read_by)
         self.next_index += 1
         self.last_result = None
         self.events.append({"type": "episode", "event": "started", "index": index})
@@ -255,6 +245,7 @@ class Live:
         self.episode = None
         s = ep.session
         s.finish()
+        ep.stages.flush()
         o = s.outcome()
         if o.installed:
             res = self.task.success
@@ -270,7 +261,7 @@ class Live:
         self.preview = self._session(self.seed + self.next_index, None)
         return {"index": ep.index, "result": res, "steps": o.steps, "finished": finished}
 
-    def _save(self, ep: Episode, res: str, finished: bool) -> None:
+    def _save(self, ep: Recording, res: str, finished: bool) -> None:
         """Write the hand log and finish the demo (in the worker thread). The demo's ``episode``
         record names the hand log (:func:`.record.source_keys`) and says ``result`` and
         ``finished``. An episode cut short (a disconnect; Ctrl-C, SIGTERM or SIGHUP to the
@@ -282,7 +273,7 @@ class Live:
         hand = self.out / f"{name}.handlog.jsonl"
         source = None
         if ep.t:
-            self._write_handlog(hand, ep)
+            write_handlog(hand, ep, self.task.name, self.mapping)
             source = source_keys(hand, demo)
         ep.sink.close(s.installed, s.counts, {"result": res, "finished": finished}, source)
         if not finished:
@@ -574,25 +565,3 @@ class Live:
             for p in self.out.glob(f"{self.task.name}_[0-9][0-9][0-9][0-9].*")
         ]
         return max(used) + 1 if used else 0
-
-    def _write_handlog(self, path: Path, ep: Episode) -> None:
-        header = {
-            "format": "mimicrete.handlog",
-            "version": 1,
-            "layout": LAYOUT,
-            "space": SPACE,
-            "handedness": "right",
-            "units": "m",
-            "task": self.task.name,
-            "episode_seed": ep.seed,
-            "source": "mimicrete teleop (WebXR page)",
-            # what read the hand and how it drove (docs/formats.md §1)
-            "extra": {**ep.read_by, "mapping": self.mapping, "clutch": ep.clutch},
-        }
-        handlog.write(
-            path,
-            header,
-            np.asarray(ep.t, dtype=np.float64),
-            np.asarray(ep.tracked, dtype=bool),
-            np.asarray(ep.joints, dtype=np.float64).reshape(-1, 25, 3),
-        )

@@ -1,17 +1,29 @@
-"""Recording a session: the MCAP demo (through the Rust ``demo-log`` writer) and its metadata."""
+"""Recording a session: the MCAP demo (through the Rust ``demo-log`` writer), its metadata, the
+stage times of a live one and its raw hand log."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mimicrete import demos
 from mimicrete.gestures import GestureModel
+from mimicrete.hands import log as handlog
 
-from .session import CONTROL_DT, Counts
+from .session import CONTROL_DT, Counts, Session
+from .stage_times import StageClock
+
+#: The layout of the live page's hands: WebXR's 25 joints.
+LAYOUT = "webxr"
+#: The hand's space as the formats name it: WebXR's axes are OpenXR's (right-handed, +Y up), and
+#: the hand-log format reads ``webxr`` as ``openxr`` and writes ``openxr`` (docs/formats.md §1)
+SPACE = "openxr"
 
 
 def episode_meta(
@@ -108,3 +120,47 @@ class DemoSink:
             self.w.abandon()
         except Exception:  # already finished (renamed) or closed: nothing left to close
             pass
+
+
+@dataclass
+class Recording:
+    """A live episode being recorded: its session, its demo, the stage times of its steps and the
+    raw frames for its hand log."""
+
+    index: int
+    seed: int
+    session: Session
+    sink: DemoSink
+    t: list[float] = field(default_factory=list)
+    tracked: list[bool] = field(default_factory=list)
+    joints: list[np.ndarray] = field(default_factory=list)
+    read_by: dict[str, Any] = field(default_factory=dict)  # the hand log's extra (at the start)
+    clutch: list[list[Any]] = field(default_factory=list)  # [frame index, engage | release]
+    stages: StageClock = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.stages = StageClock(self.sink.w)
+
+
+def write_handlog(path: Path, rec: Recording, task: str, mapping: str) -> None:
+    """The recording's raw hand log (docs/formats.md §1): every frame the page sent, and in its
+    header's ``extra`` what read the hand and how it drove the robot."""
+    header = {
+        "format": "mimicrete.handlog",
+        "version": 1,
+        "layout": LAYOUT,
+        "space": SPACE,
+        "handedness": "right",
+        "units": "m",
+        "task": task,
+        "episode_seed": rec.seed,
+        "source": "mimicrete teleop (WebXR page)",
+        "extra": {**rec.read_by, "mapping": mapping, "clutch": rec.clutch},
+    }
+    handlog.write(
+        path,
+        header,
+        np.asarray(rec.t, dtype=np.float64),
+        np.asarray(rec.tracked, dtype=bool),
+        np.asarray(rec.joints, dtype=np.float64).reshape(-1, 25, 3),
+    )

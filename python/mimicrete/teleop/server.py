@@ -47,6 +47,7 @@ from .gesturemode import GestureModeError
 from .live import Live
 from .protocol import VERSION, FrameError, parse_frame
 from .session import CONTROL_DT
+from .stage_times import parse_ack
 from .view import view_from_base
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -202,6 +203,11 @@ class TeleopServer:
                 await ws.send_json({"type": "error", "message": f"{msg.get('action')}: {e}"})
         elif kind == "control":
             self.stats.dropped["not_driver"] += 1
+        elif kind == "ack" and ws is self.driver:
+            try:
+                self.live.acked(parse_ack(msg))
+            except ValueError:
+                self.stats.dropped["malformed"] += 1
         else:
             self.stats.dropped["unknown"] += 1
         return role
@@ -215,6 +221,7 @@ class TeleopServer:
             "task": live.task.name,
             "layout": "webxr",
             "control_dt": CONTROL_DT,
+            "mapping": live.mapping,
             "scene": live.scene,
             "view_from_base": view_from_base(live.calibration),
             "mode": "gestures" if live.gesture_mode else "teleop",
@@ -273,7 +280,7 @@ class TeleopServer:
             self.stats.dropped[e.kind] += 1
             return
         try:
-            self.live.push(f)
+            self.live.push(f, recv_ms=t0 * 1000.0)
         except FrameError as e:  # its time goes back: dropped like any bad frame
             self.stats.dropped[e.kind] += 1
             return
@@ -290,7 +297,9 @@ class TeleopServer:
         # the socket's transport, after serialising)
         state["server_ms"] = (time.perf_counter() - t0) * 1000.0
         await ws.send_str(json.dumps(state))
-        self.stats.server_ms.append((time.perf_counter() - t0) * 1000.0)
+        t1 = time.perf_counter()
+        self.live.state_sent(f.seq, t1 * 1000.0)
+        self.stats.server_ms.append((t1 - t0) * 1000.0)
         self.stats.server_cpu_ms.append((time.thread_time() - c0) * 1000.0)
         if self.viewers and f.seq % 4 == 0:  # ~25 Hz to watchers at a 90 Hz stream
             await self._broadcast(state, viewers_only=True)
