@@ -280,8 +280,8 @@ STAGES = (
 
 def stage_durations(records: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
     """``{stage: {n, p50, p99}}`` (ms) of each of :data:`STAGES` over the ``/teleop/stage_times``
-    records where both its times are known, and ``network: round trip - server``; empty for a
-    demo without stage times."""
+    records where both its times are known, and ``network and page queue: round trip - server``
+    (the wire and the wait in the page's event loop); empty for a demo without stage times."""
     out: dict[str, dict[str, float]] = {}
 
     def add(name: str, values: list[float]) -> None:
@@ -300,5 +300,5 @@ def stage_durations(records: list[dict[str, Any]]) -> dict[str, dict[str, float]
         for r in records
         if r.get("page_recv_ms") is not None and r.get("state_sent_ms") is not None
     ]
-    add("network: round trip - server", rtt_minus_server)
+    add("network and page queue: round trip - server", rtt_minus_server)
     return out

@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import demos
+
 SECONDS = 20.0
 RATE_HZ = 90.0
 SERVER_GOAL_MS = 2.0
@@ -211,6 +213,10 @@ def browser_round_trip(seconds: float = SECONDS) -> dict[str, Any]:
             stats = run.call(
                 lambda: (list(server.stats.server_ms[n_server:]), server.stats.dropped)
             )
+        run.call(live.stop)  # the recording (if it has not ended by itself) is saved
+    live.flush()
+    saved = live.last_saved
+    stages = demos.inspect(saved["demo"])["stages"] if saved else {}
     c, m = page_side["counts"], page_side["mark"]
     elapsed = (page_side["t"] - m["t"]) / 1000.0
     return {
@@ -223,6 +229,8 @@ def browser_round_trip(seconds: float = SECONDS) -> dict[str, Any]:
         "server_ms": stats[0],
         "dropped": dict(stats[1]),
         "errors": errors,
+        "stages": stages,
+        "demo_steps": saved["steps"] if saved else 0,
     }
 
 
@@ -263,6 +271,12 @@ def run(seconds: float = SECONDS) -> None:
     print(f"  the server meanwhile {_pct(b['server_ms'])}")
     if b["errors"]:
         print(f"  page errors: {b['errors'][:3]}")
+    print(
+        f"stage times of that recording ({b['demo_steps']} control steps; the demo's "
+        "/teleop/stage_times as `mimicrete inspect` prints them), ms:"
+    )
+    for name, d in b["stages"].items():
+        print(f"  {name:<36} p50 {d['p50']:7.2f}  p99 {d['p99']:7.2f}  ({d['n']} steps)")
     print(
         "anchor: Pollen Reachy 2 VR teleoperation, hand-to-gripper "
         f"{REACHY2_HAND_TO_GRIPPER_MS:.0f} ms (Quest 2 native app → network → the physical "
