@@ -25,16 +25,16 @@ from mimicrete.teleop import convert as cv
 from mimicrete.teleop import provenance as pv
 from mimicrete.teleop.gesturemode import user_model_path
 from mimicrete.teleop.live import Live
-from mimicrete.teleop.protocol import HandFrame
+from mimicrete.teleop.protocol import WireFrame
 
 SHIPPED = g.default_model_path("suction")
 
 
-def _frames(log: handlog.HandLogData) -> list[HandFrame]:
+def _frames(log: handlog.HandLogData) -> list[WireFrame]:
     """The log's right hand as the page sends it (no left hand)."""
     none = np.zeros((25, 3))
     return [
-        HandFrame(k, float(log.t[k]), 0.0, bool(log.tracked[k]), False, log.joints[k], none)
+        WireFrame(k, float(log.t[k]), 0.0, bool(log.tracked[k]), False, log.joints[k], none)
         for k in range(len(log))
     ]
 

@@ -12,7 +12,7 @@ from mimicrete.demonstrator.scene import TOOL_DOWN, hand_pose_for_tool0
 from mimicrete.hands.layouts import to_layout
 from mimicrete.hands.model import GESTURE_SHAPES, hand_joints
 from mimicrete.teleop.live import Live
-from mimicrete.teleop.protocol import HandFrame
+from mimicrete.teleop.protocol import WireFrame
 from mimicrete.teleop.view import standing_calibration
 
 RATE_HZ = 90.0
@@ -33,7 +33,7 @@ def _push(live: Live, joints: np.ndarray, t0: float, seconds: float) -> float:
     n = int(seconds * RATE_HZ)
     for k in range(n):
         t = t0 + k / RATE_HZ
-        live.push(HandFrame(k, t, 0.0, True, False, joints, np.zeros((25, 3))))
+        live.push(WireFrame(k, t, 0.0, True, False, joints, np.zeros((25, 3))))
     return t0 + n / RATE_HZ
 
 
@@ -52,7 +52,7 @@ def test_why_comes_from_the_newest_step_of_the_current_session(tmp_path):
     assert state["why"] == "target unreachable" and not state["following"]
     # a frame that runs no control step keeps the newest step's reason
     step = live.session.step_index
-    live.push(HandFrame(0, t, 0.0, True, False, far, np.zeros((25, 3))))
+    live.push(WireFrame(0, t, 0.0, True, False, far, np.zeros((25, 3))))
     assert live.session.step_index == step
     assert live.state()["why"] == "target unreachable"
     # a new session (the recording) has no step yet: nothing of the preview's carries over

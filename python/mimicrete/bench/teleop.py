@@ -132,7 +132,7 @@ def crossings_live(task: str = "suction", frames: int = 400) -> tuple[float, flo
     order: (all frames, frames that ran a control step)."""
     from mimicrete.hands import layouts
     from mimicrete.teleop.live import Live
-    from mimicrete.teleop.protocol import HandFrame
+    from mimicrete.teleop.protocol import WireFrame
 
     tmp = Path(tempfile.mkdtemp(prefix="mimicrete-bench-crossings-live-"))
     path = sy.synth_hands(task, 1, 0, tmp / "logs", layout="webxr")[0]
@@ -142,7 +142,7 @@ def crossings_live(task: str = "suction", frames: int = 400) -> tuple[float, flo
     per_frame, per_step = [], []
     left = np.zeros((len(layouts.WEBXR_JOINT_NAMES), 3))
     for k in range(min(frames, len(log))):
-        f = HandFrame(k, float(log.t[k]), 0.0, bool(log.tracked[k]), False, log.joints[k], left)
+        f = WireFrame(k, float(log.t[k]), 0.0, bool(log.tracked[k]), False, log.joints[k], left)
         with CrossingCounter() as c:
             steps = live.push(f)
             live.state()

@@ -42,7 +42,7 @@ class ConvertError(MimicreteError, ValueError):
 
 
 @dataclass
-class EpisodeResult:
+class ConvertedEpisode:
     """The outcome of converting one hand log."""
 
     source: str
@@ -172,7 +172,7 @@ def convert_log(
     episode_index: int = 0,
     model: gest.GestureModel | None = None,
     calibration: Calibration | None = None,
-) -> EpisodeResult:
+) -> ConvertedEpisode:
     """Run one hand log through a :class:`Session`; write its MCAP demo to ``out`` (a file path
     ending in ``.mcap``, a directory to write :func:`demo_name` into, or ``None``: simulate only).
 
@@ -293,7 +293,7 @@ def convert_log(
             if out_path is not None:  # ours while we hold the lock (even if the writer was
                 Path(str(out_path) + ".partial").unlink(missing_ok=True)  # half made)
             raise
-    return EpisodeResult(
+    return ConvertedEpisode(
         source,
         str(out_path) if out_path else None,
         seed,

@@ -9,7 +9,7 @@ import numpy as np
 
 from mimicrete.hands.layouts import joint_index
 
-from .protocol import HandFrame
+from .protocol import WireFrame
 
 PINCH_M = 0.02  # thumb tip to index tip, left hand
 PINCH_HOLD_S = 1.0
@@ -23,7 +23,7 @@ FIST_RATIO = 0.85
 FIST_HOLD_S = 1.5
 
 
-def is_fist(f: HandFrame) -> bool:
+def is_fist(f: WireFrame) -> bool:
     """The tracked left hand is a fist."""
     if not f.left_tracked:
         return False
@@ -33,7 +33,7 @@ def is_fist(f: HandFrame) -> bool:
     return size > 1e-3 and reach < FIST_RATIO * size
 
 
-def is_pinch(f: HandFrame) -> bool:
+def is_pinch(f: WireFrame) -> bool:
     """The tracked left hand pinches (thumb tip and index tip together)."""
     return f.left_tracked and bool(np.linalg.norm(f.left[THUMB_TIP] - f.left[INDEX_TIP]) < PINCH_M)
 
@@ -46,7 +46,7 @@ class LeftHandControl:
         self.fist_since: float | None = None
         self.pinch_fired = False
 
-    def update(self, f: HandFrame) -> str | None:
+    def update(self, f: WireFrame) -> str | None:
         """``"fist"`` while a fist has been held long enough, ``"pinch"`` on the frame a held
         pinch fires (once per pinch), else None."""
         if is_fist(f):

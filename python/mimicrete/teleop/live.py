@@ -44,7 +44,7 @@ from .gesturemode import (
     user_model_path,
 )
 from .left_hand import LeftHandControl
-from .protocol import FrameError, HandFrame
+from .protocol import FrameError, WireFrame
 from .provenance import what_read
 from .record import LAYOUT, SPACE, DemoSink, Recording, episode_meta, source_keys, write_handlog
 from .session import Session, Step
@@ -133,7 +133,7 @@ class Live:
     def recording(self) -> bool:
         return self.episode is not None
 
-    def push(self, f: HandFrame, recv_ms: float | None = None) -> list[Step]:
+    def push(self, f: WireFrame, recv_ms: float | None = None) -> list[Step]:
         """One hand frame from the driving client, received at ``recv_ms`` (the server's clock;
         None: no stage times). Raises :class:`.protocol.FrameError` (``backwards``) for a frame
         whose ``t`` is before the previous one of the episode being recorded: it is not a frame
@@ -190,7 +190,7 @@ class Live:
         if self.episode is not None:
             self.episode.stages.acked(states)
 
-    def _left_hand_control(self, f: HandFrame) -> None:
+    def _left_hand_control(self, f: WireFrame) -> None:
         event = self.left_hand.update(f)
         if event == "fist" and self.recording:
             self.discard()

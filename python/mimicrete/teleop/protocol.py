@@ -34,7 +34,10 @@ class FrameError(MimicreteError, ValueError):
 
 
 @dataclass
-class HandFrame:
+class WireFrame:
+    """One decoded binary hand frame as the page sends it (both hands, WebXR layout); a hand
+    log's frame is ``mimicrete.hands.log``'s, one hand in any layout."""
+
     seq: int
     t: float
     sent_ms: float
@@ -44,7 +47,7 @@ class HandFrame:
     left: np.ndarray  # (25, 3) float64
 
 
-def parse_frame(data: bytes) -> HandFrame:
+def parse_frame(data: bytes) -> WireFrame:
     """Decode one binary hand frame. Raises :class:`FrameError` (``malformed``: wrong size or
     magic; ``nan``: a non-finite time or a non-finite joint of a hand marked tracked)."""
     if len(data) != FRAME_BYTES:
@@ -59,7 +62,7 @@ def parse_frame(data: bytes) -> HandFrame:
         raise FrameError("nan", "non-finite frame time")
     if (rt and not np.all(np.isfinite(right))) or (lt and not np.all(np.isfinite(left))):
         raise FrameError("nan", "non-finite joint position in a tracked hand")
-    return HandFrame(int(seq), float(t), float(sent_ms), rt, lt, right, left)
+    return WireFrame(int(seq), float(t), float(sent_ms), rt, lt, right, left)
 
 
 def pack_frame(

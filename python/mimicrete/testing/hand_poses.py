@@ -47,13 +47,13 @@ class Driver:
         self.move(joints, joints, seconds)
 
     def move(self, a: np.ndarray, b: np.ndarray, seconds: float) -> None:
-        from mimicrete.teleop.protocol import HandFrame
+        from mimicrete.teleop.protocol import WireFrame
 
         n = int(seconds * RATE_HZ)
         none = np.zeros_like(a)
         for i in range(n):
             u = i / max(n - 1, 1)
-            f = HandFrame(self.k, self.t, 0.0, True, False, a + (b - a) * u, none)
+            f = WireFrame(self.k, self.t, 0.0, True, False, a + (b - a) * u, none)
             for s in self.live.push(f):
                 self.why.append(s.why)
                 self.step_t.append(self.t)
