@@ -6,24 +6,14 @@ shipped gesture model (no gesture training first)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
-import pytest
 
 from mimicrete.teleop.live import Live
-from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
+from mimicrete.teleop.server import ServerThread, TeleopServer
 from mimicrete.teleop.view import HINTS, standing_calibration
 from mimicrete.testing import page_driver as br
-
-
-@pytest.fixture(scope="module")
-def chromium() -> Iterator[Any]:
-    if not (STATIC / "index.html").exists():
-        pytest.fail(f"{STATIC} has no built page: run `make web`")
-    with br.launch() as b:
-        yield b
 
 
 def _wait_states(page: Any, n: int = 40) -> dict[str, Any]:

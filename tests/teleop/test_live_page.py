@@ -8,9 +8,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -21,18 +19,10 @@ from mimicrete.demonstrator.scene import scene_from_env
 from mimicrete.kin import Calibration
 from mimicrete.teleop import convert as cv
 from mimicrete.teleop.live import Live
-from mimicrete.teleop.server import STATIC, ServerThread, TeleopServer
+from mimicrete.teleop.server import ServerThread, TeleopServer
 from mimicrete.teleop.session import Session
 from mimicrete.teleop.view import standing_calibration, view_from_base
 from mimicrete.testing import page_driver as br
-
-
-@pytest.fixture(scope="module")
-def chromium() -> Iterator[Any]:
-    if not (STATIC / "index.html").exists():
-        pytest.fail(f"{STATIC} has no built page: run `make web`")
-    with br.launch() as b:
-        yield b
 
 
 def _standing_log(task: str, folder: Path, seed: int = 5) -> Path:

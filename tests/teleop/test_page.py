@@ -33,12 +33,6 @@ def base_url() -> Iterator[str]:
         yield url
 
 
-@pytest.fixture(scope="module")
-def chromium() -> Iterator[Any]:
-    with br.launch() as b:
-        yield b
-
-
 class FakeServer:
     """Answers the page's WebSocket inside Playwright: hello → driver, each frame → a state."""
 
