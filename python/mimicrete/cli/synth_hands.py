@@ -1,9 +1,12 @@
-"""`mimicrete synth-hands`: hand logs of the scripted demonstrator (`mimicrete.demonstrator`)."""
+"""`mimicrete synth-hands`: hand logs of the scripted demonstrator (`mimicrete.demonstrator`), or
+with ``--through-teleop`` its demos recorded through a live ``mimicrete teleop`` server with hand
+shapes captured on a Quest (`mimicrete.demonstrator.live_client`)."""
 
 from __future__ import annotations
 
 import argparse
 
+from mimicrete import tasks
 from mimicrete.cli import UsageError
 from mimicrete.hands.layouts import LAYOUT_JOINTS
 from mimicrete.tasks import TASKS
@@ -27,6 +30,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
         default="right",
         help="the demonstrating hand (right)",
     )
+    parser.add_argument(
+        "--through-teleop",
+        action="store_true",
+        help="record demos (MCAP + hand logs, as a live session writes them) through a mimicrete "
+        "teleop server run here: IWER's Quest-captured hand shapes, 72 Hz with jitter, pauses, "
+        "the page's protocol, the server's gesture model and clutch; real time (~13 s an "
+        "episode). Right hand, WebXR layout",
+    )
+    parser.add_argument(
+        "--mapping",
+        choices=["clutch", "absolute"],
+        default="clutch",
+        help="with --through-teleop: how the hand drives the robot (clutch)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
@@ -35,6 +52,19 @@ def main(args: argparse.Namespace) -> int:
 
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.through_teleop:
+        if args.handedness != "right" or args.layout != "openxr":
+            raise UsageError(
+                "--through-teleop records the page's right hand (WebXR): drop --layout/--handedness"
+            )
+        from mimicrete.demonstrator.live_client import record_live
+
+        saved = record_live(
+            args.task, args.episodes, args.seed, args.out, mapping=args.mapping, progress=True
+        )
+        ok = sum(s["result"] == tasks.get(args.task).success for s in saved)
+        print(f"recorded {len(saved)} demos through mimicrete teleop to {args.out}: {ok} succeeded")
+        return 0
     paths = synth_hands(
         args.task,
         args.episodes,
