@@ -12,7 +12,7 @@ from tests._cli_run import run_cli
 from mimicrete import _native, demos, kin
 from mimicrete import demogen as dg
 from mimicrete.demogen import generator as gen
-from mimicrete.demogen.generator import Episode, _Runner
+from mimicrete.demogen.generator import GeneratedEpisode, _Runner
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,7 @@ def source_dir(tmp_path_factory):
     expert = _native.SimExpert("TileSuction")
     obs = sim.reset(11)
     expert.reset()
-    ep = Episode("expert", {"object_pose": list(sim.start()["object_pose"])}, 11)
+    ep = GeneratedEpisode("expert", {"object_pose": list(sim.start()["object_pose"])}, 11)
     run = _Runner(sim, ep, np.asarray(obs, np.float32))
     for _ in range(700):
         a = np.asarray(expert.act(sim), np.float64)
@@ -54,8 +54,11 @@ def test_a_transformed_segment_lands_in_the_new_object_frame(source_dir):
     want = dst[:3, 3] + np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ tcp_above
     np.testing.assert_allclose(moved[-1][:3, 3], want, atol=1e-6)
     # the tool stays a rigid transform (pointing down, turned by the yaw)
-    np.testing.assert_allclose(moved[:, :3, :3] @ moved[:, :3, :3].transpose(0, 2, 1),
-                               np.broadcast_to(np.eye(3), moved[:, :3, :3].shape), atol=1e-9)
+    np.testing.assert_allclose(
+        moved[:, :3, :3] @ moved[:, :3, :3].transpose(0, 2, 1),
+        np.broadcast_to(np.eye(3), moved[:, :3, :3].shape),
+        atol=1e-9,
+    )
 
 
 def test_generation_from_one_demo_installs_at_new_starts(source_dir, tmp_path):
@@ -81,13 +84,23 @@ def test_generation_from_one_demo_installs_at_new_starts(source_dir, tmp_path):
 
 
 def test_cli_bad_input_exits_2_naming_the_problem(source_dir, tmp_path):
-    r = run_cli("demogen", "--demos", str(tmp_path / "nope"), "--count", "3",
-                "--out", str(tmp_path / "o"))
+    r = run_cli(
+        "demogen", "--demos", str(tmp_path / "nope"), "--count", "3", "--out", str(tmp_path / "o")
+    )
     assert r.returncode == 2 and "--demos" in r.stderr and "no such file" in r.stderr, r.stderr
     r = run_cli("demogen", "--demos", str(source_dir), "--count", "0", "--out", str(tmp_path))
     assert r.returncode == 2 and "--count" in r.stderr, r.stderr
-    r = run_cli("demogen", "--demos", str(source_dir), "--count", "2", "--starts", "everywhere",
-                "--out", str(tmp_path / "o2"))
+    r = run_cli(
+        "demogen",
+        "--demos",
+        str(source_dir),
+        "--count",
+        "2",
+        "--starts",
+        "everywhere",
+        "--out",
+        str(tmp_path / "o2"),
+    )
     assert r.returncode == 2 and "--starts everywhere" in r.stderr, r.stderr
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -97,8 +110,20 @@ def test_cli_bad_input_exits_2_naming_the_problem(source_dir, tmp_path):
 
 def test_cli_writes_demos_with_a_summary(source_dir, tmp_path):
     out = tmp_path / "gen"
-    r = run_cli("demogen", "--demos", str(source_dir), "--count", "2", "--starts", "wide",
-                "--out", str(out), "--seed", "1", "--no-progress")
+    r = run_cli(
+        "demogen",
+        "--demos",
+        str(source_dir),
+        "--count",
+        "2",
+        "--starts",
+        "wide",
+        "--out",
+        str(out),
+        "--seed",
+        "1",
+        "--no-progress",
+    )
     assert r.returncode == 0, r.stderr
     summary = json.loads((out / "demogen.json").read_text())
     assert summary["kept"] == 2 and summary["attempts"] >= 2

@@ -7,7 +7,14 @@ new frame; :mod:`.generator` runs the transformed segments in the simulator thro
 IK and writes the episodes that install as MCAP demos.
 """
 
-from .generator import Episode, Report, draw_starts, generate, generate_episode, write_episode
+from .generator import (
+    GeneratedEpisode,
+    Report,
+    draw_starts,
+    generate,
+    generate_episode,
+    write_episode,
+)
 from .segment import (
     DemoGenError,
     Segment,
@@ -20,7 +27,7 @@ from .segment import (
 
 __all__ = [
     "DemoGenError",
-    "Episode",
+    "GeneratedEpisode",
     "Report",
     "Segment",
     "SourceDemo",

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import IkError, _native, kin
+from mimicrete import IkError, MimicreteError, _native, kin
 
 from .segment import TASK, DemoGenError, SourceDemo, frame
 
@@ -62,15 +62,17 @@ def draw_starts(n: int, seed: int, starts: str = "wide") -> list[dict[str, list[
     for s in rng.integers(0, 2**62, size=n):
         sim.reset(int(s))
         st = sim.start()
-        out.append({
-            "object_pose": [float(v) for v in st["object_pose"]],
-            "target_offset": [float(v) for v in st["target_offset"]],
-        })
+        out.append(
+            {
+                "object_pose": [float(v) for v in st["object_pose"]],
+                "target_offset": [float(v) for v in st["target_offset"]],
+            }
+        )
     return out
 
 
 @dataclass
-class Episode:
+class GeneratedEpisode:
     """One generated episode: what a demo records per step, and how it went."""
 
     source: str
@@ -93,7 +95,7 @@ def _pose7(p: dict[str, Any]) -> list[float]:
 class _Runner:
     """Steps the simulator towards tool0 poses and records every step."""
 
-    def __init__(self, sim: Any, ep: Episode, obs: np.ndarray) -> None:
+    def __init__(self, sim: Any, ep: GeneratedEpisode, obs: np.ndarray) -> None:
         self.sim, self.ep, self.obs = sim, ep, obs
         snap = sim.snapshot()
         self.q = np.asarray(snap["q"], np.float64)
@@ -128,26 +130,29 @@ class _Runner:
             events.append("fall")
         self.ep.picked |= bool(info["picked"])
         self.ep.installed |= bool(info["installed"])
-        self.ep.rows.append({
-            "obs": np.asarray(obs_before, np.float32),
-            "action": a,
-            "reward": float(r),
-            "terminated": bool(term),
-            "truncated": bool(trunc),
-            "gesture": "closing" if (on or a[6] >= 0.5) else "opening",
-            "joints": self.q.tolist(),
-            "ee_pose": _pose7(snap["tool0"]),
-            "tile_pose": _pose7(snap["object"]),
-            "events": events,
-        })
+        self.ep.rows.append(
+            {
+                "obs": np.asarray(obs_before, np.float32),
+                "action": a,
+                "reward": float(r),
+                "terminated": bool(term),
+                "truncated": bool(trunc),
+                "gesture": "closing" if (on or a[6] >= 0.5) else "opening",
+                "joints": self.q.tolist(),
+                "ee_pose": _pose7(snap["tool0"]),
+                "tile_pose": _pose7(snap["object"]),
+                "events": events,
+            }
+        )
         self.obs = obs
         if term or trunc:
             self.done = True
             raise _Abort("fell" if info["fell"] else ("installed" if info["installed"] else "time"))
 
 
-class _Abort(Exception):
-    pass
+class _Abort(MimicreteError):
+    """A generated episode given up (unreachable, an IK branch jump, the task ended early):
+    counted in the report, never raised to a caller."""
 
 
 def _blended(poses: np.ndarray, start: np.ndarray, share: float) -> np.ndarray:
@@ -170,11 +175,14 @@ def generate_episode(
     *,
     blend: float = 0.5,
     rotate: bool = False,
-) -> Episode:
+) -> GeneratedEpisode:
     """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv``)."""
-    ep = Episode(src.name, start, int(seed))
-    obs = sim.reset(int(seed), object_pose=start["object_pose"],
-                    target_offset=start.get("target_offset", [0.0, 0.0]))
+    ep = GeneratedEpisode(src.name, start, int(seed))
+    obs = sim.reset(
+        int(seed),
+        object_pose=start["object_pose"],
+        target_offset=start.get("target_offset", [0.0, 0.0]),
+    )
     f = np.asarray(obs, np.float64)[-16:]
     yaw = float(start["object_pose"][2]) if rotate else 0.0
     frames = {"object": frame(*f[13:16], yaw), "target": frame(*f[10:13])}
@@ -205,7 +213,9 @@ def generate_episode(
     return ep
 
 
-def write_episode(ep: Episode, path: Path, index: int, extra: dict[str, Any] | None = None) -> Path:
+def write_episode(
+    ep: GeneratedEpisode, path: Path, index: int, extra: dict[str, Any] | None = None
+) -> Path:
     """Write a generated episode as an MCAP demo (the project's demo-log writer)."""
     from mimicrete import demos
 
@@ -218,15 +228,33 @@ def write_episode(ep: Episode, path: Path, index: int, extra: dict[str, Any] | N
         "target_offset": json.dumps(ep.start.get("target_offset", [0.0, 0.0])),
         **{k: (v if isinstance(v, str) else json.dumps(v)) for k, v in (extra or {}).items()},
     }
-    meta = {"episode": int(index), "task": TASK, "seed": int(ep.seed), "robot_model": "ur3",
-            "gesture_model": "", "control_dt": CONTROL_DT, "extra": info}
+    meta = {
+        "episode": int(index),
+        "task": TASK,
+        "seed": int(ep.seed),
+        "robot_model": "ur3",
+        "gesture_model": "",
+        "control_dt": CONTROL_DT,
+        "extra": info,
+    }
     path.parent.mkdir(parents=True, exist_ok=True)
     w = demos.DemoWriter(str(path), meta)
     try:
         for k, r in enumerate(ep.rows):
-            w.write_step(k, k * CONTROL_DT, r["obs"], r["action"], r["reward"], r["terminated"],
-                         r["truncated"], r["gesture"], r["joints"], r["ee_pose"], r["tile_pose"],
-                         r["events"] or None)
+            w.write_step(
+                k,
+                k * CONTROL_DT,
+                r["obs"],
+                r["action"],
+                r["reward"],
+                r["terminated"],
+                r["truncated"],
+                r["gesture"],
+                r["joints"],
+                r["ee_pose"],
+                r["tile_pose"],
+                r["events"] or None,
+            )
         w.finish(ep.installed, {"steps": str(ep.steps), "picked": json.dumps(ep.picked)})
     except BaseException:
         w.abandon()
@@ -291,8 +319,7 @@ def generate(
         rep.attempts += 1
         if ep.installed:
             name = out / f"gen_{rep.kept:05d}.mcap"
-            write_episode(ep, name, rep.kept, {"attempt": rep.attempts - 1,
-                                               "demogen_seed": seed})
+            write_episode(ep, name, rep.kept, {"attempt": rep.attempts - 1, "demogen_seed": seed})
             rep.files.append(name)
             rep.kept += 1
         else:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from mimicrete import _native, kin
+from mimicrete._native import MimicreteError
 from mimicrete.demonstrator.scene import obs_layout
 
 TASK = "TileSuction"
@@ -30,7 +31,7 @@ FRAME_DIM = 16
 _LAY = obs_layout("suction")
 
 
-class DemoGenError(ValueError):
+class DemoGenError(MimicreteError, ValueError):
     """A source demo that cannot be segmented, or bad generation input (names the problem)."""
 
 
@@ -96,16 +97,19 @@ def segment_episode(
     """Split one recorded episode (obs ``(T, 80)``, actions ``(T, 7)``) at its effector switch."""
     obs, actions = np.asarray(obs), np.asarray(actions)
     if obs.ndim != 2 or obs.shape[1] != 5 * FRAME_DIM or actions.shape != (len(obs), 7):
-        raise DemoGenError(f"{name}: not a TileSuction demo (obs {obs.shape}, actions "
-                           f"{actions.shape}; expected (T, 80) and (T, 7))")
+        raise DemoGenError(
+            f"{name}: not a TileSuction demo (obs {obs.shape}, actions "
+            f"{actions.shape}; expected (T, 80) and (T, 7))"
+        )
     f = _newest(obs)
     on = np.flatnonzero(actions[:, 6] >= 0.5)
     if len(on) == 0:
         raise DemoGenError(f"{name}: the suction is never switched on; nothing to segment")
     k = int(on[0])
     if k < 2 or k > len(obs) - 3:
-        raise DemoGenError(f"{name}: the suction switches on at step {k} of {len(obs)}; "
-                           "a segment would be empty")
+        raise DemoGenError(
+            f"{name}: the suction switches on at step {k} of {len(obs)}; a segment would be empty"
+        )
     q_after = np.vstack([f[1:, _LAY["q"]], f[-1:, _LAY["q"]] + actions[-1:, :6] * 0.04])
     poses = kin.fk_batch(q_after, model="ur3")
     tile, target = f[0, _LAY["object"]], f[0, _LAY["target"]]
