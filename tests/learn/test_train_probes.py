@@ -208,6 +208,8 @@ def test_a_damaged_latest_checkpoint_is_named_and_the_previous_one_resumed(
     rc, _, err = run(train_argv(toy_yaml, trained, "--resume", "--max-steps", "3072"), capsys)
     assert rc == 0, err
     assert "step_000002048.pt" in err and "damaged" in err and "step_000001024.pt" in err
+    warned = [ln for ln in err.splitlines() if ln.startswith("warning: ")]  # the library's log
+    assert len(warned) == 1 and "step_000002048.pt" in warned[0], err
     assert "Traceback" not in err
     assert steps_of(trained) == [512, 1024, 1536, 2048, 2560, 3072]
     # the step redone from 1024 rewrote the damaged checkpoint whole

@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 from mimicrete.cli import UsageError
+from mimicrete.learn.console import show_messages
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -55,6 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    show_messages()  # the library's messages, if any
     run_dir = Path(args.run_dir)
     if args.episodes < 1:
         raise UsageError(f"--episodes: at least 1, got {args.episodes}")

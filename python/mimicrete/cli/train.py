@@ -9,6 +9,7 @@ from pathlib import Path
 
 from mimicrete.cli import UsageError
 from mimicrete.learn.config import DEFAULT_DEMOS, DEFAULT_GROUP, DEFAULT_MAX_STEPS  # no torch
+from mimicrete.learn.console import show_messages
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -71,6 +72,7 @@ def main(args: argparse.Namespace) -> int:
     from mimicrete import learn
     from mimicrete.learn import config
 
+    show_messages()  # the library's messages (demos being made, a checkpoint passed over)
     if args.eval_episodes < 0:
         raise UsageError(f"--eval-episodes: 0 or more, got {args.eval_episodes}")
     config_file = args.config

@@ -8,6 +8,8 @@ import os
 import sys
 from pathlib import Path
 
+from mimicrete.learn.console import show_messages
+
 from .sweep import (
     DEFAULT_MAX_STEPS,
     DEFAULT_NAME,
@@ -93,6 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    show_messages()
     try:
         summary = run_sweep(args)
     except KeyboardInterrupt:

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from mimicrete import tasks
+from mimicrete.learn.console import show_messages
 from mimicrete.learn.run_files import atomic_write
 
 from .markdown import steps
@@ -293,6 +294,7 @@ def main(argv: list[str] | None = None) -> int:
     (finished runs and their files stay whole: every file is written atomically, and a run
     interrupted mid-training is trained again from the start next time)."""
     args = build_parser().parse_args(argv)
+    show_messages()
     from mimicrete import learn
     from mimicrete.learn import config
 

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import resource
 import shutil
@@ -54,7 +55,11 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete.learn.console import show_messages
+
 from .peers_report import FIGURE, STARTS, PeersError, report
+
+logger = logging.getLogger(__name__)
 
 REPO = Path(__file__).resolve().parents[3]
 DEFAULT_LEROBOT_PYTHON = REPO / ".venv-export" / "bin" / "python"
@@ -355,10 +360,9 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
                 python, method, dataset, out, n, steps, args.batch_size, args.seed,
                 args.threads, args.nice,
             )  # fmt: skip
-            print(
+            logger.info(
                 f"{method} n={n}: {steps} steps ({rec['epochs']} epochs) in "
-                f"{rec['train_wall_s']:.0f} s wall, {rec['train_cpu_s']:.0f} s CPU",
-                flush=True,
+                f"{rec['train_wall_s']:.0f} s wall, {rec['train_cpu_s']:.0f} s CPU"
             )
             todo = []
             for starts in args.starts:
@@ -385,11 +389,10 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
                 path = result_path(out, method, n, starts)
                 path.write_text(json.dumps(res, indent=1))
                 written.append(path)
-                print(
+                logger.info(
                     f"  {starts}: installed {res['installed_rate']:.0%}, picked "
                     f"{res['picked_rate']:.0%}, length {res['mean_episode_length']:.0f} "
-                    f"({res['episodes']} episodes, {res['eval_wall_s']:.0f} s)",
-                    flush=True,
+                    f"({res['episodes']} episodes, {res['eval_wall_s']:.0f} s)"
                 )
     return written
 
@@ -433,6 +436,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Exit 0; 2 with one line on bad input or a failed step."""
     args = build_parser().parse_args(argv)
+    show_messages()
 
     def error(msg: str) -> int:
         print(f"peers: error: {msg}", file=sys.stderr)

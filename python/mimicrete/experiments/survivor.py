@@ -30,6 +30,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mimicrete.learn.console import show_messages
+
 from .markdown import steps
 from .markdown import table as md_table
 from .paper import PAPER_TABLE5
@@ -175,6 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     toy.add_argument("--seed", type=int, default=0)
     toy.add_argument("--toy-dir", help="keep the toy runs here (default: a temporary dir)")
     args = p.parse_args(argv)
+    show_messages()
     if args.toy:
         return _toy(args)
     bad = missing_dir("--runs", args.runs)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import re
 import sys
 import time
@@ -36,6 +37,8 @@ from typing import Any
 from mimicrete.learn.demo_data import ensure_demos
 
 from .trials import _config_path, read_trial, repo_root, run_dir_name, tune_trainable
+
+logger = logging.getLogger(__name__)
 
 GROUPS = tuple(range(1, 10))  # Table 3
 DEFAULT_SEEDS = (0, 1, 2)
@@ -128,16 +131,16 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
     for g in groups:
         if not _config_path(str(config_dir), g).exists():
             # a missing config is not fatal for the sweep: that group's trials crash and are listed
-            print(f"warning: {_config_path(str(config_dir), g)} does not exist", file=sys.stderr)
+            logger.warning("%s does not exist", _config_path(str(config_dir), g))
     if not args.skip_demos:
         need = demos_needed_safe(config_dir, groups)
         if args.demos:
             need = {Path(args.demos): max(need.values(), default=0)} if need else {}
         for path, n in need.items():
             try:
-                ensure_demos(path, n, log=lambda m: print(m, flush=True))
+                ensure_demos(path, n)
             except Exception as e:  # noqa: BLE001 - the groups that need them crash, reported
-                print(f"warning: could not make demos in {path}: {e}", file=sys.stderr)
+                logger.warning("could not make demos in %s: %s", path, e)
 
     out = Path(args.out).resolve()
     storage = out / "tune"
@@ -149,10 +152,10 @@ def run_sweep(args: argparse.Namespace) -> dict[str, Any]:
     try:
         trainable = tune.with_resources(tune_trainable, {"cpu": args.cpus_per_trial})
         if not args.fresh and tune.Tuner.can_restore(str(exp_dir)):
-            print(
-                f"resuming the sweep in {exp_dir} (its original groups, seeds and flags apply; "
-                "--fresh starts a new one)",
-                flush=True,
+            logger.info(
+                "resuming the sweep in %s (its original groups, seeds and flags apply; --fresh "
+                "starts a new one)",
+                exp_dir,
             )
             tuner = tune.Tuner.restore(
                 str(exp_dir),

@@ -13,6 +13,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from mimicrete.learn.console import show_messages
 from mimicrete.learn.run_files import latest_checkpoint
 
 TRIAL_FILE = "trial.json"
@@ -169,8 +170,11 @@ def _metrics(run_dir: Path, meta: dict[str, Any]) -> dict[str, Any]:
 
 
 def tune_trainable(config: dict[str, Any]) -> None:
-    """The function trainable: one training run, its final metrics reported once."""
+    """The function trainable: one training run, its final metrics reported once (the run's
+    messages on the worker's stdout / stderr, which Ray shows)."""
     from ray import tune
+
+    show_messages()
 
     metrics = train_one(**config)
     tune.report({k: v for k, v in metrics.items() if v is not None})

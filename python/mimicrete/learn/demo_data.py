@@ -5,6 +5,7 @@ fresh checkout has none (``ensure_demos``: the same synth-hands + convert as ``m
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,6 +17,8 @@ from mimicrete._native import MimicreteError
 
 from .config import ConfigError
 from .env import N_CONT, sim_task_of
+
+logger = logging.getLogger(__name__)
 
 DEMO_KEYS = ("obs", "actions", "rewards", "terminated", "truncated", "episode")
 
@@ -277,18 +280,19 @@ def ensure_demos(
     hand_dir: Path | None = None,
     seed: int = 0,
     at_least: int = 60,
-    log: Any = print,
+    log: Any = None,
 ) -> Path:
     """Make ``max(episodes, at_least)`` demos in ``demo_dir`` when it holds fewer than ``episodes``:
     a scripted person's hand logs (``synth-hands``), turned into MCAP demos through the real
-    teleoperation path (``convert``), exactly what ``make demos`` runs. Says so through ``log``."""
+    teleoperation path (``convert``), exactly what ``make demos`` runs. Says so through ``log``
+    (default: this module's logger, at INFO)."""
     demo_dir = Path(demo_dir)
     have = count_demo_episodes(demo_dir)
     if demo_dir.suffix == ".npz" or have >= episodes:
         return demo_dir
     hand_dir = Path(hand_dir) if hand_dir is not None else default_hand_dir(demo_dir)
     n = max(episodes, at_least)
-    log(
+    (log or logger.info)(
         f"demos: {demo_dir} has {have} episodes, making {n} (synth-hands into {hand_dir}, then "
         f"convert into {demo_dir}, as `make demos`)"
     )

@@ -1,12 +1,12 @@
 """A training run: the run directory, resume, the loop of updates, summaries, checkpoints and the
 final policy. ``train(cfg, run_dir)`` is what ``mimicrete train`` and the experiments sweep call.
 
-Per update (``Trainer.iterate``: rollout -> reward signals -> GAE -> PPO + GAIL -> BC), then a
-summary row every ``summary_freq`` steps (CSV + TensorBoard) and a checkpoint every
-``checkpoint_interval`` steps and at the end. With ``stop_on_convergence`` the run ends early
-once the summaries' installed rate has held its threshold ``summaries`` times in a row;
-``run.json`` then records the criterion and the step it was met at (``convergence``). After the
-last update ``policy.pt`` and ``policy.onnx``. A non-finite loss stops the run
+Per update (``Trainer.iterate``, ``update.py``: rollout -> reward signals -> GAIL's discriminator
+-> GAE -> PPO -> BC), then a summary row every ``summary_freq`` steps (CSV + TensorBoard) and a
+checkpoint every ``checkpoint_interval`` steps and at the end. With ``stop_on_convergence`` the
+run ends early once the summaries' installed rate has held its threshold ``summaries`` times in a
+row; ``run.json`` then records the criterion and the step it was met at (``convergence``). After
+the last update ``policy.pt`` and ``policy.onnx``. A non-finite loss stops the run
 (``NonFiniteLossError``) before anything of that update is written, so the last checkpoint stays
 the last good one.
 """
@@ -14,6 +14,7 @@ the last good one.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -22,6 +23,8 @@ from typing import Any
 from . import config as config_mod
 from . import run_files
 from .trainer import Trainer
+
+logger = logging.getLogger(__name__)
 
 
 def train(
@@ -45,7 +48,8 @@ def train(
     a lock left by a killed process is taken over). Everything is checked before the first file is
     written (the run dir, the checkpoint to resume and that the config matches it, the demos), so
     refused input leaves the run dir as it was, and a run dir made for it is removed again.
-    ``log`` gets the warnings (a damaged checkpoint passed over); default: stderr."""
+    ``log`` gets the warnings (a damaged checkpoint passed over); default: this module's logger
+    (``console.show_messages`` shows them as ``warning: ...`` on stderr)."""
     run_dir = Path(run_dir)
     run_files.require_onnx_exporter()
     created = _make_dirs(run_dir)
@@ -54,7 +58,7 @@ def train(
             return _train(
                 cfg, run_dir, demos=demos, resume=resume, force=force,
                 skip_bad_demos=skip_bad_demos, max_steps=max_steps, progress=progress,
-                stop_after_updates=stop_after_updates, log=log or _stderr,
+                stop_after_updates=stop_after_updates, log=log or logger.warning,
             )  # fmt: skip
     finally:
         for d in reversed(created):  # only what is still empty: nothing was written
@@ -62,10 +66,6 @@ def train(
                 d.rmdir()
             except OSError:
                 break
-
-
-def _stderr(line: str) -> None:
-    print(f"warning: {line}", file=sys.stderr)
 
 
 def _make_dirs(path: Path) -> list[Path]:
