@@ -54,6 +54,7 @@ from mimicrete._native import MimicreteError
 from . import config as config_mod
 from .buffer import Signal, UpdateBuffer, gae, horizon_cuts
 from .env import N_CONT, final_obs_of
+from .episodes import EpisodeResult
 from .gail import Gail, signal_terminated
 from .networks import env_action
 from .ppo import (
@@ -135,21 +136,29 @@ def collect_rollout(st: RunState, seed: int) -> None:
             ro.final_obs[t, env_ended] = final_obs_of(infos, env_ended)
         if cut.any():
             ro.final_obs[t, cut] = nobs[cut]  # not reset by the env: nobs is its last obs
-        for i, ep in finished:
-            d = -1 if cur is None else int(cur.env_demo[i])
-            if d < 0:
-                st.pending.episodes.append(ep)
-                if cur is not None:
-                    cur.record_own(i, ep.installed)
-            else:
-                assert cur is not None
-                cur.record(d, ep.installed, bool(cur.env_frontier[i]))
+        _record_finished(st, finished)
         if cur is not None and (env_ended | cut).any():
             cur.restart(st.env, env_ended | cut, cut, nobs)
         obs = nobs
     ro.last_obs[:] = obs
     st.obs = obs
     st.step += ro.T * ro.N
+
+
+def _record_finished(st: RunState, finished: list[tuple[int, EpisodeResult]]) -> None:
+    """Episodes that ended, as (env index, result): one that started at the env's own start goes
+    to the pending summary (and the curriculum's record of own starts), one that started inside
+    a demo to the curriculum only."""
+    cur = st.curriculum
+    for i, ep in finished:
+        d = -1 if cur is None else int(cur.env_demo[i])
+        if d < 0:
+            st.pending.episodes.append(ep)
+            if cur is not None:
+                cur.record_own(i, ep.installed)
+        else:
+            assert cur is not None
+            cur.record(d, ep.installed, bool(cur.env_frontier[i]))
 
 
 def reset_envs(st: RunState, seed: int) -> None:
