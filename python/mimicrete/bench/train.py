@@ -7,6 +7,7 @@ env, in the same process; plus the cost of GAIL and BC on top, and the real env 
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
 import time
 from pathlib import Path
@@ -21,54 +22,72 @@ UPDATES = 2
 
 def _our_steps_per_s(cfg, tmp: Path, demos: str | None = None) -> tuple[float, float, float]:
     """(total steps/s, rollout-only steps/s, seconds per update) over UPDATES updates."""
+    from mimicrete.learn import update
     from mimicrete.learn.trainer import Trainer
 
     tr = Trainer(cfg, tmp / "run", demos, 5_000_000)
-    t_roll = t_upd = 0.0
-    for _ in range(UPDATES):
-        t0 = time.perf_counter()
-        tr.collect()
-        t1 = time.perf_counter()
-        tr.update(tr.advantages(tr.reward_signals()))
-        t2 = time.perf_counter()
-        t_roll += t1 - t0
-        t_upd += t2 - t1
+    spent: dict[str, float] = {"rollout": 0.0}
+    t0 = time.perf_counter()
+    with _timed(spent, (update, "collect_rollout", "rollout")):
+        for _ in range(UPDATES):
+            tr.iterate()
+    t_roll = spent["rollout"]
+    t_upd = time.perf_counter() - t0 - t_roll
     steps = UPDATES * BUFFER
     return steps / (t_roll + t_upd), steps / t_roll, t_upd / UPDATES
+
+
+@contextlib.contextmanager
+def _timed(spent: dict[str, float], *targets: tuple[object, str, str]):
+    """While inside: every call of ``obj.name`` adds its time to ``spent[label]``, for each
+    ``(obj, name, label)``. The update's steps are functions of ``learn.update`` that
+    ``one_update`` calls by name, so timing them there times them in ``Trainer.iterate``."""
+    saved = []
+    for obj, name, label in targets:
+        f = getattr(obj, name)
+        saved.append((obj, name, f))
+
+        def g(*a, _f=f, _label=label, **k):
+            t = time.perf_counter()
+            try:
+                return _f(*a, **k)
+            finally:
+                spent[_label] = spent.get(_label, 0.0) + time.perf_counter() - t
+
+        setattr(obj, name, g)
+    try:
+        yield
+    finally:
+        for obj, name, f in saved:
+            setattr(obj, name, f)
 
 
 def _update_breakdown(cfg, tmp: Path) -> None:
     """Where an update's time goes (BC + GAIL + PPO), per part, and the GAE critic pass before
     (two passes of T x N rows: every observation and every true next one) and after (one pass
     over the distinct observations), timed on the same rollouts."""
-    from collections import defaultdict
-
+    from mimicrete.learn import update
     from mimicrete.learn.trainer import Trainer
 
     tr = Trainer(cfg, tmp / "breakdown", None, 5_000_000)
-    spent: dict[str, float] = defaultdict(float)
-
-    def timed(obj, name: str, label: str) -> None:
-        f = getattr(obj, name)
-
-        def g(*a, **k):
-            t = time.perf_counter()
-            r = f(*a, **k)
-            spent[label] += time.perf_counter() - t
-            return r
-
-        setattr(obj, name, g)
-
-    timed(tr, "_ppo_step", "PPO minibatch steps")
-    timed(tr, "_gail_steps", "GAIL discriminator steps")
-    timed(tr.state.gail, "rewards", "GAIL rewards on the rollout")
-    timed(tr, "_bc_round", "BC round")
-    timed(tr, "advantages", "GAE (critic pass + GAE)")
+    spent: dict[str, float] = {}
+    parts = (
+        (update, "collect_rollout", "rollout"),
+        (update, "ppo_step", "PPO minibatch steps"),
+        (update, "discriminator_steps", "GAIL discriminator steps"),
+        (tr.state.gail, "rewards", "GAIL rewards on the rollout"),
+        (update, "bc_update", "BC round"),
+        (update, "advantages", "GAE (critic pass + GAE)"),
+    )
+    whole = "whole update (rollout, signals, GAIL, GAE, PPO, BC)"
     gae_old = gae_new = 0.0
     for _ in range(UPDATES):
-        tr.collect()
-        ro = tr.state.rollout
-        T, N, D = tr.T, tr.N, tr.obs_dim
+        t = time.perf_counter()
+        with _timed(spent, *parts):
+            tr.iterate()
+        spent[whole] = spent.get(whole, 0.0) + time.perf_counter() - t
+        ro = tr.state.rollout  # the update's rollout, for the two ways of the GAE critic pass
+        T, N, D = ro.T, ro.N, tr.obs_dim
         with torch.no_grad():
             t0 = time.perf_counter()
             tr.state.critic(torch.from_numpy(ro.obs.reshape(T * N, D)))
@@ -78,9 +97,7 @@ def _update_breakdown(cfg, tmp: Path) -> None:
             t2 = time.perf_counter()
         gae_old += t1 - t0
         gae_new += t2 - t1
-        t = time.perf_counter()
-        tr.update(tr.advantages(tr.reward_signals()))
-        spent["whole update (signals, GAE, PPO, GAIL, BC)"] += time.perf_counter() - t
+    tr.close()
     print(f"  where a BC+GAIL+PPO update goes (toy env, mean of {UPDATES} updates):")
     for label, sec in spent.items():
         print(f"    {label:<46s} {sec / UPDATES:6.2f} s")

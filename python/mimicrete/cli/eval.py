@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 
 from mimicrete.cli import UsageError
-from mimicrete.learn.console import show_messages
+from mimicrete.console import show_messages
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -91,9 +91,12 @@ def main(args: argparse.Namespace) -> int:
     import asyncio
     from pathlib import Path
 
+    from mimicrete.console import show_messages
     from mimicrete.teleop import server as srv
     from mimicrete.teleop.gesturemode import user_model_path
     from mimicrete.teleop.live import Live
+
+    show_messages()  # the server's messages: episodes saved, the driver gone, trainings
 
     if not 0 < args.port < 65536:
         raise UsageError(f"--port must be in 1..65535, got {args.port}")

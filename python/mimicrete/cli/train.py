@@ -8,8 +8,8 @@ import time
 from pathlib import Path
 
 from mimicrete.cli import UsageError
+from mimicrete.console import show_messages
 from mimicrete.learn.config import DEFAULT_DEMOS, DEFAULT_GROUP, DEFAULT_MAX_STEPS  # no torch
-from mimicrete.learn.console import show_messages
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-from mimicrete.learn.console import show_messages
+from mimicrete.console import show_messages
 
 from .sweep import (
     DEFAULT_MAX_STEPS,

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from mimicrete import tasks
-from mimicrete.learn.console import show_messages
+from mimicrete.console import show_messages
 from mimicrete.learn.run_files import atomic_write
 
 from .markdown import steps

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete.learn.console import show_messages
+from mimicrete.console import show_messages
 
 from .peers_report import FIGURE, STARTS, PeersError, report
 

@@ -30,7 +30,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mimicrete.learn.console import show_messages
+from mimicrete.console import show_messages
 
 from .markdown import steps
 from .markdown import table as md_table

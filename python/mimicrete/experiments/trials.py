@@ -13,7 +13,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from mimicrete.learn.console import show_messages
+from mimicrete.console import show_messages
 from mimicrete.learn.run_files import latest_checkpoint
 
 TRIAL_FILE = "trial.json"

@@ -168,7 +168,7 @@ class TorchSettings:
     device: str = "cpu"
     num_threads: int = 1
     # extension: GAIL's discriminator steps on a second thread, beside PPO and BC (the same
-    # numbers bit for bit; faster when a core is free, trainer.py step 5)
+    # numbers bit for bit; faster when a core is free: learn/update.py, update_discriminator)
     overlap_gail: bool = True
 
 

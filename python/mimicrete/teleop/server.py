@@ -28,11 +28,11 @@ import asyncio
 import hmac
 import ipaddress
 import json
+import logging
 import secrets
 import signal
 import socket
 import ssl
-import sys
 import threading
 import time
 from collections import deque
@@ -337,12 +337,14 @@ class TeleopServer:
                 await ws.close()
 
 
+logger = logging.getLogger(__name__)
+
+
 def _log(msg: str) -> None:
-    """One line on stderr; a terminal that is gone (SIGHUP) does not stop a save."""
-    try:
-        print(f"mimicrete teleop: {msg}", file=sys.stderr, flush=True)
-    except OSError:
-        pass
+    """What the server says (episodes saved, the driver gone, gesture trainings) as information
+    of the package's log (``mimicrete teleop`` shows it: :func:`mimicrete.console.show_messages`;
+    a terminal that is gone, SIGHUP, does not stop a save: logging reports and goes on)."""
+    logger.info(msg)
 
 
 def _gesture_line(ev: dict[str, Any]) -> str:

@@ -8,7 +8,7 @@ import logging
 import subprocess
 import sys
 
-from mimicrete.learn import console
+from mimicrete import console
 
 
 def test_information_goes_to_stdout_and_a_warning_to_stderr(capsys):
