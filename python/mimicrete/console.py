@@ -3,9 +3,9 @@
 The library logs (``logging.getLogger(__name__)``, all under the ``mimicrete`` logger) and prints
 nothing. A program (``mimicrete train``, ``mimicrete eval``, ``mimicrete teleop``,
 ``python -m mimicrete.experiments`` and the experiments' other ``main()`` functions, a sweep's
-trial) calls :func:`show_messages` once; a message then reads as it did when the library printed it: information on stdout, a
-warning on stderr as ``warning: <message>``. A program that does not call it gets Python's
-default: warnings on stderr, information dropped.
+trial) calls :func:`show_messages` once; a message then reads as it did when the library
+printed it: information on stdout, a warning on stderr as ``warning: <message>``. A program that
+does not call it gets Python's default: warnings on stderr, information dropped.
 """
 
 from __future__ import annotations
