@@ -104,9 +104,7 @@ def test_robust_eval_of_a_toy_run_is_a_usage_error(toy_yaml, tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["eval", str(run_dir), "--robust"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == (
-        "mimicrete eval: error: starts 'robust' need the simulator's env, not Toy-v0"
-    )
+    assert err == ("mimicrete eval: error: starts 'robust' need the simulator's env, not Toy-v0")
     assert not (run_dir / "eval_robust.json").exists()
 
 

@@ -52,9 +52,7 @@ def _starts(arg: str):  # -> str | list[dict]
 
     p = Path(arg)
     if not p.is_file():
-        raise UsageError(
-            f"--starts {arg}: neither wide, training, robust nor a file of starts"
-        )
+        raise UsageError(f"--starts {arg}: neither wide, training, robust nor a file of starts")
     try:
         return list(st.read_starts_file(p, "TileSuction").starts)
     except (ValueError, OSError) as e:
