@@ -17,8 +17,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from mimicrete.hands.layouts import WEBXR_JOINT_NAMES
 from mimicrete.hands.log import HandLogData
 from mimicrete.hands.model import GESTURE_SHAPES, hand_joints, rotation_matrix
+from mimicrete.teleop.protocol import JOINTS
 from mimicrete.testing import page_driver as br
 
 STATIC = Path(__file__).resolve().parents[2] / "python" / "mimicrete" / "teleop" / "static"
@@ -79,6 +81,16 @@ def decode(frame: bytes) -> dict[str, Any]:
         "right": right if flags & 1 else None,
         "left": left if flags & 2 else None,
     }
+
+
+def test_the_page_reads_the_joints_of_the_one_layout_table(chromium: Any, base_url: str) -> None:
+    """The joints the page asks each XRHand for, in the wire's order, are ur3-kin's WebXR layout
+    (the one table of hand layouts; the page cannot import it, so this checks the copy)."""
+    page = br.open_page(chromium, f"{base_url}/", before_load=FakeServer)
+    names = page.evaluate("window.__mimicrete.jointNames")
+    assert tuple(names) == WEBXR_JOINT_NAMES
+    assert len(names) == JOINTS
+    page.close()
 
 
 def test_packer_matches_the_protocol_layout(chromium: Any, base_url: str) -> None:

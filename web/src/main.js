@@ -6,7 +6,7 @@ import {
   socketUrl, unpackHandFrame,
 } from './protocol.js';
 import { RobotScene } from './scene.js';
-import { HandReader, HandSpheres } from './hands.js';
+import { HandReader, HandSpheres, JOINT_NAMES } from './hands.js';
 import { DomHud, GESTURE_LINES, HeadsetHud, hudLines } from './hud.js';
 import { Spectator, frameWorkspace } from './spectator.js';
 import { GesturePanel } from './gestures.js';
@@ -48,6 +48,7 @@ const hook = {
   pack: (seq, t, sentMs, right, left) => Array.from(new Uint8Array(new HandFramePacker().pack(
     seq, t, sentMs, right && Float32Array.from(right), left && Float32Array.from(left)))),
   unpack: (bytes) => unpackHandFrame(Uint8Array.from(bytes).buffer),
+  jointNames: JOINT_NAMES, // the joints the page reads, in wire order (a test checks ur3-kin's table)
 };
 window.__mimicrete = hook;
 
