@@ -229,10 +229,7 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
                     }
                 )
             metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-            stage_times = [
-                json.loads(msg.data)
-                for _, _, msg in reader.iter_messages(topics=[STAGE_TIMES_TOPIC])
-            ]
+            stage_times, stages_error = _stage_times(reader, channels)
             attachments = [
                 {"name": a.name, "media_type": a.media_type, "bytes": len(a.data)}
                 for a in reader.iter_attachments()
@@ -265,7 +262,22 @@ def inspect(path: str | os.PathLike[str]) -> dict[str, Any]:
         "metadata": metadata,
         "attachments": attachments,
         "stages": stage_durations(stage_times),
+        "stages_error": stages_error,
     }
+
+
+def _stage_times(reader: Any, channels: list[dict[str, Any]]) -> tuple[list[dict], str | None]:
+    """A live demo's ``/teleop/stage_times`` records (none in other demos: their chunks are not
+    read), and why they could not be read (a damaged chunk: ``verify`` names it) or None."""
+    from mcap.exceptions import McapError
+
+    if not any(c["topic"] == STAGE_TIMES_TOPIC and c["messages"] for c in channels):
+        return [], None
+    try:
+        msgs = reader.iter_messages(topics=[STAGE_TIMES_TOPIC])
+        return [json.loads(m.data) for _, _, m in msgs], None
+    except (McapError, ValueError) as e:
+        return [], str(e)
 
 
 #: The stages ``inspect`` reports from a live demo's stage times, each ``(name, later,

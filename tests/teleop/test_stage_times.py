@@ -139,3 +139,20 @@ def test_inspect_prints_the_stages_and_offline_demos_have_none(tmp_path):
         check=True,
     ).stdout
     assert "stage times" not in out
+
+
+def test_a_damaged_live_demo_is_still_inspected(tmp_path):
+    """A flipped byte in a chunk of a live demo: inspect reports the damage (exit 1), the stage
+    times it could not read say so, and nothing raises."""
+    _, live, _ = _record(tmp_path)
+    data = bytearray(open(live.last_saved["demo"], "rb").read())
+    data[len(data) // 2] ^= 0x55
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    r = subprocess.run(
+        [sys.executable, "-m", "mimicrete", "inspect", str(bad)],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "integrity: DAMAGED" in r.stdout and "Traceback" not in r.stderr

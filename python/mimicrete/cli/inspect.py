@@ -35,6 +35,8 @@ def _print_report(info: dict[str, Any]) -> None:
     print("  attachments:")
     for a in info["attachments"]:
         print(f"    {a['name']}  {a['media_type']}  {a['bytes']} bytes")
+    if info["stages_error"]:
+        print(f"  stage times: unreadable ({info['stages_error']})")
     if info["stages"]:
         print("  stage times (ms, over the control steps where both times are known):")
         width = max(len(k) for k in info["stages"])
