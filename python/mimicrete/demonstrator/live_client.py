@@ -28,6 +28,7 @@ import numpy as np
 from mimicrete.gestures import captured as cap
 from mimicrete.hands.layouts import FRAME_JOINTS
 from mimicrete.hands.model import hand_frame
+from mimicrete.kin import Calibration
 from mimicrete.teleop.protocol import pack_frame
 
 from . import SynthEpisode, synth_episode
@@ -55,8 +56,6 @@ def captured_shape(cls: str) -> np.ndarray:
 def quest_take(ep: SynthEpisode, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """The episode's plan performed with captured shapes at Quest rate: times (n,) and right-hand
     WebXR joints (n, 25, 3) in the episode's headset space."""
-    from mimicrete.kin import Calibration
-
     calib = Calibration.from_dict(ep.header["extra"]["calibration"])
     rot, wrist = hand_pose_for_tool0(ep.tool0, "right", calib)
     shapes = {g: captured_shape(g) for g in set(ep.gestures)}
@@ -99,28 +98,32 @@ def _blended(ep: SynthEpisode, shapes: dict[str, np.ndarray], k: int) -> np.ndar
     return (1 - u) * shapes[before] + u * shapes[after]
 
 
-async def _drive(url: str, takes: list[tuple[np.ndarray, np.ndarray]]) -> list[dict[str, Any]]:
+async def _drive(
+    url: str, takes: list[tuple[np.ndarray, np.ndarray]], progress: bool
+) -> list[dict[str, Any]]:
     """Play the takes as the page would: hello, then per take Start, the frames in real time
     (each answered by a state, acknowledged in batches of 16) until the episode ends (or Stop
     after the last frame), and the server's ``saved`` message."""
     import aiohttp
+    from tqdm import tqdm
 
     saved: list[dict[str, Any]] = []
 
-    async def answer(ws: Any) -> dict[str, Any]:
+    async def receive(ws: Any, until: Any) -> dict[str, Any]:
+        """Messages until one ``until(msg)`` accepts; the ``saved`` ones are kept on the way."""
         while True:
             msg = await ws.receive_json(timeout=60)
             if msg["type"] == "episode" and msg["event"] == "saved":
                 saved.append(msg)
-            elif msg["type"] == "state":
+            if until(msg):
                 return msg
 
     seq = 0
+    bar = tqdm(total=len(takes), desc="through teleop", unit="ep", disable=not progress)
     async with aiohttp.ClientSession() as http, http.ws_connect(url) as ws:
         hello = {"type": "hello", "protocol": 1, "role": "driver", "client": "live-client"}
         await ws.send_json(hello)
-        while (await ws.receive_json(timeout=30))["type"] != "hello":
-            pass
+        await receive(ws, lambda m: m["type"] == "hello")
         loop = asyncio.get_running_loop()
         for n, (t, joints) in enumerate(takes, start=1):
             await ws.send_json({"type": "control", "action": "start"})
@@ -129,7 +132,7 @@ async def _drive(url: str, takes: list[tuple[np.ndarray, np.ndarray]]) -> list[d
             for i in range(len(t)):
                 await asyncio.sleep(max(0.0, t0 + t[i] - loop.time()))
                 await ws.send_bytes(pack_frame(seq, float(t[i]), loop.time() * 1000.0, joints[i]))
-                state = await answer(ws)
+                state = await receive(ws, lambda m: m["type"] == "state")
                 seq += 1
                 acks.append([state["seq"], loop.time() * 1000.0])
                 if len(acks) == 16:
@@ -140,10 +143,10 @@ async def _drive(url: str, takes: list[tuple[np.ndarray, np.ndarray]]) -> list[d
                     break
             if recording:
                 await ws.send_json({"type": "control", "action": "stop"})
-            while len(saved) < n:
-                msg = await ws.receive_json(timeout=60)
-                if msg["type"] == "episode" and msg["event"] == "saved":
-                    saved.append(msg)
+            if len(saved) < n:
+                await receive(ws, lambda m, n=n: len(saved) >= n)
+            bar.update()
+    bar.close()
     return saved
 
 
@@ -158,7 +161,8 @@ def record_live(
 ) -> list[dict[str, Any]]:
     """Record ``episodes`` demonstrations of ``task`` through a ``mimicrete teleop`` server run
     here (loopback), into ``out`` (demos and hand logs, as a live session writes them); returns
-    the server's ``saved`` messages. Episode ``i`` plays on the server's seed ``seed + i``."""
+    the server's ``saved`` messages. Episode ``i`` plays on the server's seed ``seed + i``;
+    ``progress``: a bar over the episodes."""
     from mimicrete.teleop.live import Live
     from mimicrete.teleop.server import ServerThread, TeleopServer
     from mimicrete.teleop.view import standing_calibration
@@ -172,10 +176,7 @@ def record_live(
         scene = scene_from_env(task, seed + first + i)
         ep = synth_episode(scene, seed * 1_000_003 + first + i, layout="webxr", calib=calib)
         takes.append(quest_take(ep, rng))
-    server = TeleopServer(live)
-    if not progress:
-        server.log = lambda msg: None
-    with ServerThread(server) as run:
-        saved = asyncio.run(_drive(f"http://127.0.0.1:{run.port}/ws", takes))
+    with ServerThread(TeleopServer(live)) as run:
+        saved = asyncio.run(_drive(f"http://127.0.0.1:{run.port}/ws", takes, progress))
     live.flush()
     return saved
