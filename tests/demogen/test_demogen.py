@@ -15,27 +15,42 @@ from mimicrete.demogen import generator as gen
 from mimicrete.demogen.generator import GeneratedEpisode, _Runner
 
 
-@pytest.fixture(scope="module")
-def source_dir(tmp_path_factory):
-    """One real MCAP demo at a paper start: tile-sim's scripted expert driving the simulator,
-    every step recorded through the project's demo writer."""
-    out = tmp_path_factory.mktemp("src")
-    sim = _native.SimEnv("TileSuction", 0)
-    expert = _native.SimExpert("TileSuction")
-    obs = sim.reset(11)
+def _expert_demo(task: str, seed: int, path) -> None:
+    """One real MCAP demo of ``task`` at a paper start: tile-sim's scripted expert driving the
+    simulator, every step recorded through the project's demo writer."""
+    spec = dg.task_frames(task)
+    sim = _native.SimEnv(task, 0)
+    expert = _native.SimExpert(task)
+    obs = sim.reset(seed)
     expert.reset()
-    ep = GeneratedEpisode("expert", {"object_pose": list(sim.start()["object_pose"])}, 11)
+    ep = GeneratedEpisode("expert", {"object_pose": list(sim.start()["object_pose"])}, seed)
+    ep.task = spec.sim
     run = _Runner(sim, ep, np.asarray(obs, np.float32))
     for _ in range(700):
         a = np.asarray(expert.act(sim), np.float64)
         target = kin.fk(run.q + a[:6] * gen.MAX_JOINT_STEP, model="ur3")
         try:
-            run.step(target, float(a[6]))
+            run.step(target, a[6:])
         except gen._Abort:
             break
-    assert ep.installed, "the scripted expert should install from a paper start"
-    dg.write_episode(ep, out / "src_0000.mcap", 0)
+    assert ep.installed, f"the scripted expert should succeed at {task} from a paper start"
+    dg.write_episode(ep, path, 0)
+
+
+@pytest.fixture(scope="module")
+def source_dir(tmp_path_factory):
+    """One TileSuction source demo (:func:`_expert_demo`)."""
+    out = tmp_path_factory.mktemp("src")
+    _expert_demo("TileSuction", 11, out / "src_0000.mcap")
     return out
+
+
+@pytest.fixture(scope="module", params=["BlockGrip", "Screw"])
+def gripper_source(request, tmp_path_factory):
+    """One source demo of each gripper task: ``(task, dir)``."""
+    out = tmp_path_factory.mktemp(f"src_{request.param}")
+    _expert_demo(request.param, 11, out / "src_0000.mcap")
+    return request.param, out
 
 
 def test_a_transformed_segment_lands_in_the_new_object_frame(source_dir):
@@ -76,7 +91,7 @@ def test_generation_from_one_demo_installs_at_new_starts(source_dir, tmp_path):
         first = demos.load(path).obs[0, -16:]
         np.testing.assert_allclose(first[13:15], pose[:2], atol=1e-5)
     # the new starts lie outside the source's (paper) start
-    src_x = sources[0].tile[0]
+    src_x = sources[0].object[0]
     assert max(abs(json.loads(m["object_pose"])[0] - src_x) for m in d.metas) > 0.03
     # the installs are real: the last step of each generated demo is rewarded and terminal
     for sl in d.episode_slices():
@@ -128,3 +143,89 @@ def test_cli_writes_demos_with_a_summary(source_dir, tmp_path):
     summary = json.loads((out / "demogen.json").read_text())
     assert summary["kept"] == 2 and summary["attempts"] >= 2
     assert "yield" in r.stdout
+
+
+def test_gripper_demos_split_after_the_grasp(gripper_source):
+    """The gripper's switch (the first close command) starts the grasp, which stays in the
+    object-relative segment until the source held the object; the rest is target-relative."""
+    task, d = gripper_source
+    (src,) = dg.load_sources(d)
+    assert src.task == task
+    grasp, rest = src.segments
+    assert (grasp.relative_to, rest.relative_to) == ("object", "target")
+    closing = np.flatnonzero(grasp.commands[:, 0] >= 0.5)
+    # the fingers close at 0.1 m/s from 0.085 m: several close steps, all at the segment's end
+    assert len(closing) >= 5 and closing[-1] == len(grasp) - 1
+    assert np.all(np.diff(closing) == 1)
+    assert np.all(grasp.commands[: closing[0], 0] <= -0.5)  # opened on the way there
+    # the grasp ends at the object: the TCP (0.085 m along tool0 z) within 1 cm of its centre
+    tcp = grasp.poses[-1][:3, 3] + 0.085 * grasp.poses[-1][:3, 2]
+    assert np.linalg.norm(tcp - src.object) < 0.01
+    if task == "Screw":  # the spin is a command column of its own, only after the grasp
+        assert grasp.commands.shape[1] == 2 and np.all(grasp.commands[:, 1] == 0.0)
+        assert np.sum(rest.commands[:, 1] >= 0.5) >= 50  # 3 turns at 1 turn/s, 25 steps/s
+    else:
+        assert grasp.commands.shape[1] == 1 and np.any(rest.commands[:, 0] <= -0.5)  # release
+
+
+def test_gripper_generation_succeeds_at_the_requested_starts(gripper_source, tmp_path):
+    task, d = gripper_source
+    sources = dg.load_sources(d)
+    starts = dg.draw_starts(6, seed=5, starts="wide", task=task)
+    rep = dg.generate(sources, 6, tmp_path, starts=starts, seed=5, max_attempts=6)
+    assert rep.attempts == 6 and rep.kept >= 5, rep.failures
+    loaded = demos.load(tmp_path)
+    assert loaded.num_episodes == rep.kept
+    spec = dg.task_frames(task)
+    lay = spec.lay
+    requested = {json.dumps(s["object_pose"]) for s in starts}
+    sim = _native.SimEnv(task, 0)
+    for meta, path in zip(loaded.metas, loaded.files, strict=True):
+        assert meta["task"] == task and meta["generated"] == "true" and meta["success"] == "true"
+        assert meta["object_pose"] in requested
+        pose, offset = json.loads(meta["object_pose"]), json.loads(meta["target_offset"])
+        ep = demos.load(path)
+        assert ep.actions.shape[1] == spec.act_dim
+        first = ep.obs[0, -spec.frame_dim :]
+        # the demo starts where it was asked to: the object, and the target the simulator puts
+        # there for that start
+        np.testing.assert_allclose(first[lay["object"]][:2], pose[:2], atol=1e-5)
+        want = sim.reset(0, object_pose=pose, target_offset=offset)[-spec.frame_dim :]
+        np.testing.assert_allclose(first[lay["target"]], want[lay["target"]], atol=1e-5)
+    # the starts are wide: at least one 3 cm from the source's object in x or y
+    spread = max(
+        np.max(np.abs(np.asarray(json.loads(m["object_pose"])[:2]) - sources[0].object[:2]))
+        for m in loaded.metas
+    )
+    assert spread > 0.03
+    # the successes are real: the grasp (+1) and the place / screw (+1), the last step terminal
+    for sl in loaded.episode_slices():
+        assert loaded.terminated[sl][-1] and loaded.rewards[sl].sum() >= 2.0 - 1e-6
+
+
+def test_cli_task_from_the_demos_and_mixed_tasks(source_dir, gripper_source, tmp_path):
+    task, d = gripper_source
+    out = tmp_path / "gen"
+    r = run_cli("demogen", "--demos", str(d), "--count", "1", "--out", str(out), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((out / "demogen.json").read_text())
+    assert summary["task"] == task and summary["kept"] == 1
+    assert json.loads((out / "demogen.json").read_text())["sources"] == ["src_0000.mcap"]
+    r = run_cli(
+        "demogen", "--demos", str(d), "--task", "suction", "--count", "1", "--out",
+        str(tmp_path / "o1"),
+    )  # fmt: skip
+    assert r.returncode == 2 and "--task suction" in r.stderr and task in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+    r = run_cli(
+        "demogen", "--demos", str(d), "--task", "hammer", "--count", "1", "--out",
+        str(tmp_path / "o2"),
+    )  # fmt: skip
+    assert r.returncode == 2 and "unknown task 'hammer'" in r.stderr, r.stderr
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    (mixed / "a.mcap").write_bytes((source_dir / "src_0000.mcap").read_bytes())
+    (mixed / "b.mcap").write_bytes((d / "src_0000.mcap").read_bytes())
+    r = run_cli("demogen", "--demos", str(mixed), "--count", "1", "--out", str(tmp_path / "o3"))
+    assert r.returncode == 2 and "mixes tasks" in r.stderr and task in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr

@@ -1,5 +1,6 @@
-"""`mimicrete demogen`: a few recorded demos → many installing demos at new starts
-(:mod:`mimicrete.demogen`, object-centric generation as in MimicGen)."""
+"""`mimicrete demogen`: a few recorded demos → many successful demos at new starts
+(:mod:`mimicrete.demogen`, object-centric generation as in MimicGen). The task (TileSuction,
+BlockGrip, Screw) is the source demos' own, read from their metadata; ``--task`` only checks it."""
 
 from __future__ import annotations
 
@@ -14,6 +15,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Flags of ``mimicrete demogen``."""
     parser.add_argument("--demos", required=True, metavar="DIR", help="source MCAP demos")
     parser.add_argument(
+        "--task",
+        default=None,
+        metavar="suction|grip|screw",
+        help="the task the source demos must be of (default: theirs, from their metadata)",
+    )
+    parser.add_argument(
         "--source-count",
         type=int,
         default=None,
@@ -21,7 +28,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="use the first K installing demos of --demos (default: all)",
     )
     parser.add_argument(
-        "--count", required=True, type=int, metavar="N", help="installing demos to write"
+        "--count", required=True, type=int, metavar="N", help="successful demos to write"
     )
     parser.add_argument(
         "--starts",
@@ -45,7 +52,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _starts(arg: str):  # -> str | list[dict]
+def _starts(arg: str, task: str):  # -> str | list[dict]
     if arg in ("wide", "training", "robust"):
         return arg
     from mimicrete.learn import starts as st
@@ -54,13 +61,13 @@ def _starts(arg: str):  # -> str | list[dict]
     if not p.is_file():
         raise UsageError(f"--starts {arg}: neither wide, training, robust nor a file of starts")
     try:
-        return list(st.read_starts_file(p, "TileSuction").starts)
+        return list(st.read_starts_file(p, task).starts)
     except (ValueError, OSError) as e:
         raise UsageError(f"--starts {e}") from None
 
 
 def main(args: argparse.Namespace) -> int:
-    """Run ``mimicrete demogen``; exit 2 for bad input, 1 when fewer than N demos installed."""
+    """Run ``mimicrete demogen``; exit 2 for bad input, 1 when fewer than N demos succeeded."""
     from tqdm import tqdm
 
     from mimicrete import LogFormatError
@@ -74,7 +81,16 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(f"--max-attempts must be at least 1, got {args.max_attempts}")
     if not 0 <= args.seed < 2**32:
         raise UsageError(f"--seed must be in [0, 2**32), got {args.seed}")
-    starts = _starts(args.starts)
+    if args.starts not in ("wide", "training", "robust") and not Path(args.starts).is_file():
+        raise UsageError(
+            f"--starts {args.starts}: neither wide, training, robust nor a file of starts"
+        )
+    want = None
+    if args.task is not None:
+        try:
+            want = dg.task_frames(args.task).sim
+        except dg.DemoGenError as e:
+            raise UsageError(f"--task {e}") from None
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out}: exists and is not a directory")
@@ -84,6 +100,10 @@ def main(args: argparse.Namespace) -> int:
         sources = dg.load_sources(args.demos, args.source_count)
     except (dg.DemoGenError, LogFormatError) as e:
         raise UsageError(str(e)) from None
+    task = sources[0].task
+    if want is not None and task != want:
+        raise UsageError(f"--task {args.task}: the demos in {args.demos} are {task} demos")
+    starts = _starts(args.starts, task)
     bar = tqdm(total=args.count, desc="demogen", unit="demo", disable=args.no_progress)
 
     def progress(rep: dg.Report) -> None:
@@ -105,6 +125,7 @@ def main(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     summary = {
+        "task": task,
         "sources": [s.name for s in sources],
         "starts": args.starts,
         "seed": args.seed,
@@ -116,7 +137,7 @@ def main(args: argparse.Namespace) -> int:
     }
     (out / "demogen.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(
-        f"{rep.kept} demos in {out} from {len(sources)} source demo(s): yield "
+        f"{rep.kept} {task} demos in {out} from {len(sources)} source demo(s): yield "
         f"{rep.kept}/{rep.attempts} ({100 * rep.yield_:.1f} %) in {rep.seconds:.1f} s"
         + (f"; failures {rep.failures}" if rep.failures else "")
     )

@@ -7,8 +7,10 @@ by blending the offset out over the segment's first part (a min-jerk interpolati
 current pose onto the transformed path), and follow the poses with the project's IK, producing
 the joint actions a teleoperated demo records (teleop-core's ``joint_action``:
 ``clip(wrap(q_ik − q) / MAX_JOINT_STEP, −1, 1)``, the IK warm-started at its last answer). The
-suction is switched on where the source switched it, once the cup is within reach of the grasp
-point. Only episodes that install are kept (MimicGen keeps successes); each is written as an MCAP
+effector commands are the source's (the suction's only at its switch, once the cup is within
+reach of the grasp point; the gripper's and the spin as recorded, the gripper kept closing until
+it holds). What differs per task is one row of :data:`.segment.TASKS`. Only episodes that
+succeed (install, place, screw) are kept (MimicGen keeps successes); each is written as an MCAP
 demo with the project's writer, its metadata saying it was generated, from which source and
 where it started (``mimicrete train --demos DIR`` reads it unchanged).
 """
@@ -26,7 +28,7 @@ import numpy as np
 
 from mimicrete import IkError, MimicreteError, _native, kin
 
-from .segment import TASK, DemoGenError, SourceDemo, frame
+from .segment import TASK, DemoGenError, SourceDemo, TaskFrames, frame, task_frames
 
 MAX_JOINT_STEP = float(_native.sim_constants()["MAX_JOINT_STEP"])
 CONTROL_DT = float(_native.sim_constants()["CONTROL_DT"])
@@ -49,10 +51,12 @@ def joint_action(q_ik: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.clip(wrap(q_ik - q) / MAX_JOINT_STEP, -1.0, 1.0)
 
 
-def draw_starts(n: int, seed: int, starts: str = "wide") -> list[dict[str, list[float]]]:
-    """``n`` starts of tile-sim's ``starts`` distribution (``wide``, ``training``, ``robust``),
-    drawn by the simulator itself from episode seeds of ``seed``."""
-    sim = _native.SimEnv(TASK, 0)
+def draw_starts(
+    n: int, seed: int, starts: str = "wide", task: str = TASK
+) -> list[dict[str, list[float]]]:
+    """``n`` starts of ``task``'s tile-sim ``starts`` distribution (``wide``, ``training``,
+    ``robust``), drawn by the simulator itself from episode seeds of ``seed``."""
+    sim = _native.SimEnv(task_frames(task).sim, 0)
     if starts == "robust":
         sim.set_variation(robust=True)
     else:
@@ -82,6 +86,7 @@ class GeneratedEpisode:
     installed: bool = False
     picked: bool = False
     why: str = ""
+    task: str = TASK
 
     @property
     def steps(self) -> int:
@@ -92,11 +97,30 @@ def _pose7(p: dict[str, Any]) -> list[float]:
     return [*map(float, p["t"]), *map(float, p["q"])]
 
 
+def gesture_of(spec: TaskFrames, cmd: np.ndarray, on: bool) -> str:
+    """The gesture class a demo step records for effector command ``cmd`` (``a[6:]``), as the
+    teleoperation session records it (``on``: the suction is on before the step)."""
+    c = float(cmd[0])
+    if spec.latched:
+        return "closing" if (on or c >= 0.5) else "opening"
+    name = "closing" if c >= 0.5 else ("opening" if c <= -0.5 else "fixed")
+    if spec.act_dim == 8:  # the screwing classes (the gripper, the spin)
+        spin = float(cmd[1])
+        tail = "tightening" if spin >= 0.5 else ("loosening" if spin <= -0.5 else "fixed")
+        return {"closing": f"closing_{tail}", "opening": "opening_stopped"}.get(
+            name, "fixed_stopped"
+        )
+    return name
+
+
 class _Runner:
     """Steps the simulator towards tool0 poses and records every step."""
 
-    def __init__(self, sim: Any, ep: GeneratedEpisode, obs: np.ndarray) -> None:
+    def __init__(
+        self, sim: Any, ep: GeneratedEpisode, obs: np.ndarray, spec: TaskFrames | None = None
+    ) -> None:
         self.sim, self.ep, self.obs = sim, ep, obs
+        self.spec = spec or task_frames(ep.task)
         snap = sim.snapshot()
         self.q = np.asarray(snap["q"], np.float64)
         self.q_ik = self.q.copy()
@@ -105,7 +129,11 @@ class _Runner:
     def pose(self) -> np.ndarray:
         return kin.fk(self.q, model="ur3")
 
-    def step(self, target: np.ndarray, command: float) -> None:
+    def held(self) -> bool:
+        return bool(self.sim.snapshot()["held"])
+
+    def step(self, target: np.ndarray, command: float | np.ndarray) -> None:
+        spec = self.spec
         try:
             sol = kin.ik(target, seed=self.q_ik, model="ur3")
         except IkError:
@@ -113,10 +141,15 @@ class _Runner:
         if np.max(np.abs(wrap(sol - self.q_ik))) > BRANCH_JUMP:
             raise _Abort("IK jumped to another branch")
         self.q_ik = sol
-        a = np.zeros(7, np.float32)
+        cmd = np.zeros(spec.act_dim - 6, np.float64)
+        cmd[:] = np.atleast_1d(np.asarray(command, np.float64))[: len(cmd)]
+        a = np.zeros(spec.act_dim, np.float32)
         a[:6] = joint_action(self.q_ik, self.q)
-        on = self.obs[-16 + 6] > 0.0
-        a[6] = 0.0 if (command >= 0.5 and on) or (command <= -0.5 and not on) else command
+        a[6:] = cmd
+        frame_now = self.obs[-spec.frame_dim :]
+        on = bool(frame_now[spec.lay["ee"]][0] > 0.0) if spec.latched else False
+        if spec.latched and ((cmd[0] >= 0.5 and on) or (cmd[0] <= -0.5 and not on)):
+            a[6] = 0.0  # the suction latches: a command only where it switches
         obs_before = self.obs
         obs, r, term, trunc, info = self.sim.step(a)
         snap = self.sim.snapshot()
@@ -137,7 +170,7 @@ class _Runner:
                 "reward": float(r),
                 "terminated": bool(term),
                 "truncated": bool(trunc),
-                "gesture": "closing" if (on or a[6] >= 0.5) else "opening",
+                "gesture": gesture_of(spec, a[6:], on),
                 "joints": self.q.tolist(),
                 "ee_pose": _pose7(snap["tool0"]),
                 "tile_pose": _pose7(snap["object"]),
@@ -176,41 +209,71 @@ def generate_episode(
     blend: float = 0.5,
     rotate: bool = False,
 ) -> GeneratedEpisode:
-    """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv``)."""
-    ep = GeneratedEpisode(src.name, start, int(seed))
+    """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv`` of the
+    source's task)."""
+    spec = src.spec
+    ep = GeneratedEpisode(src.name, start, int(seed), task=spec.sim)
     obs = sim.reset(
         int(seed),
         object_pose=start["object_pose"],
         target_offset=start.get("target_offset", [0.0, 0.0]),
     )
-    f = np.asarray(obs, np.float64)[-16:]
+    f = np.asarray(obs, np.float64)[-spec.frame_dim :]
     yaw = float(start["object_pose"][2]) if rotate else 0.0
-    frames = {"object": frame(*f[13:16], yaw), "target": frame(*f[10:13])}
-    run = _Runner(sim, ep, np.asarray(obs, np.float32))
+    frames = {
+        "object": frame(*f[spec.lay["object"]], yaw),
+        "target": frame(*f[spec.lay["target"]]),
+    }
+    run = _Runner(sim, ep, np.asarray(obs, np.float32), spec)
     last = run.pose()
     try:
         for seg in src.segments:
-            if seg.relative_to == "target":  # the switch: wait until the cup is at the tile
-                grasp = np.asarray(sim.snapshot()["object"]["t"]) + [0.0, 0.0, 0.005]
-                for _ in range(25):
-                    if np.linalg.norm(np.asarray(sim.snapshot()["tcp"]["t"]) - grasp) < PICK_REACH:
-                        break
-                    run.step(last, 0.0)
+            if seg.relative_to == "target":
+                _await_grasp(run, spec, last, src.segments[0].commands[-1])
             poses = _blended(seg.moved_to(frames[seg.relative_to]), run.pose(), blend)
             for p, c in zip(poses, seg.commands, strict=True):
-                run.step(p, float(c))
+                run.step(p, c)
             last = poses[-1]
-        for _ in range(40):  # finish the place: carry the held tile the rest of the way
-            snap = sim.snapshot()
+        _finish(run, spec, last, src.segments[-1].commands[-1])
+        ep.why = "not installed"
+    except _Abort as e:
+        ep.why = str(e)
+    return ep
+
+
+def _await_grasp(run: _Runner, spec: TaskFrames, last: np.ndarray, cmd: np.ndarray) -> None:
+    """Before the target-relative segment: the suction waits (its command comes with the
+    segment) until the cup is within reach of the tile's grasp point; a gripper keeps closing
+    at the last pose until it holds (the fingers may touch a step later than the source's)."""
+    for _ in range(25):
+        if spec.latched:
+            snap = run.sim.snapshot()
+            grasp = np.asarray(snap["object"]["t"]) + [0.0, 0.0, 0.005]
+            if np.linalg.norm(np.asarray(snap["tcp"]["t"]) - grasp) < PICK_REACH:
+                return
+            run.step(last, 0.0)
+        else:
+            if run.held():
+                return
+            run.step(last, cmd)
+
+
+def _finish(run: _Runner, spec: TaskFrames, last: np.ndarray, cmd: np.ndarray) -> None:
+    """After the last segment, where the task has not ended: ``carry`` the held object onto
+    the target (≤ 5 mm a step; a source that installed at its very last step would otherwise
+    miss by a millimetre), or ``hold`` the last pose and command (the nut keeps turning)."""
+    if spec.finish == "none":
+        return
+    for _ in range(40):
+        if spec.finish == "carry":
+            snap = run.sim.snapshot()
             gap = np.asarray(snap["target"]["t"]) - np.asarray(snap["object"]["t"])
             n = float(np.linalg.norm(gap))
             last = last.copy()
             last[:3, 3] += gap * min(1.0, 0.005 / max(n, 1e-9))
             run.step(last, 0.0)
-        ep.why = "not installed"
-    except _Abort as e:
-        ep.why = str(e)
-    return ep
+        else:
+            run.step(last, cmd)
 
 
 def write_episode(
@@ -230,7 +293,7 @@ def write_episode(
     }
     meta = {
         "episode": int(index),
-        "task": TASK,
+        "task": ep.task,
         "seed": int(ep.seed),
         "robot_model": "ur3",
         "gesture_model": "",
@@ -294,18 +357,21 @@ def generate(
     ``seed``) or explicit starts, used in order and cycled."""
     if not sources:
         raise DemoGenError("no source demo")
+    task = sources[0].task
+    if any(s.task != task for s in sources):
+        raise DemoGenError("the source demos mix tasks; generate from one task's at a time")
     if count < 1:
         raise DemoGenError(f"--count must be at least 1, got {count}")
     out = Path(out)
     limit = max_attempts if max_attempts is not None else 4 * count + 20
     if isinstance(starts, str):
-        pool = draw_starts(limit, seed, starts)
+        pool = draw_starts(limit, seed, starts, task)
     else:
         pool = list(starts)
         if not pool:
             raise DemoGenError("no start to generate at")
     rng = np.random.default_rng([seed, 0x6E4])
-    sim = _native.SimEnv(TASK, 0)
+    sim = _native.SimEnv(task, 0)
     rep = Report()
     t0 = time.monotonic()
     while rep.kept < count and rep.attempts < limit:

@@ -1,17 +1,29 @@
 """Object-centric segments of a recorded demo and their transform to a new start (MimicGen).
 
-A TileSuction demo has two subtasks split at the effector switch (the step whose recorded command
-turns the suction on): **approach + grasp**, relative to the tile's pose at the episode start,
-and **transport + place**, relative to the target's pose. Each segment is the sequence of tool0
-(flange) poses the arm reached, one per recorded action: the pose after action ``k`` is forward
-kinematics of the joints in observation ``k + 1`` (the last action's, of the joints the arm was
-commanded to, the observation after the end not being recorded).
+A demo has two subtasks split at its effector switch (the first step whose recorded end-effector
+command, ``a[6] ≥ 0.5``, turns the suction on or closes the gripper): **approach + grasp**,
+relative to the object's pose at the episode start, and **the rest** (transport + place, or the
+screwing), relative to the target's pose. :data:`TASKS` says per task which frames and which
+switch apply, the one table the generator reads (no copy of the generator per task):
+
+- TileSuction: the tile's centre; the tile's target on the pad. The grasp segment ends at the
+  suction switch; the suction's command is sent only where it switches (it latches).
+- BlockGrip: the block's centre; the block's target on the pad. The grasp segment runs on past
+  the switch to the source's grasp (the fingers close over several steps); commands as recorded.
+- Screw: the nut's centre; the nut's tightened centre on the bolt (the bolt plate: both frames
+  move with it). The grasp segment ends at the source's grasp; the gripper's command and the
+  spin (``a[7]``) as recorded.
+
+Each segment is the sequence of tool0 (flange) poses the arm reached, one per recorded action:
+the pose after action ``k`` is forward kinematics of the joints in observation ``k + 1`` (the
+last action's, of the joints the arm was commanded to, the observation after the end not being
+recorded).
 
 For a new start, :func:`transform_poses` moves every pose of a segment rigidly with its frame:
 ``T_new · T_src⁻¹ · P``. Frames are ``(x, y, z, yaw)`` about Base Z. By default the generator
-keeps the source's yaw (``rotate=False``): tile-sim's pick and install are judged on the tile's
-centre alone, and the tile's yaw is not in the observation, so turning the tool with the tile
-would make the recorded actions depend on something the policy cannot see.
+keeps the source's yaw (``rotate=False``): tile-sim's pick and install are judged on the object's
+centre alone, and its yaw is not in the observation, so turning the tool with the object would
+make the recorded actions depend on something the policy cannot see.
 """
 
 from __future__ import annotations
@@ -22,17 +34,66 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import _native, kin
+from mimicrete import _native, kin, tasks
 from mimicrete._native import MimicreteError
 from mimicrete.demonstrator.scene import obs_layout
-
-TASK = "TileSuction"
-FRAME_DIM = 16
-_LAY = obs_layout("suction")
 
 
 class DemoGenError(MimicreteError, ValueError):
     """A source demo that cannot be segmented, or bad generation input (names the problem)."""
+
+
+TASK = "TileSuction"  # the default task (the first demogen knew)
+
+
+@dataclass(frozen=True)
+class TaskFrames:
+    """What demogen needs of one task (a row of :data:`TASKS`).
+
+    ``lay``: the observation frame's fields (``q``, ``ee``: the effector state, ``tcp``,
+    ``target``, ``object``); ``switch``: the action column whose first value ``≥ 0.5`` is the
+    effector switch; ``grasp_in_object``: the steps after the switch up to the source's grasp
+    (its pick reward) belong to the object-relative segment (a gripper closes over several
+    steps at the object); ``latched``: the effector holds its state, so its command is sent only
+    when it switches (the suction; as teleop-core records it); ``finish``: what follows the last
+    segment when the episode has not ended: ``carry`` the held object the rest of the way onto
+    the target, ``hold`` the last pose and command (the spin), or ``none``."""
+
+    sim: str
+    frame_dim: int
+    act_dim: int
+    lay: dict[str, slice]
+    switch: int
+    grasp_in_object: bool
+    latched: bool
+    finish: str
+
+    @property
+    def commands(self) -> slice:
+        """The action's effector columns (``a[6]``, and Screw's spin ``a[7]``)."""
+        return slice(6, self.act_dim)
+
+
+def _lay(task: str) -> dict[str, slice]:
+    lay = dict(obs_layout(task))
+    lay["ee"] = slice(6, 7)  # suction state (+1 on / −1 off) or the finger gap
+    return lay
+
+
+TASKS: dict[str, TaskFrames] = {
+    "TileSuction": TaskFrames("TileSuction", 16, 7, _lay("suction"), 6, False, True, "carry"),
+    "BlockGrip": TaskFrames("BlockGrip", 16, 7, _lay("grip"), 6, True, False, "none"),
+    "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold"),
+}
+
+
+def task_frames(task: str) -> TaskFrames:
+    """The :data:`TASKS` row of ``task`` (any spelling :func:`mimicrete.tasks.get` takes)."""
+    try:
+        sim = tasks.get(task).sim
+    except ValueError as e:
+        raise DemoGenError(str(e)) from None
+    return TASKS[sim]
 
 
 def frame(x: float, y: float, z: float, yaw: float = 0.0) -> np.ndarray:
@@ -55,9 +116,9 @@ def transform_poses(poses: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.n
 class Segment:
     """One object-centric subtask of a source demo.
 
-    ``poses`` (n, 4, 4): tool0 after each of its actions; ``commands`` (n,): the recorded
-    end-effector command of each; ``relative_to``: ``"object"`` or ``"target"``; ``src``: the
-    frame it was recorded in (4, 4)."""
+    ``poses`` (n, 4, 4): tool0 after each of its actions; ``commands`` (n, c): the recorded
+    end-effector command of each (``a[6:]``: one column, Screw two: the gripper and the spin);
+    ``relative_to``: ``"object"`` or ``"target"``; ``src``: the frame it was recorded in (4, 4)."""
 
     poses: np.ndarray
     commands: np.ndarray
@@ -74,73 +135,101 @@ class Segment:
 
 @dataclass
 class SourceDemo:
-    """A recorded TileSuction demo split into its two segments."""
+    """A recorded demo split into its two segments."""
 
     name: str
-    tile: np.ndarray  # (3,) tile centre at the start
-    target: np.ndarray  # (3,) target at the start
+    object: np.ndarray  # (3,) the object's centre at the start (tile, block, nut)
+    target: np.ndarray  # (3,) the target at the start
     segments: list[Segment] = field(default_factory=list)
     meta: dict[str, str] = field(default_factory=dict)
+    task: str = TASK  # tile-sim's name
 
     @property
     def length(self) -> int:
         return sum(len(s) for s in self.segments)
 
-
-def _newest(obs: np.ndarray) -> np.ndarray:
-    return np.asarray(obs, np.float64).reshape(len(obs), -1)[:, -FRAME_DIM:]
+    @property
+    def spec(self) -> TaskFrames:
+        return TASKS[self.task]
 
 
 def segment_episode(
-    obs: np.ndarray, actions: np.ndarray, name: str = "demo", meta: dict[str, str] | None = None
+    obs: np.ndarray,
+    actions: np.ndarray,
+    name: str = "demo",
+    meta: dict[str, str] | None = None,
+    *,
+    task: str = TASK,
+    rewards: np.ndarray | None = None,
 ) -> SourceDemo:
-    """Split one recorded episode (obs ``(T, 80)``, actions ``(T, 7)``) at its effector switch."""
+    """Split one recorded episode of ``task`` (obs ``(T, 5·frame)``, actions ``(T, act_dim)``,
+    ``rewards (T,)``: needed where the grasp ends after the switch) at its effector switch."""
+    spec = task_frames(task)
     obs, actions = np.asarray(obs), np.asarray(actions)
-    if obs.ndim != 2 or obs.shape[1] != 5 * FRAME_DIM or actions.shape != (len(obs), 7):
+    want_obs, want_act = 5 * spec.frame_dim, spec.act_dim
+    if obs.ndim != 2 or obs.shape[1] != want_obs or actions.shape != (len(obs), want_act):
         raise DemoGenError(
-            f"{name}: not a TileSuction demo (obs {obs.shape}, actions "
-            f"{actions.shape}; expected (T, 80) and (T, 7))"
+            f"{name}: not a {spec.sim} demo (obs {obs.shape}, actions "
+            f"{actions.shape}; expected (T, {want_obs}) and (T, {want_act}))"
         )
-    f = _newest(obs)
-    on = np.flatnonzero(actions[:, 6] >= 0.5)
+    f = np.asarray(obs, np.float64)[:, -spec.frame_dim :]
+    on = np.flatnonzero(actions[:, spec.switch] >= 0.5)
+    what = "the suction is never switched on" if spec.latched else "the gripper never closes"
     if len(on) == 0:
-        raise DemoGenError(f"{name}: the suction is never switched on; nothing to segment")
+        raise DemoGenError(f"{name}: {what}; nothing to segment")
     k = int(on[0])
+    if spec.grasp_in_object:  # the grasp ends at the source's pick (its +1), after the switch
+        if rewards is None or len(rewards) != len(obs):
+            raise DemoGenError(f"{name}: no per-step rewards to find the grasp in")
+        picks = np.flatnonzero(np.asarray(rewards)[k:] >= 0.5)
+        if len(picks) == 0:
+            raise DemoGenError(f"{name}: the gripper closes at step {k} but never grasps")
+        k += int(picks[0]) + 1
     if k < 2 or k > len(obs) - 3:
         raise DemoGenError(
-            f"{name}: the suction switches on at step {k} of {len(obs)}; a segment would be empty"
+            f"{name}: the grasp segment ends at step {k} of {len(obs)}; a segment would be empty"
         )
-    q_after = np.vstack([f[1:, _LAY["q"]], f[-1:, _LAY["q"]] + actions[-1:, :6] * 0.04])
+    lay = spec.lay
+    q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * 0.04])
     poses = kin.fk_batch(q_after, model="ur3")
-    tile, target = f[0, _LAY["object"]], f[0, _LAY["target"]]
-    cmds = actions[:, 6].astype(np.float64)
+    obj, target = f[0, lay["object"]], f[0, lay["target"]]
+    cmds = actions[:, spec.commands].astype(np.float64)
     segs = [
-        Segment(poses[:k], cmds[:k], "object", frame(*tile)),
+        Segment(poses[:k], cmds[:k], "object", frame(*obj)),
         Segment(poses[k:], cmds[k:], "target", frame(*target)),
     ]
-    return SourceDemo(name, tile.copy(), target.copy(), segs, dict(meta or {}))
+    return SourceDemo(name, obj.copy(), target.copy(), segs, dict(meta or {}), spec.sim)
 
 
 def load_sources(path: str | Path, count: int | None = None) -> list[SourceDemo]:
-    """The first ``count`` (all: None) MCAP demos of a file or directory, segmented. Only
-    installing TileSuction demos are used (a failed one is no source)."""
+    """The first ``count`` (all: None) MCAP demos of a file or directory, segmented. The task
+    is the demos' own (their ``task`` metadata; one task per call). Only successful demos are
+    used (a failed one is no source)."""
     path = Path(path)
     if not path.exists():
         raise DemoGenError(f"--demos {path}: no such file or directory")
     files = [Path(p) for p in _native.demo_files(str(path))]
     if not files:
         raise DemoGenError(f"--demos {path}: no *.mcap demos in it")
-    out = []
+    out: list[SourceDemo] = []
     for p in files:
         if count is not None and len(out) >= count:
             break
         d: Any = _native.demo_read(str(p))
         meta = dict(d["meta"])
-        if meta.get("task", TASK) != TASK:
-            raise DemoGenError(f"{p}: a {meta.get('task')} demo; demogen handles {TASK}")
+        task = task_frames(meta.get("task", TASK)).sim
+        if out and task != out[0].task:
+            raise DemoGenError(
+                f"--demos {path}: mixes tasks ({out[0].name} is a {out[0].task} demo, "
+                f"{p.name} a {task} demo); generate from one task's demos at a time"
+            )
         if meta.get("success") == "false":
             continue
-        out.append(segment_episode(d["obs"], d["actions"], p.name, meta))
+        out.append(
+            segment_episode(
+                d["obs"], d["actions"], p.name, meta, task=task, rewards=d.get("rewards")
+            )
+        )
     if not out:
-        raise DemoGenError(f"--demos {path}: no installing demo to generate from")
+        raise DemoGenError(f"--demos {path}: no successful demo to generate from")
     return out
