@@ -158,6 +158,57 @@ def test_the_lock_is_reentrant_in_a_process_and_exclusive_between_processes(tmp_
             holder.wait()
 
 
+
+class _InterruptingDict(dict):
+    """The table of held locks, with a Ctrl-C to this process right after an entry goes in."""
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        os.kill(os.getpid(), signal.SIGINT)
+
+
+class _InterruptingGuard:
+    """The lock table's guard, with a Ctrl-C to this process as it is entered."""
+
+    def __init__(self):
+        import threading
+
+        self.inner = threading.Lock()
+
+    def __enter__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        return self.inner.__enter__()
+
+    def __exit__(self, *exc):
+        return self.inner.__exit__(*exc)
+
+
+def test_ctrl_c_while_a_lock_is_taken_leaves_no_lock_file(tmp_path, monkeypatch):
+    """CI caught ``convert``'s Ctrl-C leaving ``demo.mcap.lock`` behind: the signal came while the
+    lock was being taken or given up. It is held back until the lock's state is whole again."""
+    from mimicrete import safe_io
+
+    path = tmp_path / "taken.lock"
+    monkeypatch.setattr(safe_io, "_held", _InterruptingDict())
+    with pytest.raises(KeyboardInterrupt):  # taken, then given up again on the way out
+        with safe_io.FileLock(path, "x"):
+            pytest.fail("the block ran although Ctrl-C came while the lock was taken")
+    assert not path.exists() and not safe_io._held
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_while_a_lock_is_given_up_leaves_no_lock_file(tmp_path, monkeypatch):
+    from mimicrete import safe_io
+
+    path = tmp_path / "released.lock"
+    lock = safe_io.FileLock(path, "x").acquire()
+    monkeypatch.setattr(safe_io, "_held_guard", _InterruptingGuard())
+    with pytest.raises(KeyboardInterrupt):
+        lock.release()
+    assert not path.exists() and not safe_io._held
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
 # ----------------------------------------------------------------------------------------------
 # 15. a closed stdout, Ctrl-C, a relative --out
 # ----------------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ import itertools
 import json
 import os
 import shutil
+import signal
 import sys
 import threading
 import time
@@ -194,6 +195,34 @@ class LockBusyError(MimicreteError, RuntimeError):
 
 _held: dict[str, list[Any]] = {}  # real path of a lock file -> [fd, count] (this process)
 _held_guard = threading.Lock()
+_DEFERRED = (signal.SIGHUP, signal.SIGTERM, signal.SIGINT)  # put back in this order: Ctrl-C last
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Ctrl-C, SIGTERM and SIGHUP held back for the block, not lost: a lock is taken or given
+    up whole, never cut between its file and this process's table of held locks. A signal that
+    comes meanwhile is noted; on leaving, the handlers are put back and it is raised again, so its
+    exception (or its default action) happens there. Python runs signal handlers in the main
+    thread only, so other threads run the block as it is. (Blocking the signal in the thread
+    would not do: the kernel hands it to another thread, whose C handler still wakes Python's.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    before: dict[int, Any] = {}
+    for sig in _DEFERRED:
+        old = signal.getsignal(sig)
+        if old is not None:  # None: a handler installed outside Python, left alone
+            before[sig] = old
+            signal.signal(sig, lambda signum, _frame: came.append(signum))
+    try:
+        yield
+    finally:
+        for sig, old in before.items():
+            signal.signal(sig, old)
+        for sig in dict.fromkeys(came):
+            signal.raise_signal(sig)
 
 
 def _owner_text(fd: int) -> str:
@@ -233,13 +262,24 @@ class FileLock:
 
     def acquire(self) -> FileLock:
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        depth = self._depth
+        try:
+            with _signals_deferred():
+                self._acquire()
+        except BaseException:
+            if self._depth > depth:  # taken, then a signal delivered on the way out: give it up
+                self.release()
+            raise
+        return self
+
+    def _acquire(self) -> None:
         key = os.path.realpath(self.path)
         with _held_guard:
             if key in _held:
                 _held[key][1] += 1
                 self._key = key
                 self._depth += 1
-                return self
+                return
             while True:
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
                 try:
@@ -280,9 +320,12 @@ class FileLock:
             _held[key] = [fd, 1]
             self._key = key
             self._depth += 1
-        return self
 
     def release(self) -> None:
+        with _signals_deferred():
+            self._release()
+
+    def _release(self) -> None:
         key = self._key
         if key is None or self._depth == 0:
             return
