@@ -69,15 +69,16 @@ pub mod expert;
 mod owned;
 mod pool;
 mod starts;
+mod task;
 mod vecenv;
 pub mod world;
 
-pub use env::{
-    Env, FALL_SPEED, FALL_Z, HOME_Q, INSTALL_DIST, PICK_DIST, PLACE_DIST, PoseRec, Snapshot, StepOutcome,
-    episode_scene, object_start,
-};
+pub use env::{Env, HOME_Q, PoseRec, Snapshot, StepOutcome, episode_scene, object_start};
 pub use owned::{RecordState, StepInfo};
 pub use starts::{MAX_TARGET_OFFSET, MAX_YAW, PAD_CLEARANCE, REACH_MARGIN, Start, Variation};
+pub use task::Task;
+pub use task::gripper::PLACE_DIST;
+pub use task::suction::{FALL_SPEED, FALL_Z, INSTALL_DIST, PICK_DIST};
 pub use vecenv::{StepBuffers, StepOut, VecEnv, VecEnvState, episode_seed};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
 
@@ -118,94 +119,8 @@ pub enum SimError {
     InvalidArgument(String),
 }
 
-/// The three tasks of the paper's three end effectors.
-///
-/// * `TileSuction` (paper §5.1, exact): UR3 with a four-cup suction head. Pick: the cup centre is
-///   within 0.04 m of the tile's grasp point (centre of its top face) while the suction state is on
-///   → the tile is held (rigidly, at its current offset) and +1 is paid once per episode.
-///   Install: the tile's centre is within 0.03 m of the target (the centre of a tile lying on the
-///   install pad) → +1, terminated. Install is measured whether or not the tile is still held
-///   (paper: "the robot needs to carry the tile to the target position, and if the distance … is
-///   less than 0.03 m, the task is finished"). Fall → −0.5, terminated: the tile leaves the table
-///   (centre below `z = -0.02`), tilts more than 45°, or falls faster than 1 m/s (dropped from
-///   more than ~5 cm). Nothing else is rewarded.
-/// * `BlockGrip`: parallel gripper picks a 4 cm wooden cube and places it on the pad. Grasp
-///   (closing fingers stop on the block) → +1 once; place: block released (not held) with its
-///   centre within 0.02 m of the target → +1, terminated; block leaves the table → −0.5, terminated.
-/// * `Screw`: grip the nut threaded on a fixed M12 bolt and spin it down [`SCREW_TURNS`] turns.
-///   Grip the nut → +1 once; turns ≥ [`SCREW_TURNS`] → +1, terminated; loosened more than one turn
-///   (the nut leaves the bolt and drops) → −0.5, terminated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
-#[serde(into = "&'static str")]
-pub enum Task {
-    TileSuction,
-    BlockGrip,
-    Screw,
-}
-
 /// Turns of the nut needed to complete the Screw task.
 pub const SCREW_TURNS: f64 = 3.0;
-
-impl Task {
-    /// All tasks, in a fixed order.
-    pub const ALL: [Task; 3] = [Task::TileSuction, Task::BlockGrip, Task::Screw];
-
-    /// Parse "TileSuction"/"BlockGrip"/"Screw" or "suction"/"grip"/"screw" (case-insensitive).
-    pub fn from_name(name: &str) -> Result<Task, SimError> {
-        match name.to_ascii_lowercase().as_str() {
-            "tilesuction" | "suction" | "tile_suction" => Ok(Task::TileSuction),
-            "blockgrip" | "grip" | "gripping" | "block_grip" => Ok(Task::BlockGrip),
-            "screw" | "screwing" => Ok(Task::Screw),
-            _ => Err(SimError::UnknownTask(name.to_string())),
-        }
-    }
-
-    /// Canonical name ("TileSuction", "BlockGrip", "Screw").
-    pub fn name(self) -> &'static str {
-        match self {
-            Task::TileSuction => "TileSuction",
-            Task::BlockGrip => "BlockGrip",
-            Task::Screw => "Screw",
-        }
-    }
-
-    /// Floats per observation frame.
-    ///
-    /// * TileSuction (16): `q[6]` rad, `suction` (+1 on / −1 off), `cup_centre[3]` m,
-    ///   `target[3]` m (tile-centre target), `tile_centre[3]` m.
-    /// * BlockGrip (16): `q[6]`, `gripper_width` (m, 0 … 0.085, finger gap), `tcp[3]` (point
-    ///   between the fingertips), `target[3]` (block-centre target), `block_centre[3]`.
-    /// * Screw (18): `q[6]`, `gripper_width` (m), `spin` (+1 tighten / 0 stopped / −1 loosen),
-    ///   `tcp[3]`, `target[3]` (the nut's fully tightened centre), `nut_centre[3]`, `turns`
-    ///   (turns screwed so far, ≥ 0 down the bolt).
-    ///
-    /// All positions in the Base frame.
-    pub fn obs_frame_dim(self) -> usize {
-        match self {
-            Task::TileSuction | Task::BlockGrip => 16,
-            Task::Screw => 18,
-        }
-    }
-
-    /// `FRAME_STACK × obs_frame_dim`.
-    pub fn obs_dim(self) -> usize {
-        FRAME_STACK * self.obs_frame_dim()
-    }
-
-    /// 7 (6 joints + EE command) or 8 for Screw (+ spin).
-    pub fn act_dim(self) -> usize {
-        match self {
-            Task::TileSuction | Task::BlockGrip => 7,
-            Task::Screw => 8,
-        }
-    }
-}
-
-impl From<Task> for &'static str {
-    fn from(t: Task) -> &'static str {
-        t.name()
-    }
-}
 
 /// The simulator's constants in one record (serialized with the upper-case names of the
 /// constants, plus `tasks`: per-task `obs_frame_dim`, `obs_dim`, `act_dim`). `f32` constants are

@@ -1,0 +1,473 @@
+//! One simulated episode stream: a Rapier world, the UR3, an end effector, a task object. The
+//! arm's motion, the physics step (and its idle skip) and the frame stacking live here, the same
+//! for every task; what the end effector does, how an episode is judged and what a frame holds
+//! are the task's ([`crate::task`]). The test and tool API (snapshots, teleports) is in `tools.rs`.
+
+mod tools;
+
+use crate::starts::{Start, Variation};
+use crate::task::{State, TaskLogic};
+use crate::world::{self, Scene};
+use crate::{FRAME_STACK, MAX_EPISODE_STEPS, MAX_JOINT_STEP, SimError, Task};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rapier3d::prelude::*;
+use std::f64::consts::PI;
+
+/// Joint angles (rad) at the start of every episode: flange pointing straight down with the cup
+/// centre / gripper TCP about 0.2 m above the table, in front of the base (y ≈ 0.25 m).
+pub const HOME_Q: [f64; 6] = [
+    -2.224540093430817,
+    -1.829711527172729,
+    2.0931403692644666,
+    -1.8342251688866464,
+    -1.5707963267948863,
+    -0.6537437666359285,
+];
+
+/// A pose as plain numbers: translation (m) and quaternion `[x, y, z, w]`, Base frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct PoseRec {
+    pub t: [f64; 3],
+    pub q: [f64; 4],
+}
+
+impl PoseRec {
+    pub(crate) fn from_pose(p: &Pose) -> Self {
+        let r = p.rotation;
+        PoseRec {
+            t: [p.translation.x as f64, p.translation.y as f64, p.translation.z as f64],
+            q: [r.x as f64, r.y as f64, r.z as f64, r.w as f64],
+        }
+    }
+}
+
+/// What happened in one env step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepOutcome {
+    /// Sparse reward of this step (see [`Task`]).
+    pub reward: f32,
+    /// The episode ended by success (install/place/tightened) or failure (fall).
+    pub terminated: bool,
+    /// The episode hit [`MAX_EPISODE_STEPS`] without terminating.
+    pub truncated: bool,
+    /// The object has been picked/gripped at some step of this episode (ever, including now):
+    /// the paper's "picked rate" counts episodes with `picked` at their end.
+    pub picked: bool,
+    /// The object is held by the end effector right now (after this step).
+    pub held: bool,
+    /// The success event (install / place / tightened) happened in this step.
+    pub installed: bool,
+    /// The failure event (tile/block fell, nut spun off) happened in this step.
+    pub fell: bool,
+}
+
+/// Full state for demo recording. Poses in the Base frame.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Snapshot {
+    pub task: Task,
+    /// Joint angles, rad.
+    pub q: [f64; 6],
+    /// tool0 (flange) pose.
+    pub tool0: PoseRec,
+    /// End-effector TCP: cup centre (suction) or point between the fingers (gripper).
+    pub tcp: PoseRec,
+    /// Object (tile / block / nut) centre pose.
+    pub object: PoseRec,
+    /// Target pose of the object centre (tile/block on the pad, nut fully tightened).
+    pub target: PoseRec,
+    /// Suction state (TileSuction; false otherwise).
+    pub suction_on: bool,
+    /// The object is held.
+    pub held: bool,
+    /// Finger gap, m (BlockGrip/Screw; 0 for TileSuction).
+    pub gripper_width: f64,
+    /// Spin command in effect: +1 tighten, 0 stopped, −1 loosen (Screw).
+    pub spin: i8,
+    /// Nut rotation about the bolt, rad (= turns · 2π; Screw).
+    pub spin_angle: f64,
+    /// Step index within the episode (0 right after reset).
+    pub step: u32,
+    /// The seed this episode was reset with.
+    pub episode_seed: u64,
+    /// Picked ever this episode.
+    pub picked: bool,
+    /// The episode has terminated or been truncated.
+    pub done: bool,
+}
+
+fn to_pose(iso: &ur3_kin::Pose) -> Pose {
+    let t = iso.translation.vector;
+    let c = iso.rotation.coords; // [i, j, k, w]
+    Pose::from_parts(
+        Vector::new(t.x as f32, t.y as f32, t.z as f32),
+        Rotation::from_xyzw(c[0] as f32, c[1] as f32, c[2] as f32, c[3] as f32).normalize(),
+    )
+}
+
+/// One environment: a Rapier world and its episode state.
+pub struct Env {
+    task: Task,
+    logic: &'static dyn TaskLogic,
+    s: State,
+    rng: ChaCha8Rng,
+    episode_seed: u64,
+    step_idx: u32,
+    done: bool,
+    hist: Vec<f32>,
+    skipped_steps: u64,
+    skip_idle_physics: bool,
+    variation: Variation,
+}
+
+/// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset under
+/// the paper's variation: x uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` from the seed, y =
+/// `OBJECT_Y`, resting height.
+pub fn object_start(task: Task, seed: u64) -> Vector {
+    Variation::default().start(task, seed).object_centre(task)
+}
+
+/// The static scene of episode `seed` of `task` (what [`Env::scene`] gives after `reset(seed)`),
+/// without building a world.
+pub fn episode_scene(task: Task, seed: u64) -> Scene {
+    world::scene(task, &Variation::default().start(task, seed))
+}
+
+impl Env {
+    /// A new env; its episode seeds are drawn from a ChaCha8 RNG seeded with `seed`. The env is
+    /// already reset (with the first drawn seed); call [`Env::reset`] to get the observation.
+    pub fn new(task: Task, seed: u64) -> Env {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let first = rng.next_u64();
+        let (world, h) = world::build(task, &Start::default());
+        let mut env = Env {
+            task,
+            logic: task.logic(),
+            s: State {
+                world,
+                h,
+                q: HOME_Q,
+                tool0: Pose::IDENTITY,
+                suction_on: false,
+                held: false,
+                hold_offset: Pose::IDENTITY,
+                width: world::GRIP_MAX_WIDTH,
+                spin: 0,
+                turns: 0.0,
+                picked: false,
+                start: Start::default(),
+                target: Pose::IDENTITY,
+            },
+            rng,
+            episode_seed: first,
+            step_idx: 0,
+            done: false,
+            hist: vec![0.0; task.obs_dim()],
+            skipped_steps: 0,
+            skip_idle_physics: true,
+            variation: Variation::default(),
+        };
+        env.reset_with(first);
+        env
+    }
+
+    /// The task of this env.
+    pub fn task(&self) -> Task {
+        self.task
+    }
+
+    /// Start a new episode. `Some(s)`: the episode is a pure function of `s` (same seed + same
+    /// actions → bit-identical trajectory). `None`: the next seed is drawn from the env's RNG.
+    /// Writes the first observation (`obs_dim` floats) into `obs_out`.
+    pub fn reset(&mut self, seed: Option<u64>, obs_out: &mut [f32]) -> Result<(), SimError> {
+        check_len("obs", self.task.obs_dim(), obs_out.len())?;
+        let s = seed.unwrap_or_else(|| self.rng.next_u64());
+        self.reset_with(s);
+        obs_out.copy_from_slice(&self.hist);
+        Ok(())
+    }
+
+    /// The seed of the running episode.
+    pub fn episode_seed(&self) -> u64 {
+        self.episode_seed
+    }
+
+    /// Start episode `seed` at `start` (`None`: the paper's start of `seed`, where demos are
+    /// recorded) and step it through `actions` (`k × act_dim`, row-major): the state a
+    /// recorded episode had after its first `k` steps (same start + same actions →
+    /// bit-identical trajectory), for training from demonstration states. Every action and the
+    /// start are validated first, and an episode that would end within the replay is refused
+    /// ([`SimError::InvalidArgument`]); on error the env is left reset to the start or, for a
+    /// bad action or start, unchanged. Writes the observation after the last replayed step
+    /// into `obs_out`; returns `k`.
+    pub fn reset_replay(
+        &mut self,
+        seed: u64,
+        start: Option<Start>,
+        actions: &[f32],
+        obs_out: &mut [f32],
+    ) -> Result<usize, SimError> {
+        check_len("obs", self.task.obs_dim(), obs_out.len())?;
+        let ad = self.task.act_dim();
+        if actions.len() % ad != 0 {
+            return Err(SimError::InvalidArgument(format!(
+                "replay actions have length {}, not a multiple of act_dim {ad}",
+                actions.len()
+            )));
+        }
+        for row in actions.chunks(ad) {
+            check_action(self.task, row)?;
+        }
+        let start = match start {
+            Some(st) => {
+                st.check(self.task)?;
+                st
+            }
+            None => Variation::default().start(self.task, seed),
+        };
+        self.reset_at(start, seed);
+        for (k, row) in actions.chunks(ad).enumerate() {
+            let out = self.step_unchecked(row);
+            if out.terminated || out.truncated {
+                self.reset_at(start, seed);
+                return Err(SimError::InvalidArgument(format!(
+                    "the replayed episode ends at step {} of {}",
+                    k + 1,
+                    actions.len() / ad
+                )));
+            }
+        }
+        obs_out.copy_from_slice(&self.hist);
+        Ok(actions.len() / ad)
+    }
+
+    /// How this env's episodes start from now on (the next reset); refused if out of range.
+    pub fn set_variation(&mut self, v: Variation) -> Result<(), SimError> {
+        v.validate()?;
+        self.variation = v;
+        Ok(())
+    }
+
+    /// How this env's episodes start.
+    pub fn variation(&self) -> Variation {
+        self.variation
+    }
+
+    /// Start an episode at `start` ([`Start::check`]ed first; on error nothing changes), recorded
+    /// as episode `seed`. Writes the first observation into `obs_out`.
+    pub fn reset_start(&mut self, start: Start, seed: u64, obs_out: &mut [f32]) -> Result<(), SimError> {
+        check_len("obs", self.task.obs_dim(), obs_out.len())?;
+        start.check(self.task)?;
+        self.reset_at(start, seed);
+        obs_out.copy_from_slice(&self.hist);
+        Ok(())
+    }
+
+    /// [`Env::reset_start`] without the check, for a start this simulator drew itself (a restore).
+    pub(crate) fn reset_start_unchecked(&mut self, start: Start, seed: u64, obs_out: &mut [f32]) {
+        self.reset_at(start, seed);
+        obs_out.copy_from_slice(&self.hist);
+    }
+
+    /// Where the running episode started.
+    pub fn start(&self) -> Start {
+        self.s.start
+    }
+
+    fn reset_with(&mut self, seed: u64) {
+        self.reset_at(self.variation.start(self.task, seed), seed);
+    }
+
+    fn reset_at(&mut self, start: Start, seed: u64) {
+        let (w, h) = world::build(self.task, &start);
+        self.s.world = w;
+        self.s.h = h;
+        self.episode_seed = seed;
+        self.s.start = start;
+        self.s.target = Pose::from_translation(start.target(self.task));
+        self.step_idx = 0;
+        self.done = false;
+        self.s.held = false;
+        self.s.hold_offset = Pose::IDENTITY;
+        self.s.picked = false;
+        self.logic.reset(&mut self.s);
+        self.teleport_arm(HOME_Q);
+        self.hist.iter_mut().for_each(|v| *v = 0.0);
+        self.push_frame();
+    }
+
+    fn teleport_arm(&mut self, q: [f64; 6]) {
+        self.s.q = q;
+        let frames = ur3_kin::fk_all(&ur3_kin::UR3, &q);
+        for i in 0..6 {
+            let p = to_pose(&frames[i + 1]);
+            if let Some(b) = self.s.world.bodies.get_mut(self.s.h.links[i]) {
+                b.set_position(p, true);
+                b.set_next_kinematic_position(p);
+            }
+        }
+        self.s.tool0 = to_pose(&frames[6]);
+        self.logic.place_attached(&mut self.s, true);
+    }
+
+    /// Shift the frame stack by one and write the task's newest frame last.
+    fn push_frame(&mut self) {
+        let fd = self.logic.obs_frame_dim();
+        self.hist.copy_within(fd.., 0);
+        self.logic.write_frame(&self.s, &mut self.hist[(FRAME_STACK - 1) * fd..]);
+    }
+
+    /// The current stacked observation (`obs_dim` floats, oldest frame first).
+    pub fn observation(&self) -> &[f32] {
+        &self.hist
+    }
+
+    /// Advance one env step ([`CONTROL_DT`](crate::CONTROL_DT) s). See the crate docs for the action layout.
+    /// On error nothing changes.
+    pub fn step(&mut self, action: &[f32], obs_out: &mut [f32]) -> Result<StepOutcome, SimError> {
+        check_len("obs", self.task.obs_dim(), obs_out.len())?;
+        check_action(self.task, action)?;
+        if self.done {
+            return Err(SimError::EpisodeOver);
+        }
+        let out = self.step_unchecked(action);
+        obs_out.copy_from_slice(&self.hist);
+        Ok(out)
+    }
+
+    /// Step with an already validated action (length and finiteness checked by the caller).
+    pub(crate) fn step_unchecked(&mut self, action: &[f32]) -> StepOutcome {
+        let mut qn = self.s.q;
+        for i in 0..6 {
+            let a = action[i].clamp(-1.0, 1.0) as f64;
+            qn[i] = (self.s.q[i] + a * MAX_JOINT_STEP).clamp(-PI, PI);
+        }
+        let frames = ur3_kin::fk_all(&ur3_kin::UR3, &qn);
+        for i in 0..6 {
+            let p = to_pose(&frames[i + 1]);
+            if let Some(b) = self.s.world.bodies.get_mut(self.s.h.links[i]) {
+                b.set_next_kinematic_position(p);
+            }
+        }
+        self.s.q = qn;
+        self.s.tool0 = to_pose(&frames[6]);
+        let mut out = StepOutcome::default();
+        self.logic.effector(&mut self.s, action, &mut out);
+        if self.s.held && self.logic.carries_object() {
+            let p = self.s.tool0 * self.s.hold_offset;
+            if let Some(b) = self.s.world.bodies.get_mut(self.s.h.object) {
+                b.set_next_kinematic_position(p);
+            }
+        }
+        let idle = self.physics_idle();
+        if self.skip_idle_physics && idle {
+            // Nothing dynamic can move this step: place the kinematic bodies where the step
+            // would have put them and skip the solver (exact: a sleeping, untouched body does not
+            // move in Rapier either).
+            self.skipped_steps += 1;
+            for (_, b) in self.s.world.bodies.iter_mut() {
+                if b.is_kinematic() {
+                    let p = *b.next_position();
+                    b.set_position(p, false);
+                    b.set_next_kinematic_position(p);
+                }
+            }
+        } else {
+            self.s.world.step();
+        }
+        self.step_idx += 1;
+        self.logic.evaluate(&self.s, &mut out);
+        out.picked = self.s.picked;
+        out.held = self.s.held;
+        if !out.terminated && self.step_idx >= MAX_EPISODE_STEPS {
+            out.truncated = true;
+        }
+        self.done = out.terminated || out.truncated;
+        self.push_frame();
+        out
+    }
+
+    /// Whether any arm/finger collider, swept from its current to its next pose, comes within
+    /// [`SKIP_MARGIN`] of the object's bounding box.
+    fn arm_near_object(&self) -> bool {
+        let bodies = &self.s.world.bodies;
+        let colliders = &self.s.world.colliders;
+        let Some(obj) = bodies.get(self.s.h.object) else { return true };
+        let aabb_of = |pose: &Pose, c: ColliderHandle| {
+            colliders.get(c).map(|col| {
+                let local = col.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
+                col.shape().compute_aabb(&(*pose * local))
+            })
+        };
+        let mut obj_box: Option<Aabb> = None;
+        for &c in obj.colliders() {
+            if let Some(a) = aabb_of(obj.position(), c) {
+                obj_box = Some(obj_box.map_or(a, |o| o.merged(&a)));
+            }
+        }
+        let Some(obj_box) = obj_box.map(|a| a.loosened(SKIP_MARGIN)) else { return true };
+        let fingers = self.s.h.fingers.as_ref().map(|f| f.as_slice()).unwrap_or(&[]);
+        for h in self.s.h.links.iter().chain(fingers) {
+            let Some(b) = bodies.get(*h) else { continue };
+            for &c in b.colliders() {
+                let (Some(a0), Some(a1)) = (aabb_of(b.position(), c), aabb_of(b.next_position(), c)) else {
+                    continue;
+                };
+                if a0.merged(&a1).intersects(&obj_box) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Decide this step's physics: wake a sleeping object the arm is about to reach (in every
+    /// mode, so contacts always act on an awake body), and return true when the step could not
+    /// move anything: the only dynamic body (the object) is kinematic (held, or the nut) or asleep
+    /// with the arm away from it.
+    fn physics_idle(&mut self) -> bool {
+        let Some(obj) = self.s.world.bodies.get(self.s.h.object) else { return false };
+        if !obj.is_dynamic() {
+            return true;
+        }
+        if !obj.is_sleeping() {
+            return false;
+        }
+        if self.arm_near_object() {
+            self.s.world.wake_up(self.s.h.object, true);
+            return false;
+        }
+        true
+    }
+
+    /// Diagnostics: turn the idle-physics skip on (default) or off (every step runs the solver).
+    pub fn set_skip_idle_physics(&mut self, on: bool) {
+        self.skip_idle_physics = on;
+    }
+
+    /// Env steps whose physics was skipped by the idle test (diagnostics, benchmarks).
+    pub fn skipped_steps(&self) -> u64 {
+        self.skipped_steps
+    }
+}
+
+/// Distance (m) within which an arm collider's swept box must come to the resting object's box
+/// for the physics step to run (5 × the contact prediction distance).
+pub const SKIP_MARGIN: f32 = 0.02;
+fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), SimError> {
+    if expected != got {
+        return Err(SimError::BufferShape { what, expected, got });
+    }
+    Ok(())
+}
+
+/// Validate an action's length and finiteness.
+pub(crate) fn check_action(task: Task, action: &[f32]) -> Result<(), SimError> {
+    if action.len() != task.act_dim() {
+        return Err(SimError::ActionShape { expected: task.act_dim(), got: action.len(), task: task.name() });
+    }
+    if let Some((index, &value)) = action.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(SimError::NonFiniteAction { index, value });
+    }
+    Ok(())
+}

@@ -1,0 +1,101 @@
+//! TileSuction (paper §5.1): a four-cup suction head picks a ceramic tile and installs it on the
+//! pad. Suction on with the cup centre within [`PICK_DIST`] of the tile's grasp point (the centre
+//! of its upper face) holds the tile rigidly and pays +1 once; the tile's centre within
+//! [`INSTALL_DIST`] of the target pays +1 and ends the episode, held or not; a fall pays −0.5 and
+//! ends it. Frame (16 floats): `q[6]`, suction (+1 on / −1 off), cup centre, target, tile centre.
+
+use super::{State, TaskLogic};
+use crate::env::StepOutcome;
+use crate::world;
+use rapier3d::prelude::*;
+
+/// Pick threshold: cup centre to grasp point (paper §5.1), m.
+pub const PICK_DIST: f32 = 0.04;
+/// Install threshold: tile centre to target (paper §5.1), m.
+pub const INSTALL_DIST: f32 = 0.03;
+/// Fall rules: centre below this height (m, the table top is 0), tilt above 45°, or falling
+/// faster than `FALL_SPEED` (m/s) while not held.
+pub const FALL_Z: f32 = -0.02;
+pub const FALL_SPEED: f32 = 1.0;
+const FALL_TILT_COS: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+/// The TileSuction logic.
+#[derive(Debug)]
+pub(crate) struct Suction;
+
+fn fell(p: &Pose, v: Vector, held: bool) -> bool {
+    if !p.is_finite() || p.translation.z < FALL_Z {
+        return true;
+    }
+    if held {
+        return false;
+    }
+    (p.rotation * Vector::Z).z.abs() < FALL_TILT_COS || v.z < -FALL_SPEED
+}
+
+impl TaskLogic for Suction {
+    fn obs_frame_dim(&self) -> usize {
+        16
+    }
+
+    fn act_dim(&self) -> usize {
+        7
+    }
+
+    fn tcp_z(&self) -> f32 {
+        world::CUP_TCP_Z
+    }
+
+    fn reset(&self, s: &mut State) {
+        s.suction_on = false;
+        s.width = world::GRIP_MAX_WIDTH;
+        s.spin = 0;
+        s.turns = 0.0;
+    }
+
+    fn gripper_width(&self, _s: &State) -> f64 {
+        0.0
+    }
+
+    fn effector(&self, s: &mut State, action: &[f32], out: &mut StepOutcome) {
+        let cmd = action[6];
+        if cmd >= 0.5 {
+            s.suction_on = true;
+        } else if cmd <= -0.5 {
+            s.suction_on = false;
+        }
+        if s.held && !s.suction_on {
+            s.held = false;
+            s.release_object();
+        }
+        if !s.held && s.suction_on {
+            let tile = s.object_pose();
+            let up = tile.rotation * Vector::Z;
+            // The face turned up is the one the cups reach.
+            let sign = if up.z >= 0.0 { 1.0 } else { -1.0 };
+            let grasp = tile.translation + up * (sign * world::TILE_HALF[2]);
+            if (s.tcp_at(self.tcp_z()).translation - grasp).length() < PICK_DIST {
+                let offset = s.tool0.inverse() * tile;
+                s.grasp(offset, out, 1.0);
+            }
+        }
+    }
+
+    fn evaluate(&self, s: &State, out: &mut StepOutcome) {
+        let (p, v) = s.object_state();
+        if (p.translation - s.target.translation).length() < INSTALL_DIST {
+            out.reward += 1.0;
+            out.installed = true;
+            out.terminated = true;
+        } else if fell(&p, v, s.held) {
+            out.reward -= 0.5;
+            out.fell = true;
+            out.terminated = true;
+        }
+    }
+
+    fn write_frame(&self, s: &State, f: &mut [f32]) {
+        let suction = if s.suction_on { 1.0 } else { -1.0 };
+        s.write_frame(self.tcp_z(), &[suction], f);
+    }
+}
