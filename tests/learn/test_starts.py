@@ -151,10 +151,36 @@ def test_eval_start_flags_refused(run_dir, tmp_path):
 def test_train_ends_with_the_row_on_the_training_and_the_wide_starts_beside_the_papers(run_dir):
     from mimicrete.cli.train import _eval_rows
 
-    out = _eval_rows(run_dir, 4, "group3").splitlines()
-    assert out[0].split()[:3] == ["run", "Picked", "rate"] and len(out) == 4
+    out = _eval_rows(run_dir, 4, "group3", None).splitlines()
+    assert out[0].split()[:3] == ["run", "Picked", "rate"] and len(out) == 5
     assert out[1].startswith("run, training starts") and out[2].startswith("run, wide starts")
     assert out[3].split()[-3:] == ["97%", "97%", "90.0"] and "paper, group 3" in out[3]
+    assert out[4] == f"plot: {run_dir / 'success_map.png'} (installed rate over the tile's start " \
+        "x, y; wide starts)"  # fmt: skip
     assert json.loads((run_dir / "eval_wide.json").read_text())["starts"] == "wide"
     # a config that is not one of the paper's groups: no paper row
-    assert len(_eval_rows(run_dir, 4, "wide").splitlines()) == 3
+    assert len(_eval_rows(run_dir, 4, "wide", None).splitlines()) == 4
+
+
+def test_eval_records_each_episodes_start_and_draws_the_map(run_dir):
+    r = run_cli("eval", str(run_dir), "--episodes", "6", "--map")
+    assert r.returncode == 0, r.stderr
+    res = json.loads((run_dir / "eval.json").read_text())
+    eps = res["per_episode"]
+    assert len(eps) == 6 and np.mean([e["installed"] for e in eps]) == res["installed_rate"]
+    assert np.mean([e["length"] for e in eps]) == pytest.approx(res["mean_episode_length"])
+    for e in eps:  # the paper's starts: x in [0, 0.15] m at y = 0.32 m, the target fixed
+        x, y, yaw = e["object_pose"]
+        assert 0 <= x <= 0.15 and y == pytest.approx(0.32) and yaw == 0
+        assert e["target_offset"] == [0, 0]
+    assert len({e["object_pose"][0] for e in eps}) == 6  # six different draws
+    assert (run_dir / "eval_map.png").stat().st_size > 5_000
+    assert f"wrote {run_dir / 'eval_map.png'}" in r.stdout
+    # a starts file's episodes are recorded at exactly the listed starts
+    f = run_dir.parent / "two.jsonl"
+    f.write_text('{"object_pose": [0.2, 0.3, 0.2]}\n{"object_pose": [0.1, 0.32, -0.1]}\n')
+    r = run_cli("eval", str(run_dir), "--starts", str(f), "--map")
+    assert r.returncode == 0, r.stderr
+    listed = json.loads((run_dir / "eval_starts-two.json").read_text())["per_episode"]
+    assert sorted(e["object_pose"] for e in listed) == [[0.1, 0.32, -0.1], [0.2, 0.3, 0.2]]
+    assert (run_dir / "eval_starts-two_map.png").is_file()

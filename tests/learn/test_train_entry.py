@@ -1,6 +1,7 @@
 """`python train.py` on a fresh checkout (configs and train.py, no demos): it makes the demos the
-way `make demos` does, says so, and trains (issue 12: it stopped with "demo path demos/suction
-does not exist")."""
+way `make demos` does, generates the wide-start demos from 5 of them, says so, and trains
+(issue 12: it stopped with "demo path demos/suction does not exist"); it evaluates on the training
+and the wide starts, beside a compared policy, and draws the success maps (issue 22 §4)."""
 
 from __future__ import annotations
 
@@ -19,8 +20,9 @@ SMALL = [
     "--set", "behavior.hyperparameters.buffer_size=512",
     "--set", "behavior.hyperparameters.batch_size=256",
     "--set", "behavior.network_settings.hidden_units=32",
-    "--set", "behavior.reward_signals.gail.network_settings.hidden_units=32",
     "--set", "behavior.behavioral_cloning.pretrain_steps=5",
+    "--set", "behavior.behavioral_cloning.generate_count=6",
+    "--set", "behavior.behavioral_cloning.samples_per_update=512",
 ]  # fmt: skip
 
 
@@ -36,13 +38,21 @@ def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
     )  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
     assert "demos: demos/suction has 0 episodes, making 60" in r.stdout
+    made = "demos: demos/gen5 has 0 episodes, generating 6 at the wide starts from the first 5 of "
+    assert made + "demos/suction" in r.stdout
     assert len(list((tmp_path / "demos/suction").glob("*.mcap"))) == 60
-    run = tmp_path / "runs/group3-seed0"
-    assert json.loads((run / "run.json").read_text())["demos"] == "demos/suction"
+    assert len(list((tmp_path / "demos/gen5").glob("*.mcap"))) == 6
+    run = tmp_path / "runs/wide_gen-seed0"
+    assert json.loads((run / "run.json").read_text())["demos"] == "demos/gen5"
     assert json.loads((run / "eval.json").read_text())["episodes"] == 2
-    assert json.loads((run / "eval_wide.json").read_text())["starts"] == "wide"
-    assert "group3-seed0, wide starts" in r.stdout and "paper, group 3 (Table 5)" in r.stdout
-    assert "trained 1024 steps" in r.stdout
+    wide = json.loads((run / "eval_wide.json").read_text())
+    assert wide["starts"] == "wide" and len(wide["per_episode"]) == 2
+    for ep in wide["per_episode"]:  # each episode's start, inside the wide box (tile-sim)
+        x, y, yaw = ep["object_pose"]
+        assert 0.035 <= x <= 0.285 and 0.26 <= y <= 0.36 and abs(yaw) <= 0.5236
+        assert ep["installed"] in (True, False) and 1 <= ep["length"] <= 1000
+    assert "wide_gen-seed0, wide starts" in r.stdout and "trained 1024 steps" in r.stdout
+    assert (run / "success_map.png").stat().st_size > 10_000
     # the hand logs are the ones `make demos` writes (synth-hands --episodes 60 --seed 0)
     from mimicrete import cli
 
@@ -52,9 +62,29 @@ def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
     assert [p.name for p in made] == sorted(p.name for p in (tmp_path / "make_demos").iterdir())
     assert all(p.read_bytes() == (tmp_path / "make_demos" / p.name).read_bytes() for p in made)
     # a second `python train.py` finds the demos (and the run) and does not make them again
+    # (and the generated ones): with the paper's recipe beside, on the very same starts
+    paper = REPO / "tests/learn/data/group3_policy.pt"
     r2 = subprocess.run(
-        [sys.executable, "train.py", *SMALL, "--force"],
+        [sys.executable, "train.py", *SMALL, "--force", "--compare", str(paper)],
         cwd=tmp_path, capture_output=True, text=True, env=env, timeout=1800,
     )  # fmt: skip
     assert r2.returncode == 0, r2.stderr[-3000:]
-    assert "making" not in r2.stdout
+    assert "making" not in r2.stdout and "generating" not in r2.stdout
+    assert "group3_policy, training starts" in r2.stdout
+    assert "group3_policy, wide starts" in r2.stdout
+    assert "paper, group 3 (Table 5)" in r2.stdout
+    wide2 = json.loads((run / "eval_wide.json").read_text())
+    assert [e["object_pose"] for e in wide2["per_episode"]] == [
+        e["object_pose"] for e in wide["per_episode"]
+    ]  # the same seed, the same starts
+
+
+def test_train_refuses_a_compare_policy_that_is_not_there(tmp_path):
+    sys.path.insert(0, str(REPO / "tests"))
+    from _cli_run import run_cli
+
+    r = run_cli("train", "--config", str(REPO / "configs/wide_gen.yaml"), "--compare",
+                str(tmp_path / "nope.pt"), "--run-dir", str(tmp_path / "run"))  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"--compare {tmp_path / 'nope.pt'}: no such policy file" in r.stderr
+    assert not (tmp_path / "run").exists()

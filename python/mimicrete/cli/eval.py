@@ -1,8 +1,9 @@
 """`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--starts training|robust|wide|FILE.jsonl]
-[--video N]`: the paper's Table 5 row for a trained run, written to ``RUN_DIR/eval.json``
-(``eval_stochastic.json`` for the sampled policy, ``eval_<starts>*.json`` from other starts),
-and videos of the first N evaluation episodes in ``RUN_DIR/videos/``. Parses the flags and calls
-``mimicrete.learn.evaluate_run`` and ``mimicrete.learn.video.record_run_videos``."""
+[--map] [--video N]`: the paper's Table 5 row for a trained run, written to ``RUN_DIR/eval.json``
+(``eval_stochastic.json`` for the sampled policy, ``eval_<starts>*.json`` from other starts; each
+episode's start and outcome under ``per_episode``), with ``--map`` a heat map of success over the
+table, and videos of the first N evaluation episodes in ``RUN_DIR/videos/``. Parses the flags and
+calls ``mimicrete.learn.evaluate_run`` and ``mimicrete.learn.video.record_run_videos``."""
 
 from __future__ import annotations
 
@@ -39,6 +40,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "moved up to 4 cm; writes eval_wide.json), or a file of explicit starts, one JSON object "
         'a line: {"object_pose": [x, y, yaw], "target_offset": [dx, dy]} (m, rad; one episode per '
         "line, --episodes ignored; writes eval_starts-<stem>.json)",
+    )
+    parser.add_argument(
+        "--map",
+        action="store_true",
+        help="also draw the installed rate over the tile's start x, y (a heat map of the episodes' "
+        "starts) into RUN_DIR/<eval file's stem>_map.png",
     )
     parser.add_argument(
         "--video",
@@ -91,7 +98,17 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(str(e)) from None
     print(learn.format_row(run_dir.name, res))
     print(f"starts: {res['starts']}, {res['episodes']} episodes, {res['policy']} policy")
-    print(f"wrote {run_dir / learn.evaluate.eval_file(args.stochastic, starts=starts)}")
+    written = run_dir / learn.evaluate.eval_file(args.stochastic, starts=starts)
+    print(f"wrote {written}")
+    if args.map:
+        from mimicrete.learn.plots import success_map
+
+        eps = [e for e in res["per_episode"] if "object_pose" in e]
+        if not eps:
+            raise UsageError(f"--map: {env_id} episodes have no object start to draw")
+        title = f"{run_dir.name}, {res['starts']}"
+        out = success_map([(title, eps)], written.with_name(written.stem + "_map.png"))
+        print(f"wrote {out}")
     if fmt is not None:
         try:
             episodes = video.record_run_videos(run_dir, args.video, args.seed, fmt)

@@ -27,7 +27,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--make-demos",
         action="store_true",
         help="if the demo path holds too few demos, make them first (synth-hands + convert, as "
-        "`make demos`); what `python train.py` does",
+        "`make demos`; for a config whose behavioral_cloning names generate_from, then `mimicrete "
+        "demogen` from those at the wide starts); what `python train.py` does",
     )
     parser.add_argument(
         "--skip-bad-demos",
@@ -65,6 +66,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "in a row (>= 20 episodes each; the config's stop_on_convergence if it has one); "
         "run.json records the criterion and the step (what `python train.py` passes)",
     )
+    parser.add_argument(
+        "--compare",
+        metavar="POLICY",
+        help="also evaluate this policy (a run dir or its policy.pt) on the same starts, print its "
+        "rows and draw both success maps into RUN_DIR/success_map.png (`python train.py` passes "
+        "the paper's recipe, tests/learn/data/group3_policy.pt)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -95,7 +103,13 @@ def main(args: argparse.Namespace) -> int:
         cfg.behavior.stop_on_convergence = config.ConvergenceSettings()
     run_dir = Path(args.run_dir) if args.run_dir else config.default_run_dir(cfg_path, cfg)
     demos = args.demos or cfg.demo_path
-    if args.make_demos and demos:
+    compare = _compare_dir(args.compare)
+    bc = cfg.behavior.behavioral_cloning
+    if args.make_demos and demos and bc is not None and bc.generate_from and not args.demos:
+        learn.ensure_generated_demos(
+            Path(demos), bc.generate_count or 0, Path(bc.generate_from), bc.generate_sources or 0
+        )
+    elif args.make_demos and demos:
         learn.ensure_demos(Path(demos), cfg.behavior.demo_episodes or 1)
     t0 = time.perf_counter()
     try:
@@ -122,27 +136,72 @@ def main(args: argparse.Namespace) -> int:
     for p in learn.learning_curves(run_dir):
         print(f"plot: {p}")
     if args.eval_episodes > 0:
-        print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem))
+        print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem, compare))
     return 0
 
 
-def _eval_rows(run_dir: Path, episodes: int, config_stem: str) -> str:
+def _compare_dir(policy: str | None) -> Path | None:
+    """A temporary run dir holding ``--compare``'s policy.pt (a run dir's or the file given), named
+    after it, so its evaluation files do not overwrite the compared run's own."""
+    if policy is None:
+        return None
+    p = Path(policy)
+    src = p / "policy.pt" if p.is_dir() else p
+    if not src.is_file():
+        raise UsageError(f"--compare {p}: no such policy file or run directory with a policy.pt")
+    import shutil
+    import tempfile
+
+    d = Path(tempfile.mkdtemp(prefix="mimicrete-compare-")) / (p.name if p.is_dir() else p.stem)
+    d.mkdir()
+    shutil.copy(src, d / "policy.pt")
+    return d
+
+
+def _paper_row(name: str) -> tuple[str, dict] | None:
+    """The paper's Table 5 row for a paper group's name (``group3``, ``group3_policy``)."""
+    from mimicrete.experiments.paper import PAPER_TABLE5
+
+    digits = name[5:6] if name.startswith("group") else ""
+    if not digits.isdigit() or int(digits) not in PAPER_TABLE5:
+        return None
+    p, i, n = PAPER_TABLE5[int(digits)]
+    row = {"picked_rate": p, "installed_rate": i, "mean_episode_length": n}
+    return f"paper, group {digits} (Table 5)", row
+
+
+def _eval_rows(run_dir: Path, episodes: int, config_stem: str, compare: Path | None) -> str:
     """Table 5's row of the final policy on the training starts and, for the simulator's tasks,
-    on the wide starts (the eval files say which), with the paper's row for a paper group."""
+    on the wide starts (the eval files say which), with the paper's row for a paper group; the
+    same for the ``compare`` policy, and both success maps over the wide starts."""
     from mimicrete import learn
     from mimicrete.learn.env import sim_task_of
+    from mimicrete.learn.plots import success_map
     from mimicrete.learn.run_files import load_policy
 
-    rows = [(f"{run_dir.name}, training starts", learn.evaluate_run(run_dir, episodes))]
-    if sim_task_of(load_policy(run_dir)[1].env_settings.env_id) is not None:
-        wide = learn.evaluate_run(run_dir, episodes, starts="wide")
-        rows.append((f"{run_dir.name}, wide starts", wide))
-    if config_stem.startswith("group") and config_stem[5:].isdigit():
-        from mimicrete.experiments.paper import PAPER_TABLE5
+    sim = sim_task_of(load_policy(run_dir)[1].env_settings.env_id) is not None
+    rows: list[tuple[str, dict]] = []
+    maps = []
+    seed = _eval_seed(run_dir)
+    for rd in [run_dir] if compare is None else [run_dir, compare]:
+        rows.append((f"{rd.name}, training starts", learn.evaluate_run(rd, episodes, seed)))
+        if sim:
+            wide = learn.evaluate_run(rd, episodes, seed, starts="wide")
+            rows.append((f"{rd.name}, wide starts", wide))
+            maps.append((f"{rd.name}, wide starts", wide["per_episode"]))
+    for name in dict.fromkeys([config_stem] + ([compare.name] if compare else [])):
+        paper = _paper_row(name)
+        if paper is not None:
+            rows.append(paper)
+    table = learn.format_rows(rows)
+    if maps:
+        out = success_map(maps, run_dir / "success_map.png")
+        table += f"\nplot: {out} (installed rate over the tile's start x, y; wide starts)"
+    return table
 
-        g = int(config_stem[5:])
-        if g in PAPER_TABLE5:
-            p, i, n = PAPER_TABLE5[g]
-            paper = {"picked_rate": p, "installed_rate": i, "mean_episode_length": n}
-            rows.append((f"paper, group {g} (Table 5)", paper))
-    return learn.format_rows(rows)
+
+def _eval_seed(run_dir: Path) -> int:
+    """The trained run's evaluation seed: a compared policy runs the very same starts."""
+    from mimicrete.learn.run_files import load_policy
+
+    return load_policy(run_dir)[1].env_settings.seed + 10_000

@@ -35,6 +35,7 @@ _EXPORTS = {
     "DemoDataError": ("demo_data", "DemoDataError"),
     "RunDirError": ("run_files", "RunDirError"),
     "ensure_demos": ("demo_data", "ensure_demos"),
+    "ensure_generated_demos": ("demo_data", "ensure_generated_demos"),
 }
 
 _SUBMODULES = {

@@ -15,6 +15,9 @@ is strict too). mimicrete's own additions are marked "extension" below:
 - ``behaviors.<name>.stop_on_convergence``: stop before ``max_steps`` once the training
   episodes' installed rate has held a threshold for some summaries (``ConvergenceSettings``);
   ``mimicrete train --stop-on-convergence`` (what ``python train.py`` passes) turns it on.
+- ``behavioral_cloning.generate_from`` / ``generate_sources`` / ``generate_count``: ``demo_path``
+  holds demos generated at the wide starts from these (``mimicrete demogen``); ``train
+  --make-demos`` makes them when missing (``demo_data.ensure_generated_demos``).
 - ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads,
   overlap_gail).
 
@@ -38,6 +41,7 @@ from .config_text import (
     MAX_CONFIG_BYTES,
     MAX_STRING,
     ConfigError,
+    Range,
     parse_yaml,
     read_config_text,
     short_repr,
@@ -101,6 +105,11 @@ class BehavioralCloningSettings:
     pretrain_steps: int = 0  # extension: offline BC gradient steps before the first rollout
     pretrain_passes: float = 0.0  # extension: the same in passes over the demo steps
     ee_class_balance: float = 0.0  # extension: command CE weights (share ** -balance), per branch
+    # extension: demo_path holds demos generated (`mimicrete demogen`, at the wide starts) from the
+    # first generate_sources demos of generate_from; `train --make-demos` makes them when missing
+    generate_from: str | None = None
+    generate_sources: int | None = None
+    generate_count: int | None = None
 
 
 @dataclass
@@ -197,34 +206,6 @@ class TrainerConfig:
         return None
 
 
-@dataclass(frozen=True)
-class Range:
-    """An allowed interval of a numeric field; ``None`` bounds are open-ended."""
-
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    hi_open: bool = False
-
-    def __contains__(self, x: float) -> bool:
-        if not math.isfinite(x):
-            return False
-        if self.lo is not None and (x < self.lo or (self.lo_open and x == self.lo)):
-            return False
-        return not (self.hi is not None and (x > self.hi or (self.hi_open and x == self.hi)))
-
-    def __str__(self) -> str:
-        if self.hi is None:
-            return f"{'>' if self.lo_open else '>='} {_num(self.lo)}"
-        lo = "(" if self.lo_open else "["
-        hi = ")" if self.hi_open else "]"
-        return f"{lo}{_num(self.lo)}, {_num(self.hi)}{hi}"
-
-
-def _num(x: float | None) -> str:
-    return f"{x:g}" if isinstance(x, float) else str(x)
-
-
 NON_NEGATIVE = Range(0)
 POSITIVE = Range(0, lo_open=True)
 UNIT = Range(0, 1)
@@ -262,6 +243,8 @@ RANGES: dict[tuple[type, str], Range] = {
     (BehavioralCloningSettings, "pretrain_steps"): _ints(0, 10**9),
     (BehavioralCloningSettings, "pretrain_passes"): Range(0, 10**6),
     (BehavioralCloningSettings, "ee_class_balance"): UNIT,
+    (BehavioralCloningSettings, "generate_sources"): COUNT,
+    (BehavioralCloningSettings, "generate_count"): COUNT,
     (DemoCurriculumSettings, "reset_prob"): UNIT,
     (DemoCurriculumSettings, "step_fraction"): Range(0, 1, lo_open=True),
     (DemoCurriculumSettings, "window"): COUNT,
@@ -423,6 +406,8 @@ def _validate(cfg: TrainerConfig) -> None:
             "behavioral_cloning.pretrain_passes: give the warm start in steps or in passes, "
             f"not both (pretrain_steps is {bc.pretrain_steps})"
         )
+    if bc is not None and bc.generate_from and None in (bc.generate_sources, bc.generate_count):
+        raise ConfigError("behavioral_cloning.generate_from: give generate_sources and _count")
     if not 0.0 <= b.demo_drop_idle < 1.0:
         raise ConfigError(f"demo_drop_idle: a fraction in [0, 1), got {b.demo_drop_idle}")
     if cfg.torch_settings.device not in DEVICES:

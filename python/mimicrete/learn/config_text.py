@@ -1,4 +1,5 @@
-"""A config file's text and its YAML, read within bounds, and the error every config check raises.
+"""A config file's text and its YAML, read within bounds; the ranges a numeric field may take
+(:class:`Range`); and the error every config check raises.
 
 A config is a small file: at most :data:`MAX_CONFIG_BYTES`, UTF-8, YAML of at most
 :data:`MAX_YAML_NODES` values (aliases counted at the size they expand to) nested at most
@@ -10,7 +11,9 @@ checks the dataclasses from what this reads.
 
 from __future__ import annotations
 
+import math
 import reprlib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +24,35 @@ from mimicrete._native import MimicreteError
 
 class ConfigError(MimicreteError, ValueError):
     """A config file that does not match the schema."""
+
+
+@dataclass(frozen=True)
+class Range:
+    """An allowed interval of a numeric field; ``None`` bounds are open-ended."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def __contains__(self, x: float) -> bool:
+        if not math.isfinite(x):
+            return False
+        if self.lo is not None and (x < self.lo or (self.lo_open and x == self.lo)):
+            return False
+        return not (self.hi is not None and (x > self.hi or (self.hi_open and x == self.hi)))
+
+    def __str__(self) -> str:
+        if self.hi is None:
+            return f"{'>' if self.lo_open else '>='} {_num(self.lo)}"
+        lo = "(" if self.lo_open else "["
+        hi = ")" if self.hi_open else "]"
+        return f"{lo}{_num(self.lo)}, {_num(self.hi)}{hi}"
+
+
+def _num(x: float | None) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
 
 
 _REPR = reprlib.Repr()

@@ -307,3 +307,39 @@ def ensure_demos(
     if got < episodes:
         raise RuntimeError(f"{demo_dir}: {got} demo episodes after convert, need {episodes}")
     return demo_dir
+
+
+def ensure_generated_demos(
+    demo_dir: Path,
+    count: int,
+    sources: Path,
+    source_count: int,
+    *,
+    task: str = "suction",
+    log: Any = None,
+) -> Path:
+    """Fill ``demo_dir`` with ``count`` demos generated at the wide starts by ``mimicrete demogen``
+    (seed 0) from the first ``source_count`` demos of ``sources`` (made first by
+    :func:`ensure_demos` when missing), unless it holds ``count`` already. Says so through
+    ``log``."""
+    demo_dir, sources = Path(demo_dir), Path(sources)
+    have = count_demo_episodes(demo_dir)
+    if have >= count:
+        return demo_dir
+    ensure_demos(sources, source_count, task=task, log=log)
+    (log or logger.info)(
+        f"demos: {demo_dir} has {have} episodes, generating {count} at the wide starts from the "
+        f"first {source_count} of {sources} (as `mimicrete demogen --demos {sources} "
+        f"--source-count {source_count} --count {count} --starts wide --out {demo_dir} --seed 0`)"
+    )
+    from mimicrete import demogen
+
+    for old in demo_dir.glob("*.mcap"):  # a generation cut short: start it again, whole
+        old.unlink()
+    rep = demogen.generate(demogen.load_sources(sources, source_count), count, demo_dir)
+    if rep.kept < count:
+        raise RuntimeError(
+            f"{demo_dir}: {rep.kept} of {count} demos generated in {rep.attempts} attempts "
+            f"({rep.failures})"
+        )
+    return demo_dir

@@ -66,15 +66,24 @@ def _policy_action(actor: Actor, obs: np.ndarray, stochastic: bool) -> np.ndarra
     return actor.deterministic(o).numpy()
 
 
-def _stats(results: list[EpisodeResult]) -> dict[str, float]:
-    st = EpisodeStats.of(results)
-    return {
+Finished = tuple[dict[str, Any] | None, EpisodeResult]  # (where it started, what it came to)
+
+
+def _stats(finished: list[Finished], per_episode: bool) -> dict[str, Any]:
+    st = EpisodeStats.of([ep for _, ep in finished])
+    res: dict[str, Any] = {
         "episodes": st.episodes,
         "picked_rate": st.picked_rate,
         "installed_rate": st.installed_rate,
         "mean_episode_length": st.mean_length,
         "mean_cumulative_reward": st.mean_return,
     }
+    if per_episode:
+        res["per_episode"] = [
+            {**(start or {}), "picked": ep.picked, "installed": ep.installed, "length": ep.length}
+            for start, ep in finished
+        ]
+    return res
 
 
 @torch.no_grad()
@@ -87,29 +96,34 @@ def run_episodes(
     stochastic: bool = False,
     robust: bool = False,
     starts: str | StartList = "training",
-) -> dict[str, float]:
+    per_episode: bool = False,
+) -> dict[str, Any]:
     """Mean statistics of ``episodes`` episodes of ``actor``, deterministic or sampled, from the
     named ``starts`` (``robust=True`` is ``starts="robust"``) or, for a :class:`StartList`, one
-    episode from each of its starts (``episodes`` is then ignored)."""
+    episode from each of its starts (``episodes`` is then ignored). With ``per_episode``, also
+    ``per_episode``: each episode's start (``object_pose``, ``target_offset``, ``pad_offset``;
+    the simulator's tasks) with its ``picked``, ``installed`` and ``length``, in finishing order."""
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         if isinstance(starts, StartList):
-            return _run_listed(actor, env_id, starts, seed, max_envs, stochastic)
-        name = "robust" if robust else starts
-        return _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic, name)
+            done = _run_listed(actor, env_id, starts, seed, max_envs, stochastic)
+        else:
+            name = "robust" if robust else starts
+            done = _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic, name)
+    return _stats(done, per_episode)
 
 
 def _run_listed(
     actor: Actor, env_id: str, starts: StartList, seed: int, max_envs: int, stochastic: bool
-) -> dict[str, float]:
+) -> list[Finished]:
     """One episode from each listed start, in batches of up to ``max_envs`` envs (a batch's
     spare envs repeat its first start and are not counted)."""
     todo = list(starts.starts)
     n = min(max_envs, len(todo))
     env = make_env(env_id, n, seed)
-    results: list[EpisodeResult] = []
+    results: list[Finished] = []
     for b in range(0, len(todo), n):
         batch = todo[b : b + n]
         padded = batch + [batch[0]] * (n - len(batch))
@@ -128,10 +142,10 @@ def _run_listed(
             r = np.asarray(r, np.float32)
             for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
                 if not done[i]:
-                    results.append(ep)
+                    results.append((padded[i], ep))
                     done[i] = True
     env.close()
-    return _stats(results)
+    return results
 
 
 def _run_episodes(
@@ -142,7 +156,7 @@ def _run_episodes(
     max_envs: int,
     stochastic: bool,
     starts: str,
-) -> dict[str, float]:
+) -> list[Finished]:
     n = _num_envs_for(episodes, max_envs)
     per_env = episodes // n
     env = make_env(env_id, n, seed)
@@ -154,19 +168,23 @@ def _run_episodes(
         sim.set_variation(starts=starts)
     obs, _ = env.reset(seed=seed)
     obs = np.asarray(obs, np.float32)
+    sim = getattr(env, "sim", None)
+    started = [sim.start(i) if sim is not None else None for i in range(n)]
     tracker = EpisodeTracker(n)
     done_count = np.zeros(n, np.int64)
-    results: list[EpisodeResult] = []
+    results: list[Finished] = []
     while (done_count < per_env).any():
         obs, r, term, trunc, infos = env.step(_policy_action(actor, obs, stochastic))
         obs = np.asarray(obs, np.float32)
         r = np.asarray(r, np.float32)
         for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
             if done_count[i] < per_env:
-                results.append(ep)
+                results.append((started[i], ep))
                 done_count[i] += 1
+            if sim is not None:  # reset in the same step: where its next episode starts
+                started[i] = sim.start(i)
     env.close()
-    return _stats(results)
+    return results
 
 
 def evaluate_run(
@@ -178,7 +196,8 @@ def evaluate_run(
     starts: str | StartList = "training",
 ) -> dict[str, Any]:
     """Evaluate ``run_dir/policy.pt`` on ``episodes`` episodes; writes and returns ``eval.json``
-    (or :func:`eval_file`'s name for ``stochastic`` / ``robust`` / ``starts``)."""
+    (or :func:`eval_file`'s name for ``stochastic`` / ``robust`` / ``starts``), each episode's
+    start and outcome under ``per_episode`` (what :func:`.plots.success_map` draws)."""
     run_dir = Path(run_dir)
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
@@ -187,7 +206,9 @@ def evaluate_run(
     env_id = cfg.env_settings.env_id
     if robust:
         starts = "robust"
-    res = run_episodes(actor, env_id, episodes, s, stochastic=stochastic, starts=starts)
+    res = run_episodes(
+        actor, env_id, episodes, s, stochastic=stochastic, starts=starts, per_episode=True
+    )
     res = {
         **res,
         "seed": s,

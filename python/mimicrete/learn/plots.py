@@ -1,4 +1,5 @@
-"""Learning-curve PNGs from a run's ``scalars.csv`` (matplotlib, Agg backend)."""
+"""Learning-curve PNGs from a run's ``scalars.csv``, and success maps over the table from an
+evaluation's episodes (matplotlib, Agg backend)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from .run_files import read_scalars  # noqa: E402
 
@@ -61,6 +63,51 @@ def compare(run_dirs: list[Path], out: Path, tag: str = "Environment/Installed R
     _save(fig, Path(out))
     plt.close(fig)
     return out
+
+
+def success_map(
+    panels: list[tuple[str, list[dict[str, Any]]]],
+    out: Path,
+    bins: tuple[int, int] = (5, 4),
+    marked: list[list[float]] | None = None,
+) -> Path:
+    """Installed rate as a heat map over the object's start x, y, one panel per ``(title,
+    episodes)`` (an evaluation's ``per_episode`` records: ``object_pose`` and ``installed``), all
+    on the same ``bins`` (x, y) cells spanning the starts given; each cell reads its rate and
+    its number of episodes. ``marked``: object poses drawn as dots (e.g. where the demos began)."""
+    xy = np.array([e["object_pose"][:2] for _, eps in panels for e in eps], float)
+    if xy.size == 0:
+        raise ValueError("success_map: no episode with an object_pose")
+    lo, hi = xy.min(0), xy.max(0)
+    pad = np.maximum(0.02 * (hi - lo), 1e-3)  # the extreme starts fall inside the outer cells
+    xe = np.linspace(lo[0] - pad[0], hi[0] + pad[0], bins[0] + 1)
+    ye = np.linspace(lo[1] - pad[1], hi[1] + pad[1], bins[1] + 1)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.6), squeeze=False)
+    for ax, (title, eps) in zip(axes[0], panels, strict=True):
+        p = np.array([e["object_pose"][:2] for e in eps], float).reshape(-1, 2)
+        ok = np.array([bool(e["installed"]) for e in eps], float)
+        n, _, _ = np.histogram2d(p[:, 0], p[:, 1], bins=(xe, ye))
+        k, _, _ = np.histogram2d(p[:, 0], p[:, 1], bins=(xe, ye), weights=ok)
+        rate = np.where(n > 0, k / np.maximum(n, 1), np.nan)
+        im = ax.pcolormesh(xe, ye, rate.T, cmap="RdYlGn", vmin=0, vmax=1)
+        for i in range(bins[0]):
+            for j in range(bins[1]):
+                if n[i, j]:
+                    ax.text((xe[i] + xe[i + 1]) / 2, (ye[j] + ye[j + 1]) / 2,
+                            f"{rate[i, j]:.0%}\n{int(n[i, j])}", ha="center", va="center",
+                            fontsize=7)  # fmt: skip
+        if marked:
+            m = np.array([q[:2] for q in marked], float)
+            ax.plot(m[:, 0], m[:, 1], "k.", ms=5, label="demo starts")
+            ax.legend(fontsize=7, loc="upper right")
+        ax.set_title(f"{title}: {ok.mean():.0%} of {len(eps)} installed", fontsize=9)
+        ax.set_xlabel("tile start x (m, Base)")
+        ax.set_ylabel("tile start y (m)")
+        ax.set_aspect("equal")
+    fig.colorbar(im, ax=axes[0].tolist(), label="installed rate", shrink=0.8)
+    _save(fig, Path(out))
+    plt.close(fig)
+    return Path(out)
 
 
 def _save(fig: Any, path: Path) -> None:
