@@ -13,7 +13,7 @@
 //! close → spin (tighten) until done.
 
 use crate::env::Snapshot;
-use crate::world;
+use crate::spec::TaskSpec;
 use crate::{MAX_JOINT_STEP, Task};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
@@ -52,6 +52,9 @@ fn v3(a: [f64; 3]) -> Vector3<f64> {
 #[derive(Debug, Clone)]
 pub struct Expert {
     task: Task,
+    /// The TCP's offset along tool0 z and the grasp point's height above the object's centre (m).
+    tcp_z: f64,
+    grasp_dz: f64,
     phase: u8,
     goal: Option<[f64; 6]>,
     /// Steps spent in the current phase.
@@ -62,7 +65,14 @@ pub struct Expert {
 
 impl Expert {
     pub fn new(task: Task) -> Expert {
-        Expert { task, phase: 0, goal: None, ticks: 0, final_leg: true }
+        Expert::for_spec(&TaskSpec::builtin(task))
+    }
+
+    /// The expert of the task `spec` describes (its logic's script, the spec's TCP and object).
+    pub fn for_spec(spec: &TaskSpec) -> Expert {
+        let task = spec.task();
+        let grasp_dz = if task == Task::TileSuction { spec.object_half_height() as f64 } else { 0.0 };
+        Expert { task, tcp_z: spec.tcp_z() as f64, grasp_dz, phase: 0, goal: None, ticks: 0, final_leg: true }
     }
 
     /// Forget the episode's progress.
@@ -169,10 +179,10 @@ impl Expert {
         let obj = v3(s.object.t);
         let tgt = v3(s.target.t);
         let up = Vector3::z();
+        let tz = self.tcp_z;
         match self.task {
             Task::TileSuction => {
-                let grasp = obj + up * world::TILE_HALF[2] as f64;
-                let tz = world::CUP_TCP_Z as f64;
+                let grasp = obj + up * self.grasp_dz;
                 match self.phase {
                     0 => ik_dls(&tool0_for_tcp(grasp + up * 0.08, tz), &s.q),
                     1 => self.linear(s, tool0_for_tcp(grasp + up * 0.012, tz)),
@@ -193,36 +203,28 @@ impl Expert {
                     _ => Some(s.q),
                 }
             }
-            Task::BlockGrip => {
-                let tz = world::GRIP_TCP_Z as f64;
-                match self.phase {
-                    0 => ik_dls(&tool0_for_tcp(obj + up * 0.10, tz), &s.q),
-                    1 => self.linear(s, tool0_for_tcp(obj, tz)),
-                    2 => Some(s.q),
-                    3 => {
-                        let t = v3(s.tcp.t);
-                        self.linear(s, tool0_for_tcp(Vector3::new(t.x, t.y, 0.14), tz))
-                    }
-                    4 | 5 => {
-                        let lift = if self.phase == 4 { 0.08 } else { 0.004 };
-                        let obj_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
-                        let goal = Isometry3::from_parts(
-                            Translation3::from(tgt + up * lift),
-                            iso(&s.object).rotation,
-                        );
-                        self.linear(s, goal * obj_in_tool.inverse())
-                    }
-                    _ => Some(s.q),
+            Task::BlockGrip => match self.phase {
+                0 => ik_dls(&tool0_for_tcp(obj + up * 0.10, tz), &s.q),
+                1 => self.linear(s, tool0_for_tcp(obj, tz)),
+                2 => Some(s.q),
+                3 => {
+                    let t = v3(s.tcp.t);
+                    self.linear(s, tool0_for_tcp(Vector3::new(t.x, t.y, 0.14), tz))
                 }
-            }
-            Task::Screw => {
-                let tz = world::GRIP_TCP_Z as f64;
-                match self.phase {
-                    0 => ik_dls(&tool0_for_tcp(obj + up * 0.08, tz), &s.q),
-                    1 => self.linear(s, tool0_for_tcp(obj, tz)),
-                    _ => Some(s.q),
+                4 | 5 => {
+                    let lift = if self.phase == 4 { 0.08 } else { 0.004 };
+                    let obj_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
+                    let goal =
+                        Isometry3::from_parts(Translation3::from(tgt + up * lift), iso(&s.object).rotation);
+                    self.linear(s, goal * obj_in_tool.inverse())
                 }
-            }
+                _ => Some(s.q),
+            },
+            Task::Screw => match self.phase {
+                0 => ik_dls(&tool0_for_tcp(obj + up * 0.08, tz), &s.q),
+                1 => self.linear(s, tool0_for_tcp(obj, tz)),
+                _ => Some(s.q),
+            },
         }
     }
 }

@@ -63,11 +63,21 @@
 //!
 //! # Rewards (sparse, paper §5.1 for TileSuction)
 //! See [`Task`] for each task's rewards and termination rules.
+//!
+//! # Tasks as data
+//! Each task's numbers (robot, effector geometry, object, target, start distributions,
+//! thresholds, rewards, episode length) are a [`TaskSpec`], read from a versioned TOML file: the
+//! built-in three are `crates/tile-sim/tasks/{tile_suction,block_grip,screw}.toml`, compiled in
+//! ([`TaskSpec::builtin`], [`Task::spec`]); [`Env::from_spec`] runs another. Each task's logic
+//! (effector, success and failure, frame layout) is a module behind one trait (`src/task/`).
+//! The files sit in the crate, not at the repository's top, because the crate compiles them in
+//! and owns what they mean (`cargo package` only ships what is inside the crate).
 
 mod env;
 pub mod expert;
 mod owned;
 mod pool;
+pub mod spec;
 mod starts;
 mod task;
 mod vecenv;
@@ -75,6 +85,7 @@ pub mod world;
 
 pub use env::{Env, HOME_Q, PoseRec, Snapshot, StepOutcome, episode_scene, object_start};
 pub use owned::{RecordState, StepInfo};
+pub use spec::{SPEC_VERSION, SpecError, TaskSpec};
 pub use starts::{MAX_TARGET_OFFSET, MAX_YAW, PAD_CLEARANCE, REACH_MARGIN, Start, Variation};
 pub use task::Task;
 pub use task::gripper::PLACE_DIST;

@@ -23,8 +23,8 @@
 //! [`REACH_MARGIN`] outwards and inwards).
 
 use crate::expert::{ik_dls, tool0_for_tcp};
-use crate::world;
-use crate::{HOME_Q, SimError, Task};
+use crate::spec::{TargetSpec, TaskSpec};
+use crate::{SimError, Task};
 use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -109,15 +109,11 @@ pub struct Variation {
     pub pad_follows: bool,
 }
 
+/// The paper's starts, as the built-in TileSuction spec gives them (`starts.paper`; the three
+/// built-in tasks share them).
 impl Default for Variation {
     fn default() -> Self {
-        Variation {
-            object_x: [world::OBJECT_X_MIN, world::OBJECT_X_MAX],
-            object_y: [world::OBJECT_Y, world::OBJECT_Y],
-            yaw: [0.0, 0.0],
-            target_jitter: 0.0,
-            pad_follows: false,
-        }
+        TaskSpec::builtin(Task::TileSuction).starts.paper.variation()
     }
 }
 
@@ -129,25 +125,16 @@ impl Variation {
     /// The robustness evaluation: the x range widened by half its width on each side
     /// (`[-0.075, 0.225]` m) and the target moved by up to ±2 cm in x and y (the pad stays).
     pub fn robust() -> Variation {
-        let half = 0.5 * (world::OBJECT_X_MAX - world::OBJECT_X_MIN);
-        Variation {
-            object_x: [world::OBJECT_X_MIN - half, world::OBJECT_X_MAX + half],
-            target_jitter: 0.02,
-            ..Default::default()
-        }
+        let [lo, hi] = Variation::default().object_x;
+        let half = 0.5 * (hi - lo);
+        Variation { object_x: [lo - half, hi + half], target_jitter: 0.02, ..Default::default() }
     }
 
     /// The wide starts (module docs): the object over 0.25 m of x and 0.10 m of y, turned by up
-    /// to ±30°, the target and its pad moved by up to ±4 cm in x and y.
+    /// to ±30°, the target and its pad moved by up to ±4 cm in x and y (the built-in TileSuction
+    /// spec's `starts.wide`; BlockGrip's are the same, Screw's keep the bolt square and its target).
     pub fn wide() -> Variation {
-        let yaw = 30f32.to_radians();
-        Variation {
-            object_x: [0.035, 0.285],
-            object_y: [0.26, 0.36],
-            yaw: [-yaw, yaw],
-            target_jitter: MAX_TARGET_OFFSET,
-            pad_follows: true,
-        }
+        TaskSpec::builtin(Task::TileSuction).starts.wide.variation()
     }
 
     /// `s` of the way from the paper's starts (`s = 0`) to the wide ones (`s = 1`): every range
@@ -212,12 +199,15 @@ impl Variation {
     }
 }
 
-/// Half extents (x, y) of the object's footprint on the table, unturned.
-fn footprint_half(task: Task) -> [f32; 2] {
-    match task {
-        Task::TileSuction => [world::TILE_HALF[0], world::TILE_HALF[1]],
-        Task::BlockGrip => [world::BLOCK_HALF; 2],
-        Task::Screw => [world::SCREW_PLATE_HALF; 2],
+/// Half extents (x, y) of the object's footprint on the table, unturned (the bolt's plate for Screw).
+fn footprint_half(spec: &TaskSpec) -> [f32; 2] {
+    match (&spec.target, spec.object.half_extents) {
+        (TargetSpec::Bolt { plate_half_extents: p, .. }, _) => [p[0], p[1]],
+        (_, Some(h)) => [h[0], h[1]],
+        (_, None) => {
+            let r = spec.object.radius.unwrap_or(0.0);
+            [r, r]
+        }
     }
 }
 
@@ -228,24 +218,24 @@ fn turned_half(half: [f32; 2], yaw: f32) -> [f32; 2] {
 }
 
 /// The tool0 pose heights and points at which a reachable place must have an IK solution.
-fn reachable(p: Vector3<f64>, tcp_z: f64) -> bool {
+fn reachable(p: Vector3<f64>, tcp_z: f64, home: &[f64; 6]) -> bool {
     let radial = Vector3::new(p.x, p.y, 0.0);
     let n = radial.norm();
     let dir = if n > 1e-9 { radial / n } else { Vector3::x() };
     [REACH_MARGIN, -REACH_MARGIN].iter().all(|&m| {
         [0.0, 0.10].iter().all(|&up| {
             let q = p + dir * m + Vector3::new(0.0, 0.0, up);
-            ik_dls(&tool0_for_tcp(q, tcp_z), &HOME_Q).is_some()
+            ik_dls(&tool0_for_tcp(q, tcp_z), home).is_some()
         })
     })
 }
 
 /// How far from the base axis (m) the arm reaches a TCP at height `z` in the direction of
 /// `p` with the flange down (bisection of [`reachable`] without the margin), for messages.
-fn reach_along(p: Vector3<f64>, tcp_z: f64) -> f64 {
+fn reach_along(p: Vector3<f64>, tcp_z: f64, home: &[f64; 6]) -> f64 {
     let radial = Vector3::new(p.x, p.y, 0.0);
     let dir = if radial.norm() > 1e-9 { radial / radial.norm() } else { Vector3::x() };
-    let ok = |r: f64| ik_dls(&tool0_for_tcp(dir * r + Vector3::new(0.0, 0.0, p.z), tcp_z), &HOME_Q).is_some();
+    let ok = |r: f64| ik_dls(&tool0_for_tcp(dir * r + Vector3::new(0.0, 0.0, p.z), tcp_z), home).is_some();
     let (mut lo, mut hi) = (0.2, 1.0);
     if !ok(lo) {
         return 0.0;
@@ -258,38 +248,48 @@ fn reach_along(p: Vector3<f64>, tcp_z: f64) -> f64 {
 }
 
 impl Start {
-    /// The object's centre (Base frame) at this start: on the table, or caught on the bolt (Screw).
-    pub fn object_centre(&self, task: Task) -> Vector {
+    /// The object's centre (Base frame) at this start: resting on the table, or caught on the
+    /// bolt's thread (a bolt target).
+    pub fn object_centre(&self, spec: &TaskSpec) -> Vector {
         let [x, y] = self.object_xy;
-        match task {
-            Task::TileSuction => Vector::new(x, y, world::TABLE_TOP + world::TILE_HALF[2]),
-            Task::BlockGrip => Vector::new(x, y, world::TABLE_TOP + world::BLOCK_HALF),
-            Task::Screw => Vector::new(x, y, world::NUT_START_Z),
+        match &spec.target {
+            TargetSpec::Bolt { .. } => Vector::new(x, y, nut_start_z(spec)),
+            TargetSpec::Pad { .. } => Vector::new(x, y, spec.table.top_z + spec.object_half_height()),
         }
     }
 
-    /// The pad's centre (x, y) at this start.
-    pub fn pad_xy(&self) -> [f32; 2] {
-        [world::PAD_XY[0] + self.pad_offset[0], world::PAD_XY[1] + self.pad_offset[1]]
+    /// The pad's centre (x, y) at this start (a pad target; `[0, 0]` otherwise).
+    pub fn pad_xy(&self, spec: &TaskSpec) -> [f32; 2] {
+        match &spec.target {
+            TargetSpec::Pad { xy, .. } => [xy[0] + self.pad_offset[0], xy[1] + self.pad_offset[1]],
+            TargetSpec::Bolt { .. } => [0.0; 2],
+        }
     }
 
     /// The target (the object's centre when the task is done) at this start.
-    pub fn target(&self, task: Task) -> Vector {
-        match task {
-            Task::Screw => {
-                let c = self.object_centre(task);
-                Vector::new(c.x, c.y, world::NUT_START_Z - (crate::SCREW_TURNS as f32) * world::THREAD_PITCH)
+    pub fn target(&self, spec: &TaskSpec) -> Vector {
+        match &spec.target {
+            TargetSpec::Bolt { pitch, turns, .. } => {
+                let c = self.object_centre(spec);
+                Vector::new(c.x, c.y, nut_start_z(spec) - (*turns as f32) * pitch)
             }
-            t => {
+            TargetSpec::Pad { .. } => {
                 let d = self.target_offset;
-                world::pad_target(t) + Vector::new(d[0], d[1], 0.0)
+                crate::world::pad_target_of(spec) + Vector::new(d[0], d[1], 0.0)
             }
         }
     }
 
     /// Refuses a start that is not finite, leaves the table, touches the pad, or lies out of
-    /// reach (module docs); the message names the field (`object_pose` or `target_offset`).
+    /// reach (module docs) for the built-in `task`; the message names the field (`object_pose`
+    /// or `target_offset`).
     pub fn check(&self, task: Task) -> Result<(), SimError> {
+        self.check_in(&TaskSpec::builtin(task))
+    }
+
+    /// [`Start::check`] for the task `spec` describes.
+    pub fn check_in(&self, spec: &TaskSpec) -> Result<(), SimError> {
+        let task = spec.task();
         let bad = |m: String| Err(SimError::InvalidArgument(m));
         let [x, y] = self.object_xy;
         if ![x, y, self.yaw].iter().all(|v| v.is_finite()) {
@@ -311,17 +311,18 @@ impl Start {
         if self.yaw.abs() > MAX_YAW {
             return bad(format!("object_pose yaw {} rad is beyond ±{MAX_YAW:.4} rad (45°)", self.yaw));
         }
-        let h = turned_half(footprint_half(task), self.yaw);
-        let (tx, ty) = (world::TABLE_HALF[0] - h[0], world::TABLE_HALF[1] - h[1]);
+        let h = turned_half(footprint_half(spec), self.yaw);
+        let table = spec.table.half_extents;
+        let (tx, ty) = (table[0] - h[0], table[1] - h[1]);
         if x.abs() > tx || y.abs() > ty {
             return bad(format!(
                 "object_pose ({x}, {y}) m puts the object off the table (|x| <= {tx:.3}, |y| <= {ty:.3})"
             ));
         }
-        if task != Task::Screw {
-            let pad = self.pad_xy();
-            let gap_x = (x - pad[0]).abs() - h[0] - world::PAD_HALF[0];
-            let gap_y = (y - pad[1]).abs() - h[1] - world::PAD_HALF[1];
+        if let TargetSpec::Pad { half_extents: pad_half, .. } = &spec.target {
+            let pad = self.pad_xy(spec);
+            let gap_x = (x - pad[0]).abs() - h[0] - pad_half[0];
+            let gap_y = (y - pad[1]).abs() - h[1] - pad_half[1];
             if gap_x.max(gap_y) < PAD_CLEARANCE {
                 return bad(format!(
                     "object_pose ({x}, {y}) m, yaw {} rad: the object comes within {PAD_CLEARANCE} m of the pad at ({}, {})",
@@ -329,10 +330,11 @@ impl Start {
                 ));
             }
         }
-        let tcp_z = if task == Task::TileSuction { world::CUP_TCP_Z } else { world::GRIP_TCP_Z } as f64;
+        let tcp_z = spec.tcp_z() as f64;
+        let home = &spec.robot.home_q;
         let v3 = |p: Vector| Vector3::new(p.x as f64, p.y as f64, p.z as f64);
         let why = |p: Vector3<f64>| {
-            let (r, limit) = (p.xy().norm(), reach_along(p, tcp_z));
+            let (r, limit) = (p.xy().norm(), reach_along(p, tcp_z, home));
             if r + REACH_MARGIN < limit {
                 format!(
                     "{r:.3} m from the base axis is too close to the base for the flange to point down there (with {REACH_MARGIN} m to spare)"
@@ -343,12 +345,12 @@ impl Start {
                 )
             }
         };
-        let grasp = v3(self.object_centre(task) + Vector::new(0.0, 0.0, footprint_top(task)));
-        if !reachable(grasp, tcp_z) {
+        let grasp = v3(self.object_centre(spec) + Vector::new(0.0, 0.0, grasp_height(spec)));
+        if !reachable(grasp, tcp_z, home) {
             return bad(format!("object_pose ({x}, {y}) m is out of reach: {}", why(grasp)));
         }
-        let target = v3(self.target(task));
-        if task != Task::Screw && !reachable(target, tcp_z) {
+        let target = v3(self.target(spec));
+        if task != Task::Screw && !reachable(target, tcp_z, home) {
             return bad(format!(
                 "target_offset {:?} puts the target out of reach: {}",
                 self.target_offset,
@@ -359,10 +361,19 @@ impl Start {
     }
 }
 
-/// Height of the grasp point above the object's centre.
-fn footprint_top(task: Task) -> f32 {
-    match task {
-        Task::TileSuction => world::TILE_HALF[2],
+/// Height of the grasp point above the object's centre: the upper face for suction, the
+/// centre for the fingers.
+fn grasp_height(spec: &TaskSpec) -> f32 {
+    match spec.task() {
+        Task::TileSuction => spec.object_half_height(),
         Task::BlockGrip | Task::Screw => 0.0,
+    }
+}
+
+/// The nut's centre height when it has just caught the thread (turns = 0; a bolt target).
+pub(crate) fn nut_start_z(spec: &TaskSpec) -> f32 {
+    match &spec.target {
+        TargetSpec::Bolt { top_z, catch_gap, .. } => top_z - spec.object_half_height() - catch_gap,
+        TargetSpec::Pad { .. } => 0.0,
     }
 }

@@ -1,9 +1,14 @@
 //! World geometry: table, arm link shapes, end effectors, task objects, and the static scene
-//! description for visualisation. All lengths in metres, Base frame, Z up.
+//! description for visualisation. All lengths in metres, Base frame, Z up. The world builder and
+//! the scene read the task's numbers from its [`TaskSpec`]; the constants below are the built-in
+//! tasks' values (`tasks/*.toml`), kept for tests and tools (a test checks that they agree).
 
+use crate::spec::{EffectorSpec, TargetSpec, TaskSpec};
 use crate::{CONTROL_DT, PHYSICS_SUBSTEPS, Start, Task};
 use rapier3d::prelude::*;
+use std::collections::HashSet;
 use std::f32::consts::FRAC_PI_2;
+use std::sync::Mutex;
 
 // ---- table and layout (Base frame) ----
 /// Table top plane height (the UR3 base stands on it).
@@ -119,23 +124,24 @@ fn item(name: &'static str, frame: SceneFrame, shape: Shape, t: [f32; 3], rgba: 
 }
 
 /// The grey pad and the translucent green target marker (half-size `marker_half_xy`, drawn
-/// `marker_dz` above the task's target point) of the tasks that place an object on the pad.
+/// `marker_dz` above the task's target point) of the tasks that place an object on a pad.
 fn push_pad_and_target(
     items: &mut Vec<SceneItem>,
-    task: Task,
+    spec: &TaskSpec,
     start: &Start,
     marker_half_xy: [f32; 2],
     marker_dz: f32,
 ) {
-    let pad = start.pad_xy();
+    let TargetSpec::Pad { half_extents: pad_half, .. } = &spec.target else { return };
+    let pad = start.pad_xy(spec);
     items.push(item(
         "pad",
         SceneFrame::World,
-        Shape::Box { half: PAD_HALF },
-        [pad[0], pad[1], PAD_HALF[2]],
+        Shape::Box { half: *pad_half },
+        [pad[0], pad[1], spec.table.top_z + pad_half[2]],
         [0.5, 0.5, 0.5, 1.0],
     ));
-    let t = start.target(task);
+    let t = start.target(spec);
     items.push(item(
         "target",
         SceneFrame::World,
@@ -143,6 +149,30 @@ fn push_pad_and_target(
         [t.x, t.y, t.z + marker_dz],
         [0.1, 0.8, 0.1, 0.4],
     ));
+}
+
+/// A spec's object name as the `&'static str` a [`SceneItem`] holds (each distinct name is
+/// kept once for the life of the process).
+fn intern(name: &str) -> &'static str {
+    static NAMES: Mutex<Option<HashSet<&'static str>>> = Mutex::new(None);
+    let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
+    let set = names.get_or_insert_with(HashSet::new);
+    if let Some(n) = set.get(name) {
+        return n;
+    }
+    let leaked: &'static str = Box::leak(name.to_string().into_boxed_str());
+    set.insert(leaked);
+    leaked
+}
+
+/// The object's collision / scene shape (a cylinder along its local z).
+fn object_shape(spec: &TaskSpec) -> Shape {
+    let o = &spec.object;
+    match (o.half_extents, o.radius, o.half_height) {
+        (Some(half), _, _) => Shape::Box { half },
+        (None, Some(radius), Some(half_height)) => Shape::Cylinder { radius, half_height },
+        _ => unreachable!("invariant: TaskSpec::check gives the object a box or a cylinder"),
+    }
 }
 
 /// Arm link capsules in DH frame i (standard DH, UR3 numbers; radii from the UR3 housings).
@@ -198,11 +228,16 @@ pub struct Handles {
     pub object: RigidBodyHandle,
 }
 
-/// Build a fresh world for `task` with the object and the pad where `start` puts them.
+/// Build a fresh world for the built-in `task` with the object and the pad where `start` puts them.
 pub fn build(task: Task, start: &Start) -> (PhysicsWorld, Handles) {
-    let object_pos = start.object_centre(task);
+    build_spec(&TaskSpec::builtin(task), start)
+}
+
+/// Build a fresh world for the task `spec` describes, the object and the pad where `start` puts them.
+pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
+    let object_pos = start.object_centre(spec);
     let object_at = Pose::from_parts(object_pos, Rotation::from_rotation_z(start.yaw));
-    let pad = start.pad_xy();
+    let (table_half, top) = (spec.table.half_extents, spec.table.top_z);
     let mut w = PhysicsWorld::new();
     w.gravity = Vector::new(0.0, 0.0, -9.81);
     w.integration_parameters.dt = CONTROL_DT;
@@ -216,9 +251,9 @@ pub fn build(task: Task, start: &Start) -> (PhysicsWorld, Handles) {
     // Table (fixed).
     let table = w.insert_body(RigidBodyBuilder::fixed());
     w.insert_collider(
-        ColliderBuilder::cuboid(TABLE_HALF[0], TABLE_HALF[1], TABLE_HALF[2])
-            .translation(Vector::new(0.0, 0.0, TABLE_TOP - TABLE_HALF[2]))
-            .friction(FRICTION)
+        ColliderBuilder::cuboid(table_half[0], table_half[1], table_half[2])
+            .translation(Vector::new(0.0, 0.0, top - table_half[2]))
+            .friction(spec.table.friction)
             .collision_groups(static_groups()),
         Some(table),
     );
@@ -229,29 +264,30 @@ pub fn build(task: Task, start: &Start) -> (PhysicsWorld, Handles) {
             .collision_groups(static_groups()),
         Some(table),
     );
-    match task {
-        Task::TileSuction | Task::BlockGrip => {
+    match &spec.target {
+        TargetSpec::Pad { half_extents: h, friction, .. } => {
+            let pad = start.pad_xy(spec);
             w.insert_collider(
-                ColliderBuilder::cuboid(PAD_HALF[0], PAD_HALF[1], PAD_HALF[2])
-                    .translation(Vector::new(pad[0], pad[1], TABLE_TOP + PAD_HALF[2]))
-                    .friction(FRICTION)
+                ColliderBuilder::cuboid(h[0], h[1], h[2])
+                    .translation(Vector::new(pad[0], pad[1], top + h[2]))
+                    .friction(*friction)
                     .collision_groups(static_groups()),
                 Some(table),
             );
         }
-        Task::Screw => {
+        TargetSpec::Bolt { plate_half_extents: p, radius, top_z, .. } => {
             // Steel plate with the bolt (the nut is kinematic along the bolt, no contact needed).
             w.insert_collider(
-                ColliderBuilder::cuboid(SCREW_PLATE_HALF, SCREW_PLATE_HALF, 0.005)
-                    .translation(Vector::new(object_pos.x, object_pos.y, 0.005))
+                ColliderBuilder::cuboid(p[0], p[1], p[2])
+                    .translation(Vector::new(object_pos.x, object_pos.y, p[2]))
                     .collision_groups(static_groups()),
                 Some(table),
             );
             w.insert_collider(
                 ColliderBuilder::capsule_from_endpoints(
-                    Vector::new(object_pos.x, object_pos.y, 0.01),
-                    Vector::new(object_pos.x, object_pos.y, BOLT_TOP - BOLT_RADIUS),
-                    BOLT_RADIUS,
+                    Vector::new(object_pos.x, object_pos.y, 2.0 * p[2]),
+                    Vector::new(object_pos.x, object_pos.y, top_z - radius),
+                    *radius,
                 )
                 .collision_groups(static_groups()),
                 Some(table),
@@ -271,36 +307,38 @@ pub fn build(task: Task, start: &Start) -> (PhysicsWorld, Handles) {
             .push((Pose::IDENTITY, SharedShape::capsule(Vector::from(a), Vector::from(b), r)));
     }
     let mut fingers = None;
-    match task {
-        Task::TileSuction => {
+    match &spec.effector {
+        EffectorSpec::Suction { plate_half_extents: plate, cup_offset, cup_radius, tcp_z } => {
             parts[5].push((
-                Pose::from_translation(Vector::new(0.0, 0.0, PLATE_HALF[2])),
-                SharedShape::cuboid(PLATE_HALF[0], PLATE_HALF[1], PLATE_HALF[2]),
+                Pose::from_translation(Vector::new(0.0, 0.0, plate[2])),
+                SharedShape::cuboid(plate[0], plate[1], plate[2]),
             ));
-            let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
+            let hh = (tcp_z - 2.0 * plate[2]) / 2.0;
             for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
                 parts[5].push((
                     Pose::from_parts(
-                        Vector::new(sx * CUP_OFFSET, sy * CUP_OFFSET, 2.0 * PLATE_HALF[2] + hh),
+                        Vector::new(sx * cup_offset, sy * cup_offset, 2.0 * plate[2] + hh),
                         Rotation::from_rotation_x(FRAC_PI_2),
                     ),
-                    SharedShape::cylinder(hh, CUP_RADIUS),
+                    SharedShape::cylinder(hh, *cup_radius),
                 ));
             }
         }
-        Task::BlockGrip | Task::Screw => {
+        EffectorSpec::Gripper {
+            body_half_extents: body, finger_half_extents: fh, finger_friction, ..
+        } => {
             parts[5].push((
-                Pose::from_translation(Vector::new(0.0, 0.0, GRIPPER_BODY_HALF[2])),
-                SharedShape::cuboid(GRIPPER_BODY_HALF[0], GRIPPER_BODY_HALF[1], GRIPPER_BODY_HALF[2]),
+                Pose::from_translation(Vector::new(0.0, 0.0, body[2])),
+                SharedShape::cuboid(body[0], body[1], body[2]),
             ));
             let mut f = [RigidBodyHandle::invalid(); 2];
-            for fh in f.iter_mut() {
-                *fh = w.insert_body(RigidBodyBuilder::kinematic_position_based());
+            for handle in f.iter_mut() {
+                *handle = w.insert_body(RigidBodyBuilder::kinematic_position_based());
                 w.insert_collider(
-                    ColliderBuilder::cuboid(FINGER_HALF[0], FINGER_HALF[1], FINGER_HALF[2])
-                        .friction(1.0)
+                    ColliderBuilder::cuboid(fh[0], fh[1], fh[2])
+                        .friction(*finger_friction)
                         .collision_groups(arm_groups()),
-                    Some(*fh),
+                    Some(*handle),
                 );
             }
             fingers = Some(f);
@@ -318,64 +356,65 @@ pub fn build(task: Task, start: &Start) -> (PhysicsWorld, Handles) {
         w.insert_collider(c.collision_groups(arm_groups()), Some(links[i]));
     }
 
-    // The object.
-    let object = match task {
-        Task::TileSuction => {
-            let b = w.insert_body(RigidBodyBuilder::dynamic().pose(object_at));
-            w.insert_collider(
-                ColliderBuilder::cuboid(TILE_HALF[0], TILE_HALF[1], TILE_HALF[2])
-                    .mass(TILE_MASS)
-                    .friction(FRICTION)
-                    .collision_groups(object_groups()),
-                Some(b),
-            );
-            b
+    // The object: dynamic on the table, or (a nut on its bolt) kinematic, placed from the turn
+    // count each step.
+    let o = &spec.object;
+    let mut collider = match object_shape(spec) {
+        Shape::Box { half } => ColliderBuilder::cuboid(half[0], half[1], half[2]),
+        Shape::Cylinder { radius, half_height } => {
+            ColliderBuilder::cylinder(half_height, radius).rotation(Vector::new(FRAC_PI_2, 0.0, 0.0))
         }
-        Task::BlockGrip => {
-            let b = w.insert_body(RigidBodyBuilder::dynamic().pose(object_at));
-            w.insert_collider(
-                ColliderBuilder::cuboid(BLOCK_HALF, BLOCK_HALF, BLOCK_HALF)
-                    .mass(BLOCK_MASS)
-                    .friction(FRICTION)
-                    .collision_groups(object_groups()),
-                Some(b),
-            );
-            b
-        }
-        Task::Screw => {
-            // The nut rides the thread: kinematic, placed from the turn count each step.
-            let b = w.insert_body(RigidBodyBuilder::kinematic_position_based().translation(object_pos));
-            w.insert_collider(
-                ColliderBuilder::cylinder(NUT_HALF_HEIGHT, NUT_RADIUS)
-                    .rotation(Vector::new(FRAC_PI_2, 0.0, 0.0))
-                    .collision_groups(object_groups()),
-                Some(b),
-            );
-            b
-        }
+        Shape::Capsule { .. } => unreachable!("invariant: objects are boxes or cylinders"),
     };
+    if let Some(m) = o.mass {
+        collider = collider.mass(m);
+    }
+    if let Some(f) = o.friction {
+        collider = collider.friction(f);
+    }
+    let body = match &spec.target {
+        TargetSpec::Bolt { .. } => RigidBodyBuilder::kinematic_position_based().translation(object_pos),
+        TargetSpec::Pad { .. } => RigidBodyBuilder::dynamic().pose(object_at),
+    };
+    let object = w.insert_body(body);
+    w.insert_collider(collider.collision_groups(object_groups()), Some(object));
     (w, Handles { links, fingers, object })
 }
 
 /// Target pose (centre of the object when the task is done) for TileSuction/BlockGrip.
 pub fn pad_target(task: Task) -> Vector {
-    let top = TABLE_TOP + 2.0 * PAD_HALF[2];
-    match task {
-        Task::TileSuction => Vector::new(PAD_XY[0], PAD_XY[1], top + TILE_HALF[2]),
-        Task::BlockGrip => Vector::new(PAD_XY[0], PAD_XY[1], top + BLOCK_HALF),
-        Task::Screw => Vector::ZERO,
+    pad_target_of(&TaskSpec::builtin(task))
+}
+
+/// The nominal target of a pad task: the object's centre resting on the pad's centre (zero for
+/// a bolt target).
+pub fn pad_target_of(spec: &TaskSpec) -> Vector {
+    match &spec.target {
+        TargetSpec::Pad { xy, half_extents, .. } => {
+            let top = spec.table.top_z + 2.0 * half_extents[2];
+            Vector::new(xy[0], xy[1], top + spec.object_half_height())
+        }
+        TargetSpec::Bolt { .. } => Vector::ZERO,
     }
 }
 
-/// The static scene description of a task at `start` (the pad, the target and the screw's plate
-/// where `start` puts them; the object item is relative to the object, `SceneFrame::Object`).
+/// The static scene description of the built-in `task` at `start` (the pad, the target and the
+/// screw's plate where `start` puts them; the object item is relative to the object,
+/// `SceneFrame::Object`).
 pub fn scene(task: Task, start: &Start) -> Scene {
-    let object_pos = start.object_centre(task);
+    scene_spec(&TaskSpec::builtin(task), start)
+}
+
+/// [`scene`] of the task `spec` describes.
+pub fn scene_spec(spec: &TaskSpec, start: &Start) -> Scene {
+    let task = spec.task();
+    let object_pos = start.object_centre(spec);
+    let (table_half, top) = (spec.table.half_extents, spec.table.top_z);
     let mut items = vec![item(
         "table",
         SceneFrame::World,
-        Shape::Box { half: TABLE_HALF },
-        [0.0, 0.0, TABLE_TOP - TABLE_HALF[2]],
+        Shape::Box { half: table_half },
+        [0.0, 0.0, top - table_half[2]],
         [0.72, 0.6, 0.45, 1.0],
     )];
     items.push(item(
@@ -397,84 +436,80 @@ pub fn scene(task: Task, start: &Start) -> Scene {
         ));
     }
     let tool = SceneFrame::Link(6);
-    match task {
-        Task::TileSuction => {
-            push_pad_and_target(&mut items, task, start, [TILE_HALF[0], TILE_HALF[1]], 0.0);
+    let object =
+        item(intern(&spec.object.name), SceneFrame::Object, object_shape(spec), [0.0; 3], spec.object.rgba);
+    match &spec.effector {
+        EffectorSpec::Suction { plate_half_extents: plate, cup_offset, cup_radius, tcp_z } => {
+            let half = spec.object.half_extents.unwrap_or([0.0; 3]);
+            push_pad_and_target(&mut items, spec, start, [half[0], half[1]], 0.0);
             items.push(item(
                 "suction_plate",
                 tool,
-                Shape::Box { half: PLATE_HALF },
-                [0.0, 0.0, PLATE_HALF[2]],
+                Shape::Box { half: *plate },
+                [0.0, 0.0, plate[2]],
                 [0.2, 0.2, 0.2, 1.0],
             ));
-            let hh = (CUP_TCP_Z - 2.0 * PLATE_HALF[2]) / 2.0;
+            let hh = (tcp_z - 2.0 * plate[2]) / 2.0;
             for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
                 items.push(item(
                     "cup",
                     tool,
-                    Shape::Cylinder { radius: CUP_RADIUS, half_height: hh },
-                    [sx * CUP_OFFSET, sy * CUP_OFFSET, 2.0 * PLATE_HALF[2] + hh],
+                    Shape::Cylinder { radius: *cup_radius, half_height: hh },
+                    [sx * cup_offset, sy * cup_offset, 2.0 * plate[2] + hh],
                     [0.1, 0.1, 0.1, 1.0],
                 ));
             }
-            items.push(item(
-                "tile",
-                SceneFrame::Object,
-                Shape::Box { half: TILE_HALF },
-                [0.0; 3],
-                [0.9, 0.9, 0.85, 1.0],
-            ));
+            items.push(object);
         }
-        Task::BlockGrip | Task::Screw => {
+        EffectorSpec::Gripper {
+            body_half_extents: body,
+            finger_half_extents: fh,
+            finger_z,
+            max_width,
+            ..
+        } => {
             items.push(item(
                 "gripper_body",
                 tool,
-                Shape::Box { half: GRIPPER_BODY_HALF },
-                [0.0, 0.0, GRIPPER_BODY_HALF[2]],
+                Shape::Box { half: *body },
+                [0.0, 0.0, body[2]],
                 [0.2, 0.2, 0.2, 1.0],
             ));
             // Fingers drawn at the open limit; at run time their tool-y offset is
-            // ±(gripper_width / 2 + FINGER_HALF[1]) with the snapshot's `gripper_width`.
+            // ±(gripper_width / 2 + finger_half_extents[1]) with the snapshot's `gripper_width`.
             for (name, sgn) in [("finger_left", 1.0f32), ("finger_right", -1.0)] {
                 items.push(item(
                     name,
                     tool,
-                    Shape::Box { half: FINGER_HALF },
-                    [0.0, sgn * (GRIP_MAX_WIDTH / 2.0 + FINGER_HALF[1]), FINGER_Z],
+                    Shape::Box { half: *fh },
+                    [0.0, sgn * (max_width / 2.0 + fh[1]), *finger_z],
                     [0.25, 0.25, 0.25, 1.0],
                 ));
             }
-            if task == Task::BlockGrip {
-                push_pad_and_target(&mut items, task, start, [BLOCK_HALF, BLOCK_HALF], -BLOCK_HALF);
-                items.push(item(
-                    "block",
-                    SceneFrame::Object,
-                    Shape::Box { half: [BLOCK_HALF; 3] },
-                    [0.0; 3],
-                    [0.8, 0.55, 0.3, 1.0],
-                ));
-            } else {
-                items.push(item(
-                    "plate",
-                    SceneFrame::World,
-                    Shape::Box { half: [SCREW_PLATE_HALF, SCREW_PLATE_HALF, 0.005] },
-                    [object_pos.x, object_pos.y, 0.005],
-                    [0.5, 0.5, 0.5, 1.0],
-                ));
-                items.push(item(
-                    "bolt",
-                    SceneFrame::World,
-                    Shape::Cylinder { radius: BOLT_RADIUS, half_height: (BOLT_TOP - 0.01) / 2.0 },
-                    [object_pos.x, object_pos.y, 0.01 + (BOLT_TOP - 0.01) / 2.0],
-                    [0.7, 0.7, 0.75, 1.0],
-                ));
-                items.push(item(
-                    "nut",
-                    SceneFrame::Object,
-                    Shape::Cylinder { radius: NUT_RADIUS, half_height: NUT_HALF_HEIGHT },
-                    [0.0; 3],
-                    [0.85, 0.75, 0.2, 1.0],
-                ));
+            match &spec.target {
+                TargetSpec::Pad { .. } => {
+                    let half = spec.object.half_extents.unwrap_or([0.0; 3]);
+                    push_pad_and_target(&mut items, spec, start, [half[0], half[1]], -half[2]);
+                    items.push(object);
+                }
+                TargetSpec::Bolt { plate_half_extents: p, radius, top_z, .. } => {
+                    let base = 2.0 * p[2];
+                    items.push(item(
+                        "plate",
+                        SceneFrame::World,
+                        Shape::Box { half: *p },
+                        [object_pos.x, object_pos.y, p[2]],
+                        [0.5, 0.5, 0.5, 1.0],
+                    ));
+                    items.push(item(
+                        "bolt",
+                        SceneFrame::World,
+                        Shape::Cylinder { radius: *radius, half_height: (top_z - base) / 2.0 },
+                        [object_pos.x, object_pos.y, base + (top_z - base) / 2.0],
+                        [0.7, 0.7, 0.75, 1.0],
+                    ));
+                    items.push(object);
+                }
             }
         }
     }

@@ -5,17 +5,20 @@
 
 mod tools;
 
+use crate::spec::TaskSpec;
 use crate::starts::{Start, Variation};
 use crate::task::{State, TaskLogic};
 use crate::world::{self, Scene};
-use crate::{FRAME_STACK, MAX_EPISODE_STEPS, MAX_JOINT_STEP, SimError, Task};
+use crate::{FRAME_STACK, MAX_JOINT_STEP, SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 /// Joint angles (rad) at the start of every episode: flange pointing straight down with the cup
-/// centre / gripper TCP about 0.2 m above the table, in front of the base (y ≈ 0.25 m).
+/// centre / gripper TCP about 0.2 m above the table, in front of the base (y ≈ 0.25 m). The
+/// built-in specs' `robot.home_q`; an env reads its spec's.
 pub const HOME_Q: [f64; 6] = [
     -2.224540093430817,
     -1.829711527172729,
@@ -49,7 +52,8 @@ pub struct StepOutcome {
     pub reward: f32,
     /// The episode ended by success (install/place/tightened) or failure (fall).
     pub terminated: bool,
-    /// The episode hit [`MAX_EPISODE_STEPS`] without terminating.
+    /// The episode hit its spec's `episode.max_steps` ([`MAX_EPISODE_STEPS`](crate::MAX_EPISODE_STEPS)
+    /// for the built-in tasks) without terminating.
     pub truncated: bool,
     /// The object has been picked/gripped at some step of this episode (ever, including now):
     /// the paper's "picked rate" counts episodes with `picked` at their end.
@@ -121,37 +125,48 @@ pub struct Env {
 }
 
 /// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset under
-/// the paper's variation: x uniform in `[OBJECT_X_MIN, OBJECT_X_MAX]` from the seed, y =
-/// `OBJECT_Y`, resting height.
+/// the paper's variation (the spec's `starts.paper`): x uniform in its range from the seed, y
+/// fixed, resting height.
 pub fn object_start(task: Task, seed: u64) -> Vector {
-    Variation::default().start(task, seed).object_centre(task)
+    let spec = TaskSpec::builtin(task);
+    spec.starts.paper.variation().start(task, seed).object_centre(&spec)
 }
 
 /// The static scene of episode `seed` of `task` (what [`Env::scene`] gives after `reset(seed)`),
 /// without building a world.
 pub fn episode_scene(task: Task, seed: u64) -> Scene {
-    world::scene(task, &Variation::default().start(task, seed))
+    world::scene(task, &TaskSpec::builtin(task).starts.paper.variation().start(task, seed))
 }
 
 impl Env {
     /// A new env; its episode seeds are drawn from a ChaCha8 RNG seeded with `seed`. The env is
     /// already reset (with the first drawn seed); call [`Env::reset`] to get the observation.
     pub fn new(task: Task, seed: u64) -> Env {
+        Env::from_spec(TaskSpec::builtin(task), seed)
+    }
+
+    /// A new env of the task `spec` describes (its logic follows from the effector,
+    /// [`TaskSpec::task`]), its episodes starting at the spec's paper starts; otherwise as
+    /// [`Env::new`].
+    pub fn from_spec(spec: Arc<TaskSpec>, seed: u64) -> Env {
+        let task = spec.task();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let first = rng.next_u64();
-        let (world, h) = world::build(task, &Start::default());
+        let (world, h) = world::build_spec(&spec, &Start::default());
+        let variation = spec.starts.paper.variation();
         let mut env = Env {
             task,
             logic: task.logic(),
             s: State {
+                spec,
                 world,
                 h,
-                q: HOME_Q,
+                q: [0.0; 6],
                 tool0: Pose::IDENTITY,
                 suction_on: false,
                 held: false,
                 hold_offset: Pose::IDENTITY,
-                width: world::GRIP_MAX_WIDTH,
+                width: 0.0,
                 spin: 0,
                 turns: 0.0,
                 picked: false,
@@ -165,7 +180,7 @@ impl Env {
             hist: vec![0.0; task.obs_dim()],
             skipped_steps: 0,
             skip_idle_physics: true,
-            variation: Variation::default(),
+            variation,
         };
         env.reset_with(first);
         env
@@ -174,6 +189,16 @@ impl Env {
     /// The task of this env.
     pub fn task(&self) -> Task {
         self.task
+    }
+
+    /// The spec this env runs.
+    pub fn spec(&self) -> &Arc<TaskSpec> {
+        &self.s.spec
+    }
+
+    /// Steps after which an episode is truncated (the spec's `episode.max_steps`).
+    pub fn max_episode_steps(&self) -> u32 {
+        self.s.spec.episode.max_steps
     }
 
     /// Start a new episode. `Some(s)`: the episode is a pure function of `s` (same seed + same
@@ -220,10 +245,10 @@ impl Env {
         }
         let start = match start {
             Some(st) => {
-                st.check(self.task)?;
+                st.check_in(&self.s.spec)?;
                 st
             }
-            None => Variation::default().start(self.task, seed),
+            None => self.s.spec.starts.paper.variation().start(self.task, seed),
         };
         self.reset_at(start, seed);
         for (k, row) in actions.chunks(ad).enumerate() {
@@ -257,7 +282,7 @@ impl Env {
     /// as episode `seed`. Writes the first observation into `obs_out`.
     pub fn reset_start(&mut self, start: Start, seed: u64, obs_out: &mut [f32]) -> Result<(), SimError> {
         check_len("obs", self.task.obs_dim(), obs_out.len())?;
-        start.check(self.task)?;
+        start.check_in(&self.s.spec)?;
         self.reset_at(start, seed);
         obs_out.copy_from_slice(&self.hist);
         Ok(())
@@ -279,19 +304,19 @@ impl Env {
     }
 
     fn reset_at(&mut self, start: Start, seed: u64) {
-        let (w, h) = world::build(self.task, &start);
+        let (w, h) = world::build_spec(&self.s.spec, &start);
         self.s.world = w;
         self.s.h = h;
         self.episode_seed = seed;
         self.s.start = start;
-        self.s.target = Pose::from_translation(start.target(self.task));
+        self.s.target = Pose::from_translation(start.target(&self.s.spec));
         self.step_idx = 0;
         self.done = false;
         self.s.held = false;
         self.s.hold_offset = Pose::IDENTITY;
         self.s.picked = false;
         self.logic.reset(&mut self.s);
-        self.teleport_arm(HOME_Q);
+        self.teleport_arm(self.s.spec.robot.home_q);
         self.hist.iter_mut().for_each(|v| *v = 0.0);
         self.push_frame();
     }
@@ -379,7 +404,7 @@ impl Env {
         self.logic.evaluate(&self.s, &mut out);
         out.picked = self.s.picked;
         out.held = self.s.held;
-        if !out.terminated && self.step_idx >= MAX_EPISODE_STEPS {
+        if !out.terminated && self.step_idx >= self.s.spec.episode.max_steps {
             out.truncated = true;
         }
         self.done = out.terminated || out.truncated;

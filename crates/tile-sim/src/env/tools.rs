@@ -17,7 +17,7 @@ impl Env {
             task: self.task,
             q: s.q,
             tool0: PoseRec::from_pose(&s.tool0),
-            tcp: PoseRec::from_pose(&s.tcp_at(self.logic.tcp_z())),
+            tcp: PoseRec::from_pose(&s.tcp()),
             object: PoseRec::from_pose(&s.object_pose()),
             target: PoseRec::from_pose(&s.target),
             suction_on: s.suction_on,
@@ -41,7 +41,7 @@ impl Env {
 
     /// Static geometry of this env's scene (the object item is relative to the object pose).
     pub fn scene(&self) -> Scene {
-        world::scene(self.task, &self.s.start)
+        world::scene_spec(&self.s.spec, &self.s.start)
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (rad, each within [-π, π]).

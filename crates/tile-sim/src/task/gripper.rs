@@ -6,13 +6,17 @@
 //! gap (m), TCP (between the fingertips), target, block centre. The finger motion is shared with
 //! [`super::screw`].
 
+use super::suction::req;
 use super::{State, TaskLogic};
+use crate::CONTROL_DT;
 use crate::env::StepOutcome;
-use crate::{CONTROL_DT, world};
 use rapier3d::prelude::*;
 
-/// BlockGrip place threshold, m.
+/// BlockGrip place threshold, m (the built-in spec's `thresholds.success_dist`; the logic reads
+/// the spec).
 pub const PLACE_DIST: f32 = 0.02;
+/// The block's centre must be this far inside the fingers' faces for them to close on it (m).
+const GRASP_INSET: f32 = 0.005;
 
 /// The BlockGrip logic.
 #[derive(Debug)]
@@ -29,7 +33,8 @@ pub(crate) fn fingers(
     contact: impl Fn(&State) -> Option<f32>,
     carry: bool,
 ) {
-    let dw = world::GRIP_SPEED * CONTROL_DT;
+    let (_, _, max_width, speed) = s.gripper();
+    let dw = speed * CONTROL_DT;
     if cmd >= 0.5 {
         if !s.held {
             let new_w = (s.width - dw).max(0.0);
@@ -38,21 +43,23 @@ pub(crate) fn fingers(
                     s.width = contact_w.min(s.width);
                     if carry {
                         // The closing fingers centre the block between them.
-                        let tcp = s.tcp_at(world::GRIP_TCP_Z);
+                        let tcp = s.tcp();
                         let mut local = tcp.inverse() * s.object_pose();
                         local.translation.y = 0.0;
                         let tool_to_tcp = s.tool0.inverse() * tcp;
-                        s.grasp(tool_to_tcp * local, out, 1.0);
+                        let reward = s.spec.rewards.pick;
+                        s.grasp(tool_to_tcp * local, out, reward);
                     } else {
                         s.held = true;
-                        s.first_pick(out, 1.0);
+                        let reward = s.spec.rewards.pick;
+                        s.first_pick(out, reward);
                     }
                 }
                 _ => s.width = new_w,
             }
         }
     } else if cmd <= -0.5 {
-        s.width = (s.width + dw).min(world::GRIP_MAX_WIDTH);
+        s.width = (s.width + dw).min(max_width);
         if s.held {
             s.held = false;
             if carry {
@@ -67,13 +74,10 @@ pub(crate) fn fingers(
 /// when `teleport`).
 pub(crate) fn place_fingers(s: &mut State, teleport: bool) {
     if let Some(f) = s.h.fingers {
+        let (finger_half, finger_z, _, _) = s.gripper();
         for (k, sign) in [(0usize, 1.0f32), (1, -1.0)] {
             let p = s.tool0
-                * Pose::from_translation(Vector::new(
-                    0.0,
-                    sign * (s.width / 2.0 + world::FINGER_HALF[1]),
-                    world::FINGER_Z,
-                ));
+                * Pose::from_translation(Vector::new(0.0, sign * (s.width / 2.0 + finger_half[1]), finger_z));
             if let Some(b) = s.world.bodies.get_mut(f[k]) {
                 if teleport {
                     b.set_position(p, true);
@@ -87,20 +91,24 @@ pub(crate) fn place_fingers(s: &mut State, teleport: bool) {
 /// The gap at which the fingers touch the block, if it lies between them: its extent across the
 /// fingers, when its centre is within the fingers' faces (5 mm in from their edges) and the gap.
 fn block_contact(s: &State) -> Option<f32> {
-    let tcp = s.tcp_at(world::GRIP_TCP_Z);
+    let tcp = s.tcp();
     let obj = s.object_pose();
+    let (finger_half, _, _, _) = s.gripper();
+    let h = s.spec.object.half_extents.unwrap_or([0.0; 3]);
     let p = tcp.inverse_transform_point(obj.translation);
     let tool_y = tcp.rotation * Vector::Y;
     let tool_x = tcp.rotation * Vector::X;
     let tool_z = tcp.rotation * Vector::Z;
+    // The block's half extent along `u`; a cube's in one product, as it always was computed.
     let ext = |u: Vector| {
         let r = obj.rotation;
-        world::BLOCK_HALF
-            * ((r * Vector::X).dot(u).abs() + (r * Vector::Y).dot(u).abs() + (r * Vector::Z).dot(u).abs())
+        let (ax, ay, az) =
+            ((r * Vector::X).dot(u).abs(), (r * Vector::Y).dot(u).abs(), (r * Vector::Z).dot(u).abs());
+        if h[0] == h[1] && h[1] == h[2] { h[0] * (ax + ay + az) } else { h[0] * ax + h[1] * ay + h[2] * az }
     };
     let (ex, ey, ez) = (ext(tool_x), ext(tool_y), ext(tool_z));
-    let inside = p.x.abs() < world::FINGER_HALF[0] + ex - 0.005
-        && p.z.abs() < world::FINGER_HALF[2] + ez - 0.005
+    let inside = p.x.abs() < finger_half[0] + ex - GRASP_INSET
+        && p.z.abs() < finger_half[2] + ez - GRASP_INSET
         && p.y.abs() < s.width / 2.0;
     inside.then_some(2.0 * ey)
 }
@@ -114,13 +122,9 @@ impl TaskLogic for BlockGrip {
         7
     }
 
-    fn tcp_z(&self) -> f32 {
-        world::GRIP_TCP_Z
-    }
-
     fn reset(&self, s: &mut State) {
         s.suction_on = false;
-        s.width = world::GRIP_MAX_WIDTH;
+        s.width = s.gripper().2;
         s.spin = 0;
         s.turns = 0.0;
     }
@@ -135,21 +139,19 @@ impl TaskLogic for BlockGrip {
 
     fn evaluate(&self, s: &State, out: &mut StepOutcome) {
         let (p, v) = s.object_state();
-        if !s.held && (p.translation - s.target.translation).length() < PLACE_DIST {
-            out.reward += 1.0;
+        let t = &s.spec.thresholds;
+        if !s.held && (p.translation - s.target.translation).length() < req(t.success_dist) {
+            out.reward += s.spec.rewards.success;
             out.installed = true;
             out.terminated = true;
-        } else if !p.is_finite()
-            || p.translation.z < super::suction::FALL_Z
-            || (!s.held && v.z < -super::suction::FALL_SPEED * 2.0)
-        {
-            out.reward -= 0.5;
+        } else if !p.is_finite() || p.translation.z < req(t.fall_z) || (!s.held && v.z < -req(t.fall_speed)) {
+            out.reward += s.spec.rewards.fail;
             out.fell = true;
             out.terminated = true;
         }
     }
 
     fn write_frame(&self, s: &State, f: &mut [f32]) {
-        s.write_frame(self.tcp_z(), &[s.width], f);
+        s.write_frame(&[s.width], f);
     }
 }

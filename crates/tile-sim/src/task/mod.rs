@@ -11,10 +11,12 @@ pub(crate) mod screw;
 pub(crate) mod suction;
 
 use crate::env::StepOutcome;
+use crate::spec::{EffectorSpec, TaskSpec};
 use crate::starts::Start;
 use crate::world::Handles;
 use crate::{CONTROL_DT, FRAME_STACK, SimError};
 use rapier3d::prelude::*;
+use std::sync::Arc;
 
 /// The three tasks of the paper's three end effectors.
 ///
@@ -64,6 +66,11 @@ impl Task {
         }
     }
 
+    /// The built-in spec of this task (`crates/tile-sim/tasks/*.toml`).
+    pub fn spec(self) -> Arc<TaskSpec> {
+        TaskSpec::builtin(self)
+    }
+
     /// The task's logic.
     pub(crate) fn logic(self) -> &'static dyn TaskLogic {
         match self {
@@ -107,6 +114,8 @@ impl From<Task> for &'static str {
 
 /// What every task reads and writes: the world and the episode's arm and effector state.
 pub(crate) struct State {
+    /// The task's numbers.
+    pub(crate) spec: Arc<TaskSpec>,
     pub(crate) world: PhysicsWorld,
     pub(crate) h: Handles,
     /// Joint angles, rad.
@@ -130,9 +139,19 @@ pub(crate) struct State {
 }
 
 impl State {
-    /// The TCP `tcp_z` m out along tool0's z axis.
-    pub(crate) fn tcp_at(&self, tcp_z: f32) -> Pose {
-        self.tool0 * Pose::from_translation(Vector::new(0.0, 0.0, tcp_z))
+    /// The gripper's numbers: (finger half extents, finger z, max width, speed). Zeros for suction.
+    pub(crate) fn gripper(&self) -> ([f32; 3], f32, f32, f32) {
+        match &self.spec.effector {
+            EffectorSpec::Gripper { finger_half_extents, finger_z, max_width, speed, .. } => {
+                (*finger_half_extents, *finger_z, *max_width, *speed)
+            }
+            EffectorSpec::Suction { .. } => ([0.0; 3], 0.0, 0.0, 0.0),
+        }
+    }
+
+    /// The TCP: the spec's `tcp_z` out along tool0's z axis.
+    pub(crate) fn tcp(&self) -> Pose {
+        self.tool0 * Pose::from_translation(Vector::new(0.0, 0.0, self.spec.tcp_z()))
     }
 
     pub(crate) fn object_pose(&self) -> Pose {
@@ -186,8 +205,8 @@ impl State {
 
     /// Write the frame layout every task shares: `q[6]`, the effector's `state` floats, then the
     /// TCP, target and object centres (Base frame, m). Returns how many floats were written.
-    pub(crate) fn write_frame(&self, tcp_z: f32, state: &[f32], f: &mut [f32]) -> usize {
-        let tcp = self.tcp_at(tcp_z).translation;
+    pub(crate) fn write_frame(&self, state: &[f32], f: &mut [f32]) -> usize {
+        let tcp = self.tcp().translation;
         let obj = self.object_pose().translation;
         let tgt = self.target.translation;
         for (fi, qi) in f.iter_mut().zip(self.q) {
@@ -212,8 +231,6 @@ pub(crate) trait TaskLogic: Sync {
     fn obs_frame_dim(&self) -> usize;
     /// Action length: 6 joint motions, the end-effector command, and the task's extra commands.
     fn act_dim(&self) -> usize;
-    /// The TCP's offset along tool0's z axis (m): cup centre or the point between the fingers.
-    fn tcp_z(&self) -> f32;
     /// Reset the effector's state at an episode start (suction off, fingers open, spin stopped);
     /// the world is new and the arm not placed yet.
     fn reset(&self, s: &mut State);

@@ -7,14 +7,27 @@
 //! target (the nut's tightened centre), nut centre, turns.
 
 use super::gripper::{fingers, place_fingers};
+use super::suction::req;
 use super::{State, TaskLogic};
 use crate::env::StepOutcome;
-use crate::{CONTROL_DT, SCREW_TURNS, world};
+use crate::spec::{EffectorSpec, TargetSpec};
+use crate::starts::nut_start_z;
+use crate::{CONTROL_DT, SCREW_TURNS};
 use rapier3d::prelude::*;
 use std::f64::consts::PI;
 
-/// The screwing TCP must point down within ~20° of the bolt axis.
-const ALIGN_COS: f32 = 0.94;
+/// The nut's centre must be within this distance of the TCP across the fingers to be gripped (m).
+const CENTRE_TOL: f32 = 0.006;
+/// Slack (m) of the finger gap over the nut's width for the fingers to go around it.
+const GAP_SLACK: f32 = 1e-4;
+
+/// (thread pitch m/turn, turns for success) of the spec's bolt.
+fn bolt(s: &State) -> (f32, f64) {
+    match &s.spec.target {
+        TargetSpec::Bolt { pitch, turns, .. } => (*pitch, *turns),
+        TargetSpec::Pad { .. } => (0.0, SCREW_TURNS),
+    }
+}
 
 /// The Screw logic.
 #[derive(Debug)]
@@ -23,7 +36,7 @@ pub(crate) struct Screw;
 /// Place the nut on the thread from the turn count (next kinematic pose; also the current one
 /// when `teleport`).
 pub(crate) fn place_nut(s: &mut State, teleport: bool) {
-    let z = world::NUT_START_Z - (s.turns as f32) * world::THREAD_PITCH;
+    let z = nut_start_z(&s.spec) - (s.turns as f32) * bolt(s).0;
     let ang = (s.turns * 2.0 * PI) as f32;
     // Tightening a right-hand thread turns the nut clockwise seen from above (−Z rotation).
     let p = Pose::from_parts(
@@ -42,16 +55,18 @@ pub(crate) fn place_nut(s: &mut State, teleport: bool) {
 /// is between the fingertips (within 6 mm of the TCP across, inside the fingers' length) and the
 /// gap is open wide enough.
 fn nut_contact(s: &State) -> Option<f32> {
-    let tcp = s.tcp_at(world::GRIP_TCP_Z);
+    let tcp = s.tcp();
     let p = tcp.inverse_transform_point(s.object_pose().translation);
     let tool_z = tcp.rotation * Vector::Z;
-    let aligned = tool_z.dot(-Vector::Z) > ALIGN_COS;
+    let aligned = tool_z.dot(-Vector::Z) > req(s.spec.thresholds.align_cos);
+    let (finger_half, _, _, _) = s.gripper();
+    let nut_radius = s.spec.object.radius.unwrap_or(0.0);
     let inside = aligned
-        && p.x.abs() < 0.006
-        && p.y.abs() < 0.006
-        && p.z.abs() < world::FINGER_HALF[2] - world::NUT_HALF_HEIGHT
-        && world::NUT_RADIUS <= s.width / 2.0 + 1e-4;
-    inside.then_some(2.0 * world::NUT_RADIUS)
+        && p.x.abs() < CENTRE_TOL
+        && p.y.abs() < CENTRE_TOL
+        && p.z.abs() < finger_half[2] - s.spec.object_half_height()
+        && nut_radius <= s.width / 2.0 + GAP_SLACK;
+    inside.then_some(2.0 * nut_radius)
 }
 
 impl TaskLogic for Screw {
@@ -63,13 +78,9 @@ impl TaskLogic for Screw {
         8
     }
 
-    fn tcp_z(&self) -> f32 {
-        world::GRIP_TCP_Z
-    }
-
     fn reset(&self, s: &mut State) {
         s.suction_on = false;
-        s.width = world::GRIP_MAX_WIDTH;
+        s.width = s.gripper().2;
         s.spin = 0;
         s.turns = 0.0;
     }
@@ -94,33 +105,38 @@ impl TaskLogic for Screw {
             0
         };
         if s.held {
-            let tcp = s.tcp_at(world::GRIP_TCP_Z);
+            let tcp = s.tcp();
             let d = tcp.translation - s.object_pose().translation;
-            let aligned = (tcp.rotation * Vector::Z).dot(-Vector::Z) > ALIGN_COS;
-            if !aligned || d.length() > 0.01 {
+            let t = &s.spec.thresholds;
+            let aligned = (tcp.rotation * Vector::Z).dot(-Vector::Z) > req(t.align_cos);
+            if !aligned || d.length() > req(t.slip_dist) {
                 // The arm pulled away: the fingers slip off the nut.
                 s.held = false;
             } else if s.spin != 0 {
-                s.turns += s.spin as f64 * (world::SPIN_RATE * CONTROL_DT) as f64;
+                let rate = match s.spec.effector {
+                    EffectorSpec::Gripper { spin_rate: Some(r), .. } => r,
+                    _ => 0.0,
+                };
+                s.turns += s.spin as f64 * (rate * CONTROL_DT) as f64;
             }
         }
         place_nut(s, false);
     }
 
     fn evaluate(&self, s: &State, out: &mut StepOutcome) {
-        if s.turns >= SCREW_TURNS - 1e-9 {
-            out.reward += 1.0;
+        if s.turns >= bolt(s).1 - 1e-9 {
+            out.reward += s.spec.rewards.success;
             out.installed = true;
             out.terminated = true;
-        } else if s.turns < -1.0 {
-            out.reward -= 0.5;
+        } else if s.turns < -req(s.spec.thresholds.fail_turns) {
+            out.reward += s.spec.rewards.fail;
             out.fell = true;
             out.terminated = true;
         }
     }
 
     fn write_frame(&self, s: &State, f: &mut [f32]) {
-        let k = s.write_frame(self.tcp_z(), &[s.width, s.spin as f32], f);
+        let k = s.write_frame(&[s.width, s.spin as f32], f);
         f[k] = s.turns as f32;
     }
 }

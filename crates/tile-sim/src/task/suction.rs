@@ -6,31 +6,37 @@
 
 use super::{State, TaskLogic};
 use crate::env::StepOutcome;
-use crate::world;
+use crate::spec::TaskSpec;
 use rapier3d::prelude::*;
 
-/// Pick threshold: cup centre to grasp point (paper §5.1), m.
+/// Pick threshold: cup centre to grasp point (paper §5.1), m (the built-in spec's
+/// `thresholds.pick_dist`; the logic reads the spec).
 pub const PICK_DIST: f32 = 0.04;
-/// Install threshold: tile centre to target (paper §5.1), m.
+/// Install threshold: tile centre to target (paper §5.1), m (`thresholds.success_dist`).
 pub const INSTALL_DIST: f32 = 0.03;
 /// Fall rules: centre below this height (m, the table top is 0), tilt above 45°, or falling
-/// faster than `FALL_SPEED` (m/s) while not held.
+/// faster than `FALL_SPEED` (m/s) while not held (`thresholds.fall_z`, `fall_speed`).
 pub const FALL_Z: f32 = -0.02;
 pub const FALL_SPEED: f32 = 1.0;
-const FALL_TILT_COS: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+/// A threshold the spec check made sure is there.
+pub(crate) fn req<T>(v: Option<T>) -> T {
+    v.expect("invariant: TaskSpec::check requires the thresholds its logic reads")
+}
 
 /// The TileSuction logic.
 #[derive(Debug)]
 pub(crate) struct Suction;
 
-fn fell(p: &Pose, v: Vector, held: bool) -> bool {
-    if !p.is_finite() || p.translation.z < FALL_Z {
+fn fell(spec: &TaskSpec, p: &Pose, v: Vector, held: bool) -> bool {
+    let t = &spec.thresholds;
+    if !p.is_finite() || p.translation.z < req(t.fall_z) {
         return true;
     }
     if held {
         return false;
     }
-    (p.rotation * Vector::Z).z.abs() < FALL_TILT_COS || v.z < -FALL_SPEED
+    (p.rotation * Vector::Z).z.abs() < req(t.fall_tilt_cos) || v.z < -req(t.fall_speed)
 }
 
 impl TaskLogic for Suction {
@@ -42,13 +48,9 @@ impl TaskLogic for Suction {
         7
     }
 
-    fn tcp_z(&self) -> f32 {
-        world::CUP_TCP_Z
-    }
-
     fn reset(&self, s: &mut State) {
         s.suction_on = false;
-        s.width = world::GRIP_MAX_WIDTH;
+        s.width = 0.0;
         s.spin = 0;
         s.turns = 0.0;
     }
@@ -73,22 +75,23 @@ impl TaskLogic for Suction {
             let up = tile.rotation * Vector::Z;
             // The face turned up is the one the cups reach.
             let sign = if up.z >= 0.0 { 1.0 } else { -1.0 };
-            let grasp = tile.translation + up * (sign * world::TILE_HALF[2]);
-            if (s.tcp_at(self.tcp_z()).translation - grasp).length() < PICK_DIST {
+            let grasp = tile.translation + up * (sign * s.spec.object_half_height());
+            if (s.tcp().translation - grasp).length() < req(s.spec.thresholds.pick_dist) {
                 let offset = s.tool0.inverse() * tile;
-                s.grasp(offset, out, 1.0);
+                let reward = s.spec.rewards.pick;
+                s.grasp(offset, out, reward);
             }
         }
     }
 
     fn evaluate(&self, s: &State, out: &mut StepOutcome) {
         let (p, v) = s.object_state();
-        if (p.translation - s.target.translation).length() < INSTALL_DIST {
-            out.reward += 1.0;
+        if (p.translation - s.target.translation).length() < req(s.spec.thresholds.success_dist) {
+            out.reward += s.spec.rewards.success;
             out.installed = true;
             out.terminated = true;
-        } else if fell(&p, v, s.held) {
-            out.reward -= 0.5;
+        } else if fell(&s.spec, &p, v, s.held) {
+            out.reward += s.spec.rewards.fail;
             out.fell = true;
             out.terminated = true;
         }
@@ -96,6 +99,6 @@ impl TaskLogic for Suction {
 
     fn write_frame(&self, s: &State, f: &mut [f32]) {
         let suction = if s.suction_on { 1.0 } else { -1.0 };
-        s.write_frame(self.tcp_z(), &[suction], f);
+        s.write_frame(&[suction], f);
     }
 }

@@ -1,0 +1,360 @@
+//! Checks a [`TaskSpec`] field by field: every number finite and in range, the object, target and
+//! thresholds the effector's task logic needs present (and none it would ignore). The first bad
+//! field is reported as a [`SpecError::Invalid`] with its dotted path, its value and why.
+
+use super::{EffectorSpec, SPEC_VERSION, TargetSpec, TaskSpec, ThresholdsSpec, VariationSpec};
+use crate::{MAX_YAW, Task};
+use std::fmt::Debug;
+
+/// A task spec that cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpecError {
+    /// The spec file could not be read.
+    #[error("{path}: cannot read the task spec: {reason}")]
+    Io { path: String, reason: String },
+    /// The text is not TOML, or not a task spec (unknown or missing field, wrong type); the
+    /// message gives the line, the column and the field.
+    #[error("{source_name}: {message}")]
+    Parse { source_name: String, message: String },
+    /// A field's value is out of range or does not fit the task.
+    #[error("{field} = {value}: {reason}")]
+    Invalid { field: String, value: String, reason: String },
+}
+
+impl SpecError {
+    pub(super) fn parse(source: &str, e: &toml::de::Error) -> SpecError {
+        SpecError::Parse { source_name: source.to_string(), message: e.to_string().trim_end().to_string() }
+    }
+
+    /// The dotted path of the bad field (`Invalid` only).
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            SpecError::Invalid { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+}
+
+fn invalid<T: Debug>(field: &str, value: T, reason: impl Into<String>) -> Result<(), SpecError> {
+    Err(SpecError::Invalid { field: field.to_string(), value: format!("{value:?}"), reason: reason.into() })
+}
+
+/// Each component finite and > 0.
+fn positive(field: &str, v: &[f32]) -> Result<(), SpecError> {
+    if v.iter().all(|x| x.is_finite() && *x > 0.0) {
+        return Ok(());
+    }
+    match v {
+        [x] => invalid(field, x, "must be a finite number > 0"),
+        _ => invalid(field, v, "every component must be a finite number > 0"),
+    }
+}
+
+fn friction(field: &str, v: f32) -> Result<(), SpecError> {
+    if v.is_finite() && (0.0..=10.0).contains(&v) {
+        return Ok(());
+    }
+    invalid(field, v, "a friction coefficient must be in [0, 10]")
+}
+
+fn finite(field: &str, v: &[f32]) -> Result<(), SpecError> {
+    if v.iter().all(|x| x.is_finite()) {
+        return Ok(());
+    }
+    invalid(field, v, "must be finite")
+}
+
+/// A threshold the logic reads: present, finite, and passing `ok`.
+fn need<T: Copy + Debug>(
+    field: &str,
+    v: Option<T>,
+    logic: &str,
+    ok: impl Fn(T) -> bool,
+    range: &str,
+) -> Result<(), SpecError> {
+    match v {
+        None => Err(SpecError::Invalid {
+            field: field.to_string(),
+            value: "(missing)".into(),
+            reason: format!("the {logic} logic needs it ({range})"),
+        }),
+        Some(x) if !ok(x) => invalid(field, x, format!("must be {range}")),
+        Some(_) => Ok(()),
+    }
+}
+
+/// A threshold the logic does not read: absent (a present one would be silently ignored).
+fn unused<T: Debug>(field: &str, v: Option<T>, logic: &str) -> Result<(), SpecError> {
+    match v {
+        Some(x) => invalid(field, x, format!("the {logic} logic does not read it: remove it")),
+        None => Ok(()),
+    }
+}
+
+fn check_variation(field: &str, v: &VariationSpec) -> Result<(), SpecError> {
+    let max_yaw_deg = MAX_YAW.to_degrees();
+    for (name, [lo, hi], lim) in
+        [("object_x", v.object_x, 0.3f32), ("object_y", v.object_y, 0.5), ("yaw_deg", v.yaw_deg, max_yaw_deg)]
+    {
+        if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -lim || hi > lim {
+            return invalid(
+                &format!("{field}.{name}"),
+                [lo, hi],
+                format!("must be an ordered range [lo, hi] within [-{lim}, {lim}]"),
+            );
+        }
+    }
+    let max_jitter = if v.pad_follows { crate::MAX_TARGET_OFFSET } else { 0.025 };
+    if !(v.target_jitter.is_finite() && (0.0..=max_jitter).contains(&v.target_jitter)) {
+        let why = if v.pad_follows { "with the pad following" } else { "with the pad fixed" };
+        return invalid(
+            &format!("{field}.target_jitter"),
+            v.target_jitter,
+            format!("must be in [0, {max_jitter}] m {why}"),
+        );
+    }
+    Ok(())
+}
+
+fn check_thresholds(task: Task, t: &ThresholdsSpec) -> Result<(), SpecError> {
+    let dist = |x: f32| x.is_finite() && x > 0.0 && x < 1.0;
+    let cos = |x: f32| x.is_finite() && x > 0.0 && x < 1.0;
+    let (d, c) = ("a distance in (0, 1) m", "a cosine in (0, 1)");
+    match task {
+        Task::TileSuction => {
+            let l = "suction";
+            need("thresholds.pick_dist", t.pick_dist, l, dist, d)?;
+            need("thresholds.success_dist", t.success_dist, l, dist, d)?;
+            need("thresholds.fall_z", t.fall_z, l, |x: f32| x.is_finite(), "a finite height (m)")?;
+            need(
+                "thresholds.fall_speed",
+                t.fall_speed,
+                l,
+                |x: f32| x.is_finite() && x > 0.0,
+                "a speed > 0 m/s",
+            )?;
+            need("thresholds.fall_tilt_cos", t.fall_tilt_cos, l, cos, c)?;
+            unused("thresholds.align_cos", t.align_cos, l)?;
+            unused("thresholds.slip_dist", t.slip_dist, l)?;
+            unused("thresholds.fail_turns", t.fail_turns, l)
+        }
+        Task::BlockGrip => {
+            let l = "gripper";
+            need("thresholds.success_dist", t.success_dist, l, dist, d)?;
+            need("thresholds.fall_z", t.fall_z, l, |x: f32| x.is_finite(), "a finite height (m)")?;
+            need(
+                "thresholds.fall_speed",
+                t.fall_speed,
+                l,
+                |x: f32| x.is_finite() && x > 0.0,
+                "a speed > 0 m/s",
+            )?;
+            unused("thresholds.pick_dist", t.pick_dist, l)?;
+            unused("thresholds.fall_tilt_cos", t.fall_tilt_cos, l)?;
+            unused("thresholds.align_cos", t.align_cos, l)?;
+            unused("thresholds.slip_dist", t.slip_dist, l)?;
+            unused("thresholds.fail_turns", t.fail_turns, l)
+        }
+        Task::Screw => {
+            let l = "screw";
+            need("thresholds.align_cos", t.align_cos, l, cos, c)?;
+            need("thresholds.slip_dist", t.slip_dist, l, dist, d)?;
+            need(
+                "thresholds.fail_turns",
+                t.fail_turns,
+                l,
+                |x: f64| x.is_finite() && x > 0.0,
+                "a number of turns > 0",
+            )?;
+            unused("thresholds.pick_dist", t.pick_dist, l)?;
+            unused("thresholds.success_dist", t.success_dist, l)?;
+            unused("thresholds.fall_z", t.fall_z, l)?;
+            unused("thresholds.fall_speed", t.fall_speed, l)?;
+            unused("thresholds.fall_tilt_cos", t.fall_tilt_cos, l)
+        }
+    }
+}
+
+impl TaskSpec {
+    /// Check every field (see the module docs).
+    ///
+    /// # Errors
+    /// The first bad field, as [`SpecError::Invalid`].
+    pub fn check(&self) -> Result<(), SpecError> {
+        if self.version != SPEC_VERSION {
+            return invalid("version", self.version, format!("this simulator reads version {SPEC_VERSION}"));
+        }
+        if self.name.is_empty() || !self.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return invalid("name", &self.name, "must be a non-empty name of letters, digits and '_'");
+        }
+        if self.robot.model != "ur3" {
+            return invalid("robot.model", &self.robot.model, "only the UR3 (\"ur3\") is simulated so far");
+        }
+        if !self.robot.home_q.iter().all(|q| q.is_finite() && q.abs() <= std::f64::consts::PI) {
+            return invalid(
+                "robot.home_q",
+                self.robot.home_q,
+                "joint angles must be finite and within [-pi, pi] rad",
+            );
+        }
+        positive("table.half_extents", &self.table.half_extents)?;
+        finite("table.top_z", &[self.table.top_z])?;
+        friction("table.friction", self.table.friction)?;
+        self.check_effector()?;
+        self.check_object()?;
+        self.check_target()?;
+        check_variation("starts.paper", &self.starts.paper)?;
+        check_variation("starts.wide", &self.starts.wide)?;
+        check_thresholds(self.task(), &self.thresholds)?;
+        let r = &self.rewards;
+        finite("rewards.pick", &[r.pick])?;
+        finite("rewards.success", &[r.success])?;
+        finite("rewards.fail", &[r.fail])?;
+        if !(1..=100_000).contains(&self.episode.max_steps) {
+            return invalid("episode.max_steps", self.episode.max_steps, "must be in [1, 100000] steps");
+        }
+        Ok(())
+    }
+
+    fn check_effector(&self) -> Result<(), SpecError> {
+        match &self.effector {
+            EffectorSpec::Suction { plate_half_extents, cup_offset, cup_radius, tcp_z } => {
+                positive("effector.plate_half_extents", plate_half_extents)?;
+                positive("effector.cup_offset", &[*cup_offset])?;
+                positive("effector.cup_radius", &[*cup_radius])?;
+                if !(tcp_z.is_finite() && *tcp_z > 2.0 * plate_half_extents[2]) {
+                    return invalid(
+                        "effector.tcp_z",
+                        tcp_z,
+                        "the cup lips must be below the plate's face (tcp_z > 2 * plate_half_extents[2])",
+                    );
+                }
+            }
+            EffectorSpec::Gripper {
+                body_half_extents,
+                finger_half_extents,
+                finger_z,
+                max_width,
+                speed,
+                finger_friction,
+                spin_rate,
+            } => {
+                positive("effector.body_half_extents", body_half_extents)?;
+                positive("effector.finger_half_extents", finger_half_extents)?;
+                positive("effector.finger_z", &[*finger_z])?;
+                positive("effector.max_width", &[*max_width])?;
+                positive("effector.speed", &[*speed])?;
+                friction("effector.finger_friction", *finger_friction)?;
+                if let Some(r) = spin_rate {
+                    positive("effector.spin_rate", &[*r])?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn check_object(&self) -> Result<(), SpecError> {
+        let o = &self.object;
+        if o.name.is_empty() {
+            return invalid("object.name", &o.name, "must not be empty");
+        }
+        match o.shape.as_str() {
+            "box" => {
+                let Some(h) = o.half_extents else {
+                    return invalid(
+                        "object.half_extents",
+                        "(missing)",
+                        "a box object needs its half extents (m)",
+                    );
+                };
+                positive("object.half_extents", &h)?;
+                for (f, v) in [("object.radius", o.radius), ("object.half_height", o.half_height)] {
+                    if let Some(v) = v {
+                        return invalid(f, v, "a box object has half_extents only");
+                    }
+                }
+            }
+            "cylinder" => {
+                let (Some(r), Some(hh)) = (o.radius, o.half_height) else {
+                    return invalid(
+                        "object.radius",
+                        o.radius,
+                        "a cylinder object needs radius and half_height (m)",
+                    );
+                };
+                positive("object.radius", &[r])?;
+                positive("object.half_height", &[hh])?;
+                if let Some(h) = o.half_extents {
+                    return invalid(
+                        "object.half_extents",
+                        h,
+                        "a cylinder object has radius and half_height only",
+                    );
+                }
+            }
+            other => return invalid("object.shape", other, "must be \"box\" or \"cylinder\""),
+        }
+        if let Some(m) = o.mass {
+            positive("object.mass", &[m])?;
+        }
+        if let Some(f) = o.friction {
+            friction("object.friction", f)?;
+        }
+        if !o.rgba.iter().all(|c| (0.0..=1.0).contains(c)) {
+            return invalid("object.rgba", o.rgba, "colour components must be in [0, 1]");
+        }
+        let (task, shape) = (self.task(), o.shape.as_str());
+        match (task, shape) {
+            (Task::TileSuction | Task::BlockGrip, "box") | (Task::Screw, "cylinder") => Ok(()),
+            (Task::Screw, _) => invalid("object.shape", shape, "the screw logic turns a cylinder (the nut)"),
+            _ => invalid("object.shape", shape, format!("the {} logic moves a box", task.name())),
+        }
+    }
+
+    fn check_target(&self) -> Result<(), SpecError> {
+        match (&self.target, self.task()) {
+            (TargetSpec::Pad { xy, half_extents, friction: f }, Task::TileSuction | Task::BlockGrip) => {
+                finite("target.xy", xy)?;
+                positive("target.half_extents", half_extents)?;
+                friction("target.friction", *f)
+            }
+            (
+                TargetSpec::Bolt { plate_half_extents, radius, top_z, pitch, catch_gap, turns },
+                Task::Screw,
+            ) => {
+                positive("target.plate_half_extents", plate_half_extents)?;
+                positive("target.radius", &[*radius])?;
+                positive("target.pitch", &[*pitch])?;
+                positive("target.catch_gap", &[*catch_gap])?;
+                if !(turns.is_finite() && *turns > 0.0) {
+                    return invalid("target.turns", turns, "must be a number of turns > 0");
+                }
+                let nut_r = self.object.radius.unwrap_or(0.0);
+                if nut_r <= *radius {
+                    return invalid(
+                        "target.radius",
+                        radius,
+                        format!("the nut (radius {nut_r} m) must be wider than the bolt"),
+                    );
+                }
+                let nut_start = top_z - self.object_half_height() - catch_gap;
+                let low = 2.0 * plate_half_extents[2] + self.object_half_height();
+                if !(top_z.is_finite() && nut_start - (*turns as f32) * pitch > low) {
+                    return invalid(
+                        "target.top_z",
+                        top_z,
+                        format!("the bolt is too short for {turns} turns of the nut above the plate"),
+                    );
+                }
+                Ok(())
+            }
+            (TargetSpec::Pad { .. }, t) => {
+                invalid("target.kind", "pad", format!("the {} logic needs a bolt target", t.name()))
+            }
+            (TargetSpec::Bolt { .. }, t) => {
+                invalid("target.kind", "bolt", format!("the {} logic needs a pad target", t.name()))
+            }
+        }
+    }
+}

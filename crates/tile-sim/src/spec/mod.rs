@@ -1,0 +1,335 @@
+//! Task specs: one TOML file describes a task (the robot, the end effector, the object, the
+//! target, where episodes start, thresholds, rewards, the episode length), read into a
+//! [`TaskSpec`] and checked field by field ([`SpecError`] names the field, the value and why).
+//! The three built-in tasks are the files in `crates/tile-sim/tasks/`, compiled in with
+//! `include_str!` ([`TaskSpec::builtin`]), so nothing is read from disk at run time.
+//!
+//! Frames and units everywhere: the Base frame (the UR "Base", DH frame 0, Z up), metres, kg,
+//! seconds; angles in radians except where a field's name ends in `_deg`. Effector geometry is
+//! given in tool0 (the flange frame, z out of the flange). Half extents are half the full size.
+//!
+//! What a spec does not hold: the arm's link shapes (from the robot's DH table), the control rate,
+//! joint step and physics substeps (crate constants), and the observation layout (the task
+//! logic's, [`crate::Task::obs_frame_dim`]). The task logic that judges an episode follows from
+//! the effector: `suction` → TileSuction's, `gripper` → BlockGrip's, `gripper` with `spin_rate` →
+//! Screw's.
+
+mod check;
+
+pub use check::SpecError;
+
+use crate::Task;
+use serde::Deserialize;
+use std::sync::{Arc, OnceLock};
+
+/// The spec format version this simulator reads.
+pub const SPEC_VERSION: u32 = 1;
+
+/// A task, as a spec file describes it (see the module docs for frames and units).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskSpec {
+    /// Format version: must be [`SPEC_VERSION`] (1).
+    pub version: u32,
+    /// The task's name (the gymnasium id is `mimicrete/<name>-v0`), e.g. `"TileSuction"`.
+    pub name: String,
+    /// The arm.
+    pub robot: RobotSpec,
+    /// The table the arm's base stands on.
+    pub table: TableSpec,
+    /// The end effector on tool0.
+    pub effector: EffectorSpec,
+    /// The object the task moves.
+    pub object: ObjectSpec,
+    /// Where the object must end up.
+    pub target: TargetSpec,
+    /// Where episodes start.
+    pub starts: StartsSpec,
+    /// Distances and angles that decide a pick, a success and a failure.
+    pub thresholds: ThresholdsSpec,
+    /// The sparse rewards.
+    pub rewards: RewardsSpec,
+    /// Episode length.
+    pub episode: EpisodeSpec,
+}
+
+/// The arm.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSpec {
+    /// UR model name, as `ur3_kin` names it. Only `"ur3"` is simulated so far.
+    pub model: String,
+    /// Joint angles (rad) at every episode start, base to wrist 3.
+    pub home_q: [f64; 6],
+}
+
+/// The table: a fixed box whose top face is the plane `z = top_z`, centred under the base.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableSpec {
+    /// Half extents (m): x, y, thickness / 2.
+    pub half_extents: [f32; 3],
+    /// Height of the top face (m, Base frame; the UR base stands on it).
+    pub top_z: f32,
+    /// Coulomb friction coefficient of the top.
+    pub friction: f32,
+}
+
+/// The end effector on tool0, by kind.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum EffectorSpec {
+    /// A suction plate with four cups at `(±cup_offset, ±cup_offset)` (tool0), each a cylinder
+    /// from the plate's face (tool0 z = 2 · plate_half_extents.z) to the cup lips at `tcp_z`.
+    Suction {
+        /// Plate half extents (m); the plate's centre is at tool0 z = `plate_half_extents[2]`.
+        plate_half_extents: [f32; 3],
+        /// Cup centre offset from the flange axis along tool0 x and y (m).
+        cup_offset: f32,
+        /// Cup radius (m).
+        cup_radius: f32,
+        /// The TCP, the centre of the four cup lips, along tool0 z (m).
+        tcp_z: f32,
+    },
+    /// A parallel gripper: a body box and two finger boxes sliding along tool0 y, closing and
+    /// opening at a constant speed; with `spin_rate`, the screwing effector (it turns what it grips).
+    Gripper {
+        /// Body half extents (m); the body's centre is at tool0 z = `body_half_extents[2]`.
+        body_half_extents: [f32; 3],
+        /// Finger half extents (m), tool0 axes.
+        finger_half_extents: [f32; 3],
+        /// The fingers' centre along tool0 z (m); the TCP (between the fingertips) is here too.
+        finger_z: f32,
+        /// Largest finger gap (m); the gap at an episode start.
+        max_width: f32,
+        /// Closing and opening speed of the gap (m/s).
+        speed: f32,
+        /// Friction coefficient of the fingers.
+        finger_friction: f32,
+        /// Screwing: turns per second while spinning (absent: no spin command).
+        #[serde(default)]
+        spin_rate: Option<f32>,
+    },
+}
+
+/// The object the task moves.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    /// Its name in the scene (`"tile"`, `"block"`, `"nut"`).
+    pub name: String,
+    /// `"box"` (with `half_extents`) or `"cylinder"` (with `radius`, `half_height`; axis along z).
+    pub shape: String,
+    /// Box half extents (m), the object's own axes (z up when it lies flat).
+    #[serde(default)]
+    pub half_extents: Option<[f32; 3]>,
+    /// Cylinder radius (m).
+    #[serde(default)]
+    pub radius: Option<f32>,
+    /// Cylinder half height (m).
+    #[serde(default)]
+    pub half_height: Option<f32>,
+    /// Mass (kg); absent: Rapier's default density (a kinematic object, the nut).
+    #[serde(default)]
+    pub mass: Option<f32>,
+    /// Friction coefficient; absent: Rapier's default (0.5).
+    #[serde(default)]
+    pub friction: Option<f32>,
+    /// Colour in the scene, RGBA in [0, 1].
+    pub rgba: [f32; 4],
+}
+
+/// Where the object must end up, by kind.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum TargetSpec {
+    /// A fixed box pad on the table; the target is the object's centre resting on its top, at
+    /// the pad's centre (moved with a start's target offset).
+    Pad {
+        /// The pad's centre (x, y) on the table (m, Base frame), before a start's offset.
+        xy: [f32; 2],
+        /// Pad half extents (m).
+        half_extents: [f32; 3],
+        /// Friction coefficient of the pad's top.
+        friction: f32,
+    },
+    /// A bolt standing on a plate at the object's start (x, y); the nut starts caught on the thread
+    /// and the target is its centre `turns` turns further down.
+    Bolt {
+        /// Plate half extents (m); the plate lies on the table.
+        plate_half_extents: [f32; 3],
+        /// Bolt radius (m).
+        radius: f32,
+        /// Height of the bolt's top above the table (m).
+        top_z: f32,
+        /// Thread pitch (m per turn).
+        pitch: f32,
+        /// The nut's top sits this far below the bolt's top when it has just caught the thread (m).
+        catch_gap: f32,
+        /// Turns to screw down for success.
+        turns: f64,
+    },
+}
+
+/// Where episodes start: the paper's distribution (demos are recorded there) and the wide one.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartsSpec {
+    /// The paper's starts (paper §5.1: the object's x uniform in [0, 0.15] m).
+    pub paper: VariationSpec,
+    /// The wide starts (the object spread over the table within reach, turned, the target moved).
+    pub wide: VariationSpec,
+}
+
+/// One start distribution; each range is `[lo, hi]`, a range with `lo == hi` is not drawn from.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VariationSpec {
+    /// The object centre's x (m, Base frame), uniform in the range.
+    pub object_x: [f32; 2],
+    /// The object centre's y (m).
+    pub object_y: [f32; 2],
+    /// The object's yaw about Base z (degrees).
+    pub yaw_deg: [f32; 2],
+    /// The target moves by (dx, dy), each uniform in `[-target_jitter, target_jitter]` (m).
+    pub target_jitter: f32,
+    /// The pad moves with the target (else it stays).
+    pub pad_follows: bool,
+}
+
+/// Thresholds; each task logic requires the ones it reads (see [`SpecError`]).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThresholdsSpec {
+    /// Suction: the cup centre within this distance of the grasp point (the centre of the
+    /// object's upper face) picks it (m).
+    #[serde(default)]
+    pub pick_dist: Option<f32>,
+    /// Success: the object's centre within this distance of the target (m); the gripper logic
+    /// also needs the object released.
+    #[serde(default)]
+    pub success_dist: Option<f32>,
+    /// Failure: the object's centre below this height (m).
+    #[serde(default)]
+    pub fall_z: Option<f32>,
+    /// Failure: the object, not held, falling faster than this (m/s).
+    #[serde(default)]
+    pub fall_speed: Option<f32>,
+    /// Failure (suction): the object, not held, tilted so far that its up axis' z is below this
+    /// cosine (0.7071… = 45°).
+    #[serde(default)]
+    pub fall_tilt_cos: Option<f32>,
+    /// Screw: the flange's z must point down within this cosine of the bolt axis (0.94 ≈ 20°)
+    /// to grip and turn the nut.
+    #[serde(default)]
+    pub align_cos: Option<f32>,
+    /// Screw: the fingers slip off the nut when the TCP moves farther than this from it (m).
+    #[serde(default)]
+    pub slip_dist: Option<f32>,
+    /// Screw: failure when the nut is loosened more than this many turns (it leaves the bolt).
+    #[serde(default)]
+    pub fail_turns: Option<f64>,
+}
+
+/// The sparse rewards (each paid at the event, the pick only once per episode).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RewardsSpec {
+    /// The first pick / grasp of the episode.
+    pub pick: f32,
+    /// Success (installed, placed, tightened); ends the episode.
+    pub success: f32,
+    /// Failure (fell, spun off); ends the episode. Usually negative.
+    pub fail: f32,
+}
+
+/// Episode length.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EpisodeSpec {
+    /// Episodes are truncated (not terminated) after this many env steps.
+    pub max_steps: u32,
+}
+
+/// The built-in spec files, in [`Task::ALL`] order.
+const BUILTIN_TOML: [(&str, &str); 3] = [
+    ("tile_suction.toml", include_str!("../../tasks/tile_suction.toml")),
+    ("block_grip.toml", include_str!("../../tasks/block_grip.toml")),
+    ("screw.toml", include_str!("../../tasks/screw.toml")),
+];
+
+impl TaskSpec {
+    /// Read and check a spec from TOML text; `source` names it in errors (a file name).
+    ///
+    /// # Errors
+    /// [`SpecError`]: the text is not TOML or not a spec (an unknown or missing field, a wrong
+    /// type), or a field's value is out of range or does not fit the effector's task logic.
+    pub fn from_toml(text: &str, source: &str) -> Result<TaskSpec, SpecError> {
+        let spec: TaskSpec = toml::from_str(text).map_err(|e| SpecError::parse(source, &e))?;
+        spec.check()?;
+        Ok(spec)
+    }
+
+    /// Read and check a spec file.
+    ///
+    /// # Errors
+    /// [`SpecError::Io`] when the file cannot be read, else as [`TaskSpec::from_toml`].
+    pub fn from_file(path: &std::path::Path) -> Result<TaskSpec, SpecError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SpecError::Io { path: path.display().to_string(), reason: e.to_string() })?;
+        TaskSpec::from_toml(&text, &path.display().to_string())
+    }
+
+    /// The built-in spec of `task` (parsed once, shared).
+    pub fn builtin(task: Task) -> Arc<TaskSpec> {
+        static SPECS: OnceLock<[Arc<TaskSpec>; 3]> = OnceLock::new();
+        let specs = SPECS.get_or_init(|| {
+            BUILTIN_TOML.map(|(name, text)| {
+                Arc::new(TaskSpec::from_toml(text, name).expect("invariant: the built-in specs are valid"))
+            })
+        });
+        let i = Task::ALL.iter().position(|t| *t == task).expect("invariant: Task::ALL lists every task");
+        Arc::clone(&specs[i])
+    }
+
+    /// The built-in spec file's text of `task` (what [`TaskSpec::builtin`] parses).
+    pub fn builtin_toml(task: Task) -> &'static str {
+        let i = Task::ALL.iter().position(|t| *t == task).expect("invariant: Task::ALL lists every task");
+        BUILTIN_TOML[i].1
+    }
+
+    /// The task logic this spec's effector selects.
+    pub fn task(&self) -> Task {
+        match self.effector {
+            EffectorSpec::Suction { .. } => Task::TileSuction,
+            EffectorSpec::Gripper { spin_rate: None, .. } => Task::BlockGrip,
+            EffectorSpec::Gripper { spin_rate: Some(_), .. } => Task::Screw,
+        }
+    }
+
+    /// The TCP's offset along tool0 z (m): the cup lips or the point between the fingertips.
+    pub fn tcp_z(&self) -> f32 {
+        match self.effector {
+            EffectorSpec::Suction { tcp_z, .. } => tcp_z,
+            EffectorSpec::Gripper { finger_z, .. } => finger_z,
+        }
+    }
+
+    /// Half the object's height (m): its centre's height above the surface it rests on.
+    pub fn object_half_height(&self) -> f32 {
+        self.object.half_extents.map(|h| h[2]).or(self.object.half_height).unwrap_or(0.0)
+    }
+}
+
+impl VariationSpec {
+    /// As the [`Variation`](crate::Variation) that draws the starts (yaw in radians).
+    pub fn variation(&self) -> crate::Variation {
+        crate::Variation {
+            object_x: self.object_x,
+            object_y: self.object_y,
+            yaw: [self.yaw_deg[0].to_radians(), self.yaw_deg[1].to_radians()],
+            target_jitter: self.target_jitter,
+            pad_follows: self.pad_follows,
+        }
+    }
+}
