@@ -103,7 +103,7 @@ def main(args: argparse.Namespace) -> int:
         cfg.behavior.stop_on_convergence = config.ConvergenceSettings()
     run_dir = Path(args.run_dir) if args.run_dir else config.default_run_dir(cfg_path, cfg)
     demos = args.demos or cfg.demo_path
-    compare = _compare_dir(args.compare)
+    compare = _compare_source(args.compare)
     bc = cfg.behavior.behavioral_cloning
     if args.make_demos and demos and bc is not None and bc.generate_from and not args.demos:
         learn.ensure_generated_demos(
@@ -136,24 +136,31 @@ def main(args: argparse.Namespace) -> int:
     for p in learn.learning_curves(run_dir):
         print(f"plot: {p}")
     if args.eval_episodes > 0:
-        print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem, compare))
+        compared = _compare_dir(run_dir, compare)
+        print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem, compared))
     return 0
 
 
-def _compare_dir(policy: str | None) -> Path | None:
-    """A temporary run dir holding ``--compare``'s policy.pt (a run dir's or the file given), named
-    after it, so its evaluation files do not overwrite the compared run's own."""
+def _compare_source(policy: str | None) -> Path | None:
+    """The policy.pt ``--compare`` names (a run dir's or the file given), checked up front."""
     if policy is None:
         return None
     p = Path(policy)
     src = p / "policy.pt" if p.is_dir() else p
     if not src.is_file():
         raise UsageError(f"--compare {p}: no such policy file or run directory with a policy.pt")
-    import shutil
-    import tempfile
+    return src
 
-    d = Path(tempfile.mkdtemp(prefix="mimicrete-compare-")) / (p.name if p.is_dir() else p.stem)
-    d.mkdir()
+
+def _compare_dir(run_dir: Path, src: Path | None) -> Path | None:
+    """``RUN_DIR/compare/<name>/``, holding a copy of the compared policy: its evaluation files
+    are kept with the run and never overwrite the compared run's own."""
+    if src is None:
+        return None
+    import shutil
+
+    d = run_dir / "compare" / (src.parent.name if src.name == "policy.pt" else src.stem)
+    d.mkdir(parents=True, exist_ok=True)
     shutil.copy(src, d / "policy.pt")
     return d
 
@@ -183,8 +190,12 @@ def _eval_rows(run_dir: Path, episodes: int, config_stem: str, compare: Path | N
     rows: list[tuple[str, dict]] = []
     maps = []
     seed = _eval_seed(run_dir)
+    marked = None
     for rd in [run_dir] if compare is None else [run_dir, compare]:
-        rows.append((f"{rd.name}, training starts", learn.evaluate_run(rd, episodes, seed)))
+        own = learn.evaluate_run(rd, episodes, seed)
+        rows.append((f"{rd.name}, training starts", own))
+        if sim and marked is None:
+            marked = [e["object_pose"] for e in own["per_episode"]]
         if sim:
             wide = learn.evaluate_run(rd, episodes, seed, starts="wide")
             rows.append((f"{rd.name}, wide starts", wide))
@@ -195,7 +206,7 @@ def _eval_rows(run_dir: Path, episodes: int, config_stem: str, compare: Path | N
             rows.append(paper)
     table = learn.format_rows(rows)
     if maps:
-        out = success_map(maps, run_dir / "success_map.png")
+        out = success_map(maps, run_dir / "success_map.png", marked=marked)
         table += f"\nplot: {out} (installed rate over the tile's start x, y; wide starts)"
     return table
 

@@ -336,7 +336,18 @@ def ensure_generated_demos(
 
     for old in demo_dir.glob("*.mcap"):  # a generation cut short: start it again, whole
         old.unlink()
-    rep = demogen.generate(demogen.load_sources(sources, source_count), count, demo_dir)
+    from tqdm import tqdm
+
+    with tqdm(total=count, desc="demogen", unit="demo") as bar:
+
+        def shown(rep: demogen.Report) -> None:
+            bar.n = rep.kept
+            bar.set_postfix(attempts=rep.attempts, refresh=False)
+            bar.refresh()
+
+        rep = demogen.generate(
+            demogen.load_sources(sources, source_count), count, demo_dir, progress=shown
+        )
     if rep.kept < count:
         raise RuntimeError(
             f"{demo_dir}: {rep.kept} of {count} demos generated in {rep.attempts} attempts "

@@ -74,7 +74,7 @@ def success_map(
     """Installed rate as a heat map over the object's start x, y, one panel per ``(title,
     episodes)`` (an evaluation's ``per_episode`` records: ``object_pose`` and ``installed``), all
     on the same ``bins`` (x, y) cells spanning the starts given; each cell reads its rate and
-    its number of episodes. ``marked``: object poses drawn as dots (e.g. where the demos began)."""
+    its number of episodes. ``marked``: object poses drawn as dots (the training starts)."""
     xy = np.array([e["object_pose"][:2] for _, eps in panels for e in eps], float)
     if xy.size == 0:
         raise ValueError("success_map: no episode with an object_pose")
@@ -82,7 +82,9 @@ def success_map(
     pad = np.maximum(0.02 * (hi - lo), 1e-3)  # the extreme starts fall inside the outer cells
     xe = np.linspace(lo[0] - pad[0], hi[0] + pad[0], bins[0] + 1)
     ye = np.linspace(lo[1] - pad[1], hi[1] + pad[1], bins[1] + 1)
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.6), squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(panels), figsize=(5.4 * len(panels), 2.9), squeeze=False, layout="constrained"
+    )
     for ax, (title, eps) in zip(axes[0], panels, strict=True):
         p = np.array([e["object_pose"][:2] for e in eps], float).reshape(-1, 2)
         ok = np.array([bool(e["installed"]) for e in eps], float)
@@ -98,10 +100,9 @@ def success_map(
                             fontsize=7)  # fmt: skip
         if marked:
             m = np.array([q[:2] for q in marked], float)
-            ax.plot(m[:, 0], m[:, 1], "k.", ms=5, label="demo starts")
-            ax.legend(fontsize=7, loc="upper right")
+            ax.plot(m[:, 0], m[:, 1], "k.", ms=3)
         ax.set_title(f"{title}: {ok.mean():.0%} of {len(eps)} installed", fontsize=9)
-        ax.set_xlabel("tile start x (m, Base)")
+        ax.set_xlabel("tile start x (m, Base)" + ("; dots: the training starts" if marked else ""))
         ax.set_ylabel("tile start y (m)")
         ax.set_aspect("equal")
     fig.colorbar(im, ax=axes[0].tolist(), label="installed rate", shrink=0.8)
@@ -115,4 +116,4 @@ def _save(fig: Any, path: Path) -> None:
     from mimicrete.safe_io import atomic_output
 
     with atomic_output(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+        fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")
