@@ -58,6 +58,8 @@ __all__ = [
     "sim_constants",
     "scene_entities",
     "scene_frames",
+    "load_task_spec",
+    "task_spec",
     "DemoWriter",
     "demo_parse_handlog",
     "demo_parse_handlog_str",
@@ -261,6 +263,12 @@ class SimEnv:
     obs_frame_dim: Final[int]
     act_dim: Final[int]
     def __new__(cls, task: str, seed: int = 0) -> SimEnv: ...
+    @staticmethod
+    def from_spec_file(path: str, seed: int = 0) -> SimEnv:
+        """An env of the task the spec file at ``path`` describes (``task`` follows from its
+        effector); raises as ``load_task_spec``."""
+    def spec(self) -> dict[str, Any]:
+        """The task spec this env runs, as a dict (the spec file's tables and fields)."""
     def reset(
         self,
         seed: int | None = None,
@@ -398,6 +406,15 @@ class SimExpert:
 
 def sim_constants() -> _SimConstants:
     """Simulator constants and per-task dims."""
+
+def load_task_spec(path: str) -> dict[str, Any]:
+    """Read and check a task spec file (TOML, version 1; crates/tile-sim/src/spec/mod.rs
+    documents the fields) → the spec as a dict. Raises ``IoError`` when the file cannot be read
+    and ``SimInputError`` for a bad spec (``field``: dotted path and ``value`` for a bad value,
+    None for a TOML or structure error; ``reason``: why)."""
+
+def task_spec(task: str, as_toml: bool = False) -> Any:
+    """The built-in spec of ``task`` as a dict (``as_toml=True``: the spec file's text, a str)."""
 
 def scene_entities(task: str, seed: int = 0, model: str = "ur3") -> list[dict[str, Any]]:
     """The Foxglove ``SceneEntity`` objects (JSON-ready dicts) a demo of episode ``seed`` of

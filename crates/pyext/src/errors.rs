@@ -174,6 +174,25 @@ pub(crate) fn sim_err(e: tile_sim::SimError) -> PyErr {
     }
 }
 
+/// A task spec that cannot be used → `SimInputError` (a `ValueError`) with `reason` = the message
+/// and, for a bad value, `field` (dotted path) and `value`; an unreadable file → `IoError`.
+pub(crate) fn spec_err(e: tile_sim::SpecError) -> PyErr {
+    use tile_sim::SpecError as E;
+    let msg = e.to_string();
+    Python::attach(|py| {
+        either((|| {
+            let c = classes(py)?;
+            let fields = match &e {
+                E::Invalid { field, value, reason } => {
+                    json!({"reason": reason, "field": field, "value": value})
+                }
+                _ => json!({"reason": msg, "field": null, "value": null}),
+            };
+            Ok(raise_as(py, c.sim_input.bind(py), msg.clone(), fields))
+        })())
+    })
+}
+
 /// `LogFormatError` with `str(e)` = `file:line: reason` (`file: reason` without a line).
 pub(crate) fn log_format(file: &str, line: Option<usize>, reason: &str) -> PyErr {
     let msg = line.map_or(format!("{file}: {reason}"), |l| format!("{file}:{l}: {reason}"));

@@ -1,18 +1,44 @@
 //! Bindings for tile-sim (`SimEnv`, `SimVecEnv` stepped without the interpreter lock, the expert)
 //! and the task scenes (demo-log's `episode_scene_json`, `frame_numbers`).
 
-use crate::errors::{action_shape, demo_err, matrix, nd_from_py, sim_err, to_py, vector};
+use crate::errors::{action_shape, demo_err, io_err, matrix, nd_from_py, sim_err, spec_err, to_py, vector};
 use numpy::{AllowTypeChange, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
-use tile_sim::{Env, Start, StepBuffers, Task, Variation, VecEnv, VecEnvState};
+use std::path::Path;
+use std::sync::Arc;
+use tile_sim::{Env, Start, StepBuffers, Task, TaskSpec, Variation, VecEnv, VecEnvState};
 
 type Any<'py> = Bound<'py, PyAny>;
 
 pub(crate) fn parse_task(name: &str) -> PyResult<Task> {
     Task::from_name(name).map_err(sim_err)
+}
+
+/// Read and check the task spec file at `path` (I/O errors → `IoError`, a bad spec →
+/// `SimInputError` with `field`, `value`, `reason`).
+fn read_spec(path: &str) -> PyResult<TaskSpec> {
+    let text = std::fs::read_to_string(path).map_err(|e| io_err(Path::new(path), &e))?;
+    TaskSpec::from_toml(&text, path).map_err(spec_err)
+}
+
+/// A task spec file, read and checked → the spec as a dict (the file's tables and fields).
+#[pyfunction]
+fn load_task_spec<'py>(py: Python<'py>, path: &str) -> PyResult<Any<'py>> {
+    to_py(py, &read_spec(path)?)
+}
+
+/// The built-in spec of `task` as a dict (`as_toml=True`: the spec file's text).
+#[pyfunction]
+#[pyo3(signature = (task, as_toml = false))]
+fn task_spec<'py>(py: Python<'py>, task: &str, as_toml: bool) -> PyResult<Any<'py>> {
+    let t = parse_task(task)?;
+    if as_toml {
+        return Ok(pyo3::types::PyString::new(py, TaskSpec::builtin_toml(t)).into_any());
+    }
+    to_py(py, &*TaskSpec::builtin(t))
 }
 
 type Like<'py, T> = PyArrayLikeDyn<'py, T, AllowTypeChange>;
@@ -101,6 +127,22 @@ impl SimEnv {
         let t = parse_task(task)?;
         let (task, obs_dim, obs_frame_dim, act_dim) = (t.name(), t.obs_dim(), t.obs_frame_dim(), t.act_dim());
         Ok(SimEnv { env: Env::new(t, seed), task, obs_dim, obs_frame_dim, act_dim })
+    }
+
+    /// An env of the task the spec file at `path` describes (its logic, and so `task`, follows
+    /// from the effector); raises as `load_task_spec`.
+    #[staticmethod]
+    #[pyo3(signature = (path, seed = 0))]
+    fn from_spec_file(path: &str, seed: u64) -> PyResult<Self> {
+        let spec = Arc::new(read_spec(path)?);
+        let t = spec.task();
+        let (task, obs_dim, obs_frame_dim, act_dim) = (t.name(), t.obs_dim(), t.obs_frame_dim(), t.act_dim());
+        Ok(SimEnv { env: Env::from_spec(spec, seed), task, obs_dim, obs_frame_dim, act_dim })
+    }
+
+    /// The spec this env runs, as a dict.
+    fn spec<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        to_py(py, &**self.env.spec())
     }
 
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`; at
@@ -408,6 +450,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimEnv>()?;
     m.add_class::<SimVecEnv>()?;
     m.add_class::<SimExpert>()?;
-    add_functions!(m => sim_constants, scene_entities, scene_frames);
+    add_functions!(m => sim_constants, scene_entities, scene_frames, load_task_spec, task_spec);
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! Task specs: one TOML file describes a task (the robot, the end effector, the object, the
 //! target, where episodes start, thresholds, rewards, the episode length), read into a
 //! [`TaskSpec`] and checked field by field ([`SpecError`] names the field, the value and why).
+//! A spec serializes back to the same field names (Python gets it as a dict).
 //! The three built-in tasks are the files in `crates/tile-sim/tasks/`, compiled in with
 //! `include_str!` ([`TaskSpec::builtin`]), so nothing is read from disk at run time.
 //!
@@ -19,14 +20,14 @@ mod check;
 pub use check::SpecError;
 
 use crate::Task;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::sync::{Arc, OnceLock};
 
 /// The spec format version this simulator reads.
 pub const SPEC_VERSION: u32 = 1;
 
 /// A task, as a spec file describes it (see the module docs for frames and units).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TaskSpec {
     /// Format version: must be [`SPEC_VERSION`] (1).
@@ -54,7 +55,7 @@ pub struct TaskSpec {
 }
 
 /// The arm.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotSpec {
     /// UR model name, as `ur3_kin` names it. Only `"ur3"` is simulated so far.
@@ -64,7 +65,7 @@ pub struct RobotSpec {
 }
 
 /// The table: a fixed box whose top face is the plane `z = top_z`, centred under the base.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TableSpec {
     /// Half extents (m): x, y, thickness / 2.
@@ -76,7 +77,7 @@ pub struct TableSpec {
 }
 
 /// The end effector on tool0, by kind.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum EffectorSpec {
     /// A suction plate with four cups at `(±cup_offset, ±cup_offset)` (tool0), each a cylinder
@@ -113,7 +114,7 @@ pub enum EffectorSpec {
 }
 
 /// The object the task moves.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObjectSpec {
     /// Its name in the scene (`"tile"`, `"block"`, `"nut"`).
@@ -140,7 +141,7 @@ pub struct ObjectSpec {
 }
 
 /// Where the object must end up, by kind.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum TargetSpec {
     /// A fixed box pad on the table; the target is the object's centre resting on its top, at
@@ -172,7 +173,7 @@ pub enum TargetSpec {
 }
 
 /// Where episodes start: the paper's distribution (demos are recorded there) and the wide one.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct StartsSpec {
     /// The paper's starts (paper §5.1: the object's x uniform in [0, 0.15] m).
@@ -182,7 +183,7 @@ pub struct StartsSpec {
 }
 
 /// One start distribution; each range is `[lo, hi]`, a range with `lo == hi` is not drawn from.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct VariationSpec {
     /// The object centre's x (m, Base frame), uniform in the range.
@@ -198,7 +199,7 @@ pub struct VariationSpec {
 }
 
 /// Thresholds; each task logic requires the ones it reads (see [`SpecError`]).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ThresholdsSpec {
     /// Suction: the cup centre within this distance of the grasp point (the centre of the
@@ -232,7 +233,7 @@ pub struct ThresholdsSpec {
 }
 
 /// The sparse rewards (each paid at the event, the pick only once per episode).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RewardsSpec {
     /// The first pick / grasp of the episode.
@@ -244,7 +245,7 @@ pub struct RewardsSpec {
 }
 
 /// Episode length.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct EpisodeSpec {
     /// Episodes are truncated (not terminated) after this many env steps.
