@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
-RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
+RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml -o -path '*/tasks/*.toml' 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
 .PHONY: help setup native web demos experiments train test test-rs test-py figures bench lint fmt experiments clean export-venv
 
