@@ -22,6 +22,18 @@ def test_builtin_specs_name_their_tasks() -> None:
         assert spec["version"] == 1 and spec["name"] == task
         assert spec["effector"]["kind"] == kind
         assert spec["episode"]["max_steps"] == _native.sim_constants()["MAX_EPISODE_STEPS"]
+    # Numbers read back as the file wrote them (f32 0.04 is 0.04, not 0.03999999910593033).
+    suction = _native.task_spec("TileSuction")
+    assert suction["thresholds"]["pick_dist"] == 0.04
+    assert suction["object"]["half_extents"] == [0.075, 0.075, 0.005]
+    assert suction["thresholds"]["fall_tilt_cos"] == 0.70710677  # the f32 nearest cos 45°
+    assert suction["effector"] == {
+        "kind": "suction",
+        "plate_half_extents": [0.05, 0.05, 0.01],
+        "cup_offset": 0.045,
+        "cup_radius": 0.015,
+        "tcp_z": 0.05,
+    }
 
 
 def test_env_from_spec_file_runs_the_files_numbers(tmp_path: Path) -> None:

@@ -69,10 +69,13 @@ pub struct RobotSpec {
 #[serde(deny_unknown_fields)]
 pub struct TableSpec {
     /// Half extents (m): x, y, thickness / 2.
+    #[serde(serialize_with = "decimal")]
     pub half_extents: [f32; 3],
     /// Height of the top face (m, Base frame; the UR base stands on it).
+    #[serde(serialize_with = "decimal")]
     pub top_z: f32,
     /// Coulomb friction coefficient of the top.
+    #[serde(serialize_with = "decimal")]
     pub friction: f32,
 }
 
@@ -84,31 +87,41 @@ pub enum EffectorSpec {
     /// from the plate's face (tool0 z = 2 · plate_half_extents.z) to the cup lips at `tcp_z`.
     Suction {
         /// Plate half extents (m); the plate's centre is at tool0 z = `plate_half_extents[2]`.
+        #[serde(serialize_with = "decimal")]
         plate_half_extents: [f32; 3],
         /// Cup centre offset from the flange axis along tool0 x and y (m).
+        #[serde(serialize_with = "decimal")]
         cup_offset: f32,
         /// Cup radius (m).
+        #[serde(serialize_with = "decimal")]
         cup_radius: f32,
         /// The TCP, the centre of the four cup lips, along tool0 z (m).
+        #[serde(serialize_with = "decimal")]
         tcp_z: f32,
     },
     /// A parallel gripper: a body box and two finger boxes sliding along tool0 y, closing and
     /// opening at a constant speed; with `spin_rate`, the screwing effector (it turns what it grips).
     Gripper {
         /// Body half extents (m); the body's centre is at tool0 z = `body_half_extents[2]`.
+        #[serde(serialize_with = "decimal")]
         body_half_extents: [f32; 3],
         /// Finger half extents (m), tool0 axes.
+        #[serde(serialize_with = "decimal")]
         finger_half_extents: [f32; 3],
         /// The fingers' centre along tool0 z (m); the TCP (between the fingertips) is here too.
+        #[serde(serialize_with = "decimal")]
         finger_z: f32,
         /// Largest finger gap (m); the gap at an episode start.
+        #[serde(serialize_with = "decimal")]
         max_width: f32,
         /// Closing and opening speed of the gap (m/s).
+        #[serde(serialize_with = "decimal")]
         speed: f32,
         /// Friction coefficient of the fingers.
+        #[serde(serialize_with = "decimal")]
         finger_friction: f32,
         /// Screwing: turns per second while spinning (absent: no spin command).
-        #[serde(default)]
+        #[serde(default, serialize_with = "decimal")]
         spin_rate: Option<f32>,
     },
 }
@@ -122,21 +135,22 @@ pub struct ObjectSpec {
     /// `"box"` (with `half_extents`) or `"cylinder"` (with `radius`, `half_height`; axis along z).
     pub shape: String,
     /// Box half extents (m), the object's own axes (z up when it lies flat).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub half_extents: Option<[f32; 3]>,
     /// Cylinder radius (m).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub radius: Option<f32>,
     /// Cylinder half height (m).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub half_height: Option<f32>,
     /// Mass (kg); absent: Rapier's default density (a kinematic object, the nut).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub mass: Option<f32>,
     /// Friction coefficient; absent: Rapier's default (0.5).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub friction: Option<f32>,
     /// Colour in the scene, RGBA in [0, 1].
+    #[serde(serialize_with = "decimal")]
     pub rgba: [f32; 4],
 }
 
@@ -148,24 +162,32 @@ pub enum TargetSpec {
     /// the pad's centre (moved with a start's target offset).
     Pad {
         /// The pad's centre (x, y) on the table (m, Base frame), before a start's offset.
+        #[serde(serialize_with = "decimal")]
         xy: [f32; 2],
         /// Pad half extents (m).
+        #[serde(serialize_with = "decimal")]
         half_extents: [f32; 3],
         /// Friction coefficient of the pad's top.
+        #[serde(serialize_with = "decimal")]
         friction: f32,
     },
     /// A bolt standing on a plate at the object's start (x, y); the nut starts caught on the thread
     /// and the target is its centre `turns` turns further down.
     Bolt {
         /// Plate half extents (m); the plate lies on the table.
+        #[serde(serialize_with = "decimal")]
         plate_half_extents: [f32; 3],
         /// Bolt radius (m).
+        #[serde(serialize_with = "decimal")]
         radius: f32,
         /// Height of the bolt's top above the table (m).
+        #[serde(serialize_with = "decimal")]
         top_z: f32,
         /// Thread pitch (m per turn).
+        #[serde(serialize_with = "decimal")]
         pitch: f32,
         /// The nut's top sits this far below the bolt's top when it has just caught the thread (m).
+        #[serde(serialize_with = "decimal")]
         catch_gap: f32,
         /// Turns to screw down for success.
         turns: f64,
@@ -187,12 +209,16 @@ pub struct StartsSpec {
 #[serde(deny_unknown_fields)]
 pub struct VariationSpec {
     /// The object centre's x (m, Base frame), uniform in the range.
+    #[serde(serialize_with = "decimal")]
     pub object_x: [f32; 2],
     /// The object centre's y (m).
+    #[serde(serialize_with = "decimal")]
     pub object_y: [f32; 2],
     /// The object's yaw about Base z (degrees).
+    #[serde(serialize_with = "decimal")]
     pub yaw_deg: [f32; 2],
     /// The target moves by (dx, dy), each uniform in `[-target_jitter, target_jitter]` (m).
+    #[serde(serialize_with = "decimal")]
     pub target_jitter: f32,
     /// The pad moves with the target (else it stays).
     pub pad_follows: bool,
@@ -204,28 +230,28 @@ pub struct VariationSpec {
 pub struct ThresholdsSpec {
     /// Suction: the cup centre within this distance of the grasp point (the centre of the
     /// object's upper face) picks it (m).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub pick_dist: Option<f32>,
     /// Success: the object's centre within this distance of the target (m); the gripper logic
     /// also needs the object released.
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub success_dist: Option<f32>,
     /// Failure: the object's centre below this height (m).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub fall_z: Option<f32>,
     /// Failure: the object, not held, falling faster than this (m/s).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub fall_speed: Option<f32>,
     /// Failure (suction): the object, not held, tilted so far that its up axis' z is below this
     /// cosine (0.7071… = 45°).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub fall_tilt_cos: Option<f32>,
     /// Screw: the flange's z must point down within this cosine of the bolt axis (0.94 ≈ 20°)
     /// to grip and turn the nut.
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub align_cos: Option<f32>,
     /// Screw: the fingers slip off the nut when the TCP moves farther than this from it (m).
-    #[serde(default)]
+    #[serde(default, serialize_with = "decimal")]
     pub slip_dist: Option<f32>,
     /// Screw: failure when the nut is loosened more than this many turns (it leaves the bolt).
     #[serde(default)]
@@ -237,10 +263,13 @@ pub struct ThresholdsSpec {
 #[serde(deny_unknown_fields)]
 pub struct RewardsSpec {
     /// The first pick / grasp of the episode.
+    #[serde(serialize_with = "decimal")]
     pub pick: f32,
     /// Success (installed, placed, tightened); ends the episode.
+    #[serde(serialize_with = "decimal")]
     pub success: f32,
     /// Failure (fell, spun off); ends the episode. Usually negative.
+    #[serde(serialize_with = "decimal")]
     pub fail: f32,
 }
 
@@ -250,6 +279,49 @@ pub struct RewardsSpec {
 pub struct EpisodeSpec {
     /// Episodes are truncated (not terminated) after this many env steps.
     pub max_steps: u32,
+}
+
+/// Numbers that serialize as the decimals they were written as (an `f32` 0.04 as 0.04, not
+/// 0.03999999910593033), so a spec read back (a Python dict) shows the file's values.
+trait Decimal {
+    fn decimal<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error>;
+}
+
+fn shortest(x: f32) -> f64 {
+    format!("{x}").parse().unwrap_or(x as f64)
+}
+
+impl Decimal for f32 {
+    fn decimal<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_f64(shortest(*self))
+    }
+}
+
+impl<const N: usize> Decimal for [f32; N] {
+    fn decimal<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.map(shortest).serialize(s)
+    }
+}
+
+impl<T: Decimal> Decimal for Option<T> {
+    fn decimal<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Some(v) => s.serialize_some(&Dec(v)),
+            None => s.serialize_none(),
+        }
+    }
+}
+
+struct Dec<'a, T>(&'a T);
+
+impl<T: Decimal> Serialize for Dec<'_, T> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.0.decimal(s)
+    }
+}
+
+fn decimal<T: Decimal, S: serde::Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+    v.decimal(s)
 }
 
 /// The built-in spec files, in [`Task::ALL`] order.
