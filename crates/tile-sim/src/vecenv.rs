@@ -15,11 +15,12 @@
 
 use crate::env::{Env, StepOutcome, check_action};
 use crate::pool::Pool;
+use crate::spec::TaskSpec;
 use crate::starts::Start;
-use crate::{MAX_EPISODE_STEPS, SimError, Task};
+use crate::{SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// Envs per work block handed to a stepping thread.
 const BLOCK: usize = 4;
@@ -131,13 +132,14 @@ pub struct VecEnvState {
     /// that moment, or given), so a restore does not depend on the variation set at restore time.
     pub starts: Vec<Start>,
     /// Per env: the actions (`act_dim` each, row-major, as passed to `step`) of its running
-    /// episode, fewer than `MAX_EPISODE_STEPS` rows.
+    /// episode, fewer than the spec's `episode.max_steps` rows.
     pub actions: Vec<Vec<f32>>,
 }
 
 /// A batch of envs of one task.
 pub struct VecEnv {
     task: Task,
+    spec: Arc<TaskSpec>,
     envs: Vec<Env>,
     num_threads: usize,
     pool: Pool,
@@ -153,18 +155,31 @@ impl VecEnv {
     /// 1..=num_envs): the caller plus `num_threads − 1` persistent worker threads owned by the
     /// VecEnv (1 = no extra threads).
     pub fn new(task: Task, num_envs: usize, seed: u64, num_threads: usize) -> Result<VecEnv, SimError> {
+        VecEnv::from_spec(TaskSpec::builtin(task), num_envs, seed, num_threads)
+    }
+
+    /// [`VecEnv::new`] for the task `spec` describes ([`Env::from_spec`]).
+    pub fn from_spec(
+        spec: Arc<TaskSpec>,
+        num_envs: usize,
+        seed: u64,
+        num_threads: usize,
+    ) -> Result<VecEnv, SimError> {
         if num_envs == 0 {
             return Err(SimError::InvalidArgument("num_envs must be at least 1".into()));
         }
-        let mut envs: Vec<Env> = (0..num_envs).map(|i| Env::new(task, seed.wrapping_add(i as u64))).collect();
+        let task = spec.task();
+        let mut envs: Vec<Env> =
+            (0..num_envs).map(|i| Env::from_spec(Arc::clone(&spec), seed.wrapping_add(i as u64))).collect();
         let mut o = vec![0.0; task.obs_dim()];
         for (i, env) in envs.iter_mut().enumerate() {
             env.reset(Some(episode_seed(seed, i as u64, 0)), &mut o)?;
         }
         let num_threads = num_threads.clamp(1, num_envs);
-        let log_cap = MAX_EPISODE_STEPS as usize * task.act_dim();
+        let log_cap = spec.episode.max_steps as usize * task.act_dim();
         Ok(VecEnv {
             task,
+            spec,
             envs,
             num_threads,
             pool: Pool::new(num_threads - 1),
@@ -187,6 +202,11 @@ impl VecEnv {
 
     pub fn task(&self) -> Task {
         self.task
+    }
+
+    /// The spec every env runs.
+    pub fn spec(&self) -> &Arc<TaskSpec> {
+        &self.spec
     }
 
     pub fn num_envs(&self) -> usize {
@@ -321,17 +341,18 @@ impl VecEnv {
     /// invalid actions, or actions that end the episode (a state from another simulator).
     pub fn restore(&mut self, state: &VecEnvState, obs_out: &mut [f32]) -> Result<(), SimError> {
         let (n, ad, od) = (self.envs.len(), self.task.act_dim(), self.task.obs_dim());
+        let max_steps = self.spec.episode.max_steps as usize;
         check("obs", n * od, obs_out.len())?;
         check("episodes", n, state.episodes.len())?;
         check("seeds", n, state.seeds.len())?;
         check("starts", n, state.starts.len())?;
         check("actions", n, state.actions.len())?;
         for (i, a) in state.actions.iter().enumerate() {
-            if a.len() % ad != 0 || a.len() / ad >= MAX_EPISODE_STEPS as usize {
+            if a.len() % ad != 0 || a.len() / ad >= max_steps {
                 return Err(SimError::InvalidArgument(format!(
                     "env {i}: {} action numbers, expected a multiple of {ad} below {}",
                     a.len(),
-                    MAX_EPISODE_STEPS as usize * ad
+                    max_steps * ad
                 )));
             }
             for row in a.chunks(ad) {
@@ -341,7 +362,7 @@ impl VecEnv {
         // Replay into fresh envs first, so a state that does not replay leaves `self` unchanged.
         let mut envs = Vec::with_capacity(n);
         for (i, (a, o)) in state.actions.iter().zip(obs_out.chunks_mut(od)).enumerate() {
-            let mut env = Env::new(self.task, 0);
+            let mut env = Env::from_spec(Arc::clone(&self.spec), 0);
             env.set_variation(self.envs[i].variation())?;
             env.reset_start_unchecked(state.starts[i], state.seeds[i], o);
             for (k, row) in a.chunks(ad).enumerate() {
@@ -480,7 +501,7 @@ impl Part<'_> {
     fn run(self, ad: usize, od: usize) {
         for (i, env) in self.envs.iter_mut().enumerate() {
             let a = &self.actions[i * ad..(i + 1) * ad];
-            // Capacity MAX_EPISODE_STEPS rows: an episode never holds more, so no allocation.
+            // Capacity `episode.max_steps` rows: an episode never holds more, so no allocation.
             self.logs[i].extend_from_slice(a);
             let o: StepOutcome = env.step_unchecked(a);
             self.reward[i] = o.reward;

@@ -227,3 +227,23 @@ fn a_specs_numbers_reach_the_episode() {
     let tile = env.scene().items.into_iter().find(|i| i.name == "tile").unwrap();
     assert_eq!(tile.shape, tile_sim::Shape::Box { half: [0.08, 0.08, 0.006] });
 }
+
+#[test]
+fn a_vec_env_runs_its_specs_episode_length() {
+    let text = edited("max_steps = 750", "max_steps = 8");
+    let spec = std::sync::Arc::new(TaskSpec::from_toml(&text, "short.toml").unwrap());
+    let mut v = tile_sim::VecEnv::from_spec(spec, 3, 5, 1).unwrap();
+    let mut buf = tile_sim::StepBuffers::new(Task::TileSuction, 3);
+    let actions = vec![0.0f32; 3 * 7];
+    for k in 1..=8 {
+        v.step_buffers(&actions, &mut buf).unwrap();
+        assert_eq!(buf.truncated, vec![k == 8; 3], "step {k}");
+        if k == 5 {
+            // A checkpoint of a running episode restores (its actions replay within the length).
+            let state = v.state();
+            let mut obs = vec![0.0; 3 * Task::TileSuction.obs_dim()];
+            v.restore(&state, &mut obs).unwrap();
+            assert_eq!(obs, buf.obs);
+        }
+    }
+}
