@@ -169,7 +169,7 @@ def _run_episodes(
     obs, _ = env.reset(seed=seed)
     obs = np.asarray(obs, np.float32)
     sim = getattr(env, "sim", None)
-    started = [sim.start(i) if sim is not None else None for i in range(n)]
+    started = [_start_of(sim, i) for i in range(n)]
     tracker = EpisodeTracker(n)
     done_count = np.zeros(n, np.int64)
     results: list[Finished] = []
@@ -181,10 +181,16 @@ def _run_episodes(
             if done_count[i] < per_env:
                 results.append((started[i], ep))
                 done_count[i] += 1
-            if sim is not None:  # reset in the same step: where its next episode starts
-                started[i] = sim.start(i)
+            started[i] = _start_of(sim, i)  # reset in the same step: its next episode's start
     env.close()
     return results
+
+
+def _start_of(sim: Any, i: int) -> dict[str, list[float]] | None:
+    """Where env ``i``'s running episode started, as the eval file holds it (lists of floats)."""
+    if sim is None:
+        return None
+    return {k: [float(x) for x in v] for k, v in sim.start(i).items()}
 
 
 def evaluate_run(
