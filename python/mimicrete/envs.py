@@ -57,11 +57,10 @@ from mimicrete import _native, tasks
 TASKS = tasks.SIM_TASKS
 ENV_IDS = tasks.ENV_IDS
 
-_CONST: dict[str, Any] = _native.sim_constants()
-FRAME_STACK: int = int(_CONST["FRAME_STACK"])
-MAX_EPISODE_STEPS: int = int(_CONST["MAX_EPISODE_STEPS"])
-CONTROL_DT: float = float(_CONST["CONTROL_DT"])
-MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])
+FRAME_STACK = tasks.FRAME_STACK
+MAX_EPISODE_STEPS = tasks.MAX_EPISODE_STEPS
+CONTROL_DT = tasks.CONTROL_DT
+MAX_JOINT_STEP = tasks.MAX_JOINT_STEP
 
 
 def task_of(env_id: str) -> str:

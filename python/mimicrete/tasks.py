@@ -14,6 +14,11 @@ from typing import Any
 from mimicrete import _native
 
 _CONST: dict[str, Any] = _native.sim_constants()
+#: The simulator's shared constants, read here once for the whole package.
+FRAME_STACK: int = int(_CONST["FRAME_STACK"])
+MAX_EPISODE_STEPS: int = int(_CONST["MAX_EPISODE_STEPS"])
+CONTROL_DT: float = float(_CONST["CONTROL_DT"])  # s per control step
+MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])  # rad per step per joint
 
 
 @dataclass(frozen=True)

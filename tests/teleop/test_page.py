@@ -174,11 +174,12 @@ def _hand_track(times: np.ndarray, side: str, phase: float, scale: float) -> br.
 def test_replayed_hands_reach_the_wire_unchanged(chromium: Any, base_url: str, mode: str) -> None:
     """Joints replayed through IWER come out of fillPoses, the packer and the WebSocket equal to
     the log (exact mode) or to IWER's interpolation of it (interpolate mode), within 1e-5 m."""
-    # Right hand at 30 Hz for 1.5 s; left hand at 20 Hz, untracked for a stretch in the middle,
-    # so that the merge, presence and hold paths are all exercised.
-    right = _hand_track(np.arange(45) / 30.0, "right", 0.0, 1.0)
-    left = _hand_track(0.013 + np.arange(30) / 20.0, "left", 1.0, 0.9)
-    left.tracked[10:16] = False
+    # Right hand at 30 Hz for 6 s; left hand at 20 Hz, untracked for 1.2 s in the middle, so that
+    # the merge, presence and hold paths are all exercised. 6 s, not less: how many frames the
+    # page sends within the replay is its frame rate, which a loaded machine can cut to ~12/s.
+    right = _hand_track(np.arange(180) / 30.0, "right", 0.0, 1.0)
+    left = _hand_track(0.013 + np.arange(120) / 20.0, "left", 1.0, 0.9)
+    left.tracked[50:74] = False
     rec = br.build_recording(right=right, left=left, mode=mode)
     json.dumps(rec)  # plain JSON: what the page receives
 

@@ -68,7 +68,7 @@ def _python_write(dirpath: Path, episodes: int) -> float:
     for e in range(episodes):
         with mc.demos.DemoWriter(str(dirpath / f"py_{e:03d}.mcap"), {**meta, "episode": e}) as w:
             for i in range(STEPS):
-                t = 0.04 * i
+                t = mc.tasks.CONTROL_DT * i
                 w.write_hand_frame(t, hand, True)
                 last = i == STEPS - 1
                 w.write_step(i, t, obs[i], act[i], float(last), last, False, "hold", q, pose, pose)

@@ -26,15 +26,16 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import IkError, MimicreteError, _native, kin
+from mimicrete import IkError, MimicreteError, _native, kin, tasks
 
 from .segment import TASK, DemoGenError, SourceDemo, TaskFrames, frame, task_frames
 
-MAX_JOINT_STEP = float(_native.sim_constants()["MAX_JOINT_STEP"])
-CONTROL_DT = float(_native.sim_constants()["CONTROL_DT"])
-MAX_STEPS = int(_native.sim_constants()["MAX_EPISODE_STEPS"])
+MAX_JOINT_STEP = tasks.MAX_JOINT_STEP
+CONTROL_DT = tasks.CONTROL_DT
+MAX_STEPS = tasks.MAX_EPISODE_STEPS
 PICK_REACH = 0.03  # m: switch the suction on only with the cup this close to the grasp point
-BRANCH_JUMP = 1.5  # rad: an IK answer further than this from the last one is another branch
+#: rad: an IK answer further than this from the last one is another branch (teleop-core's limit)
+BRANCH_JUMP = float(_native.TELEOP_BRANCH_JUMP)
 
 
 def min_jerk(s: np.ndarray) -> np.ndarray:

@@ -190,7 +190,7 @@ def segment_episode(
             f"{name}: the grasp segment ends at step {k} of {len(obs)}; a segment would be empty"
         )
     lay = spec.lay
-    q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * 0.04])
+    q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * tasks.CONTROL_DT])
     poses = kin.fk_batch(q_after, model="ur3")
     obj, target = f[0, lay["object"]], f[0, lay["target"]]
     cmds = actions[:, spec.commands].astype(np.float64)

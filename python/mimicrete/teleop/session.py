@@ -27,9 +27,8 @@ from mimicrete import _native, kin, tasks
 from mimicrete import gestures as gest
 from mimicrete.hands.layouts import check_layout
 
-_CONST = _native.sim_constants()
-CONTROL_DT: float = float(_CONST["CONTROL_DT"])
-MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])
+CONTROL_DT = tasks.CONTROL_DT
+MAX_JOINT_STEP = tasks.MAX_JOINT_STEP
 #: Largest joint change (rad) an IK answer may ask for in one step before it counts as a jump to
 #: another branch (unreachable), not a motion (teleop-core's).
 BRANCH_JUMP: float = float(_native.TELEOP_BRANCH_JUMP)
