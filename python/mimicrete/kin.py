@@ -26,6 +26,7 @@ from mimicrete import _native
 __all__ = [
     "MODELS",
     "Calibration",
+    "calibration_parts",
     "dh",
     "fk",
     "fk_all",
@@ -250,9 +251,10 @@ def parse_calibration(
     return Calibration(rot, tr, scale, space)
 
 
-def _calib(c: Any) -> tuple[np.ndarray | None, float, str]:
-    """Accept None (default), a Calibration-like object (``rotation``/``translation``/``scale``/
-    ``space`` attributes, or ``base_from_space`` (4, 4)) or a dict with those keys."""
+def calibration_parts(c: Any) -> tuple[np.ndarray | None, float, str]:
+    """A calibration as the Rust side takes it: ``(base_from_space (4, 4) or None, scale,
+    space)``. Accepts None (default), a Calibration-like object (``rotation`` / ``translation`` /
+    ``scale`` / ``space`` attributes, or ``base_from_space`` (4, 4)) or a dict with those keys."""
     if c is None:  # ur3-kin's default (the transform is filled in on the Rust side)
         return None, _DEFAULT_SCALE, _DEFAULT_SPACE
     get = c.get if isinstance(c, dict) else (lambda k, d=None: getattr(c, k, d))
@@ -281,7 +283,7 @@ def _hand_call(
 ) -> Any:
     """Check the three joints (``(3,)`` each, or ``(N, 3)`` each with ``batch``), convert the
     calibration and call the native hand → target entry point."""
-    calib = _calib(calibration)
+    calib = calibration_parts(calibration)
     if batch:
         w = _shaped(wrist, "wrist", (None, 3), "(N, 3)")
         shape: tuple[int | None, ...] = (w.shape[0], 3)
@@ -347,7 +349,7 @@ def points_to_base(points: Any, calibration: Any = None) -> np.ndarray:
     p = _arr(points, "points")
     single = p.ndim == 1
     p2 = _shaped(p.reshape(1, -1) if single else p, "points", (None, 3), "(3,) or (N, 3)")
-    out = _native.kin_points_to_base(p2, _calib(calibration))
+    out = _native.kin_points_to_base(p2, calibration_parts(calibration))
     return out[0] if single else out
 
 

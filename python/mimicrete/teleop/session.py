@@ -137,7 +137,7 @@ class Session:
             self.task.sim,
             self.layout,
             handedness,
-            kin._calib(calibration),
+            kin.calibration_parts(calibration),
             self.seed,
             None if recorder is None else recorder.w,
             mapping,
@@ -237,7 +237,7 @@ class Session:
         target with it (a calibration that differs by a translation moves every target by it)."""
         self.calibration = calibration
         sh = None if shift is None else [float(x) for x in np.asarray(shift, dtype=np.float64)]
-        self.core.set_calibration(kin._calib(calibration), sh)
+        self.core.set_calibration(kin.calibration_parts(calibration), sh)
 
     # ------------------------------------------------------------------ input
 
