@@ -92,6 +92,10 @@ def test_train_and_eval_through_cli(tmp_path, capsys):
     steps, ret, _ = first_episode(run_dir, res["seed"])
     assert one["mean_episode_length"] == steps
     assert one["mean_cumulative_reward"] == pytest.approx(ret, abs=1e-5)
+    # --map draws the tile's starts: the toy env has none, which is said (exit 2), not drawn
+    assert main(["eval", str(run_dir), "--episodes", "2", "--map"]) == 2
+    assert "--map: Toy" in capsys.readouterr().err
+    assert not list(run_dir.glob("*_map.png"))
 
 
 def test_train_module_entry_points_and_resume_flag(tmp_path):

@@ -91,3 +91,31 @@ def test_train_refuses_a_compare_policy_that_is_not_there(tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert f"--compare {tmp_path / 'nope.pt'}: no such policy file" in r.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_train_refuses_a_compare_file_that_is_not_a_policy(tmp_path):
+    """Checked before training: a file that torch cannot read as a policy is named, exit 2."""
+    sys.path.insert(0, str(REPO / "tests"))
+    from _cli_run import run_cli
+
+    junk = tmp_path / "notes.pt"
+    junk.write_text("not a policy\n")
+    r = run_cli("train", "--config", str(REPO / "configs/wide_gen.yaml"), "--compare",
+                str(junk), "--run-dir", str(tmp_path / "run"))  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"--compare {junk}: not a readable policy" in r.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_train_refuses_a_compare_policy_of_another_task(tmp_path):
+    """The paper's TileSuction policy beside a BlockGrip run would print rows of two tasks as one
+    table: refused before training, naming both."""
+    sys.path.insert(0, str(REPO / "tests"))
+    from _cli_run import run_cli
+
+    paper = REPO / "tests/learn/data/group3_policy.pt"
+    r = run_cli("train", "--config", str(REPO / "configs/wide_gen_block.yaml"), "--compare",
+                str(paper), "--run-dir", str(tmp_path / "run"))  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "a policy of TileSuction, but this run trains BlockGrip" in r.stderr
+    assert not (tmp_path / "run").exists()

@@ -103,7 +103,7 @@ def main(args: argparse.Namespace) -> int:
         cfg.behavior.stop_on_convergence = config.ConvergenceSettings()
     run_dir = Path(args.run_dir) if args.run_dir else config.default_run_dir(cfg_path, cfg)
     demos = args.demos or cfg.demo_path
-    compare = _compare_source(args.compare)
+    compare = _compare_source(args.compare, cfg.env_settings.env_id)
     bc = cfg.behavior.behavioral_cloning
     if args.make_demos and demos and bc is not None and bc.generate_from and not args.demos:
         learn.ensure_generated_demos(
@@ -141,14 +141,28 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _compare_source(policy: str | None) -> Path | None:
-    """The policy.pt ``--compare`` names (a run dir's or the file given), checked up front."""
+def _compare_source(policy: str | None, env_id: str) -> Path | None:
+    """The policy.pt ``--compare`` names (a run dir's or the file given), checked up front: a
+    readable policy of the task this run trains (``env_id``)."""
     if policy is None:
         return None
+    from mimicrete.learn.env import sim_task_of
+    from mimicrete.learn.run_files import PolicyFileError, load_policy_file
+
     p = Path(policy)
     src = p / "policy.pt" if p.is_dir() else p
     if not src.is_file():
         raise UsageError(f"--compare {p}: no such policy file or run directory with a policy.pt")
+    try:
+        theirs = load_policy_file(src)[1].env_settings.env_id
+    except PolicyFileError as e:
+        raise UsageError(f"--compare {e}") from None
+    theirs, ours = sim_task_of(theirs) or theirs, sim_task_of(env_id) or env_id
+    if theirs != ours:
+        raise UsageError(
+            f"--compare {src}: a policy of {theirs}, but this run trains {ours}; "
+            "compare policies of the same task"
+        )
     return src
 
 

@@ -359,6 +359,17 @@ class PolicyFileError(MimicreteError, ValueError):
 
 def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
     """The actor of ``run_dir/policy.pt`` (eval mode) and the config it was trained with."""
+    path = Path(run_dir) / "policy.pt"
+    if not Path(run_dir).is_dir():
+        raise FileNotFoundError(f"{run_dir}: no such run directory")
+    if not path.exists():
+        raise FileNotFoundError(f"{path} does not exist (is {run_dir} a finished training run?)")
+    return load_policy_file(path)
+
+
+def load_policy_file(path: Path) -> tuple[Actor, TrainerConfig]:
+    """:func:`load_policy` of a policy file wherever it lies (``PolicyFileError`` naming it when
+    it is not one)."""
     import pickle
 
     import torch
@@ -367,11 +378,6 @@ def load_policy(run_dir: Path) -> tuple[Actor, TrainerConfig]:
     from .env import N_CONT
     from .networks import Actor, n_branches_of
 
-    path = Path(run_dir) / "policy.pt"
-    if not Path(run_dir).is_dir():
-        raise FileNotFoundError(f"{run_dir}: no such run directory")
-    if not path.exists():
-        raise FileNotFoundError(f"{path} does not exist (is {run_dir} a finished training run?)")
     try:
         s = torch.load(path, weights_only=False)
         cfg = config_mod.from_dict(s["config"])
