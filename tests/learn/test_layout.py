@@ -79,6 +79,28 @@ def test_no_module_over_600_lines():
     assert long == {}
 
 
+def test_a_module_run_with_python_m_logs_under_the_package_logger():
+    """Run as ``python -m``, a module is ``__main__``: its ``getLogger(__name__)`` is outside the
+    ``mimicrete`` logger that :func:`mimicrete.console.show_messages` shows, so what it logs is
+    lost (``gestures.shipped`` and ``experiments.peers`` printed nothing). Such a module names its
+    logger; this finds any that does not."""
+    lost = []
+    for name, p in _modules().items():
+        tree = ast.parse(p.read_text())
+        runs_as_main = any(
+            isinstance(n, ast.If) and "__main__" in ast.unparse(n.test) for n in tree.body
+        )
+        for n in ast.walk(tree):
+            if (
+                runs_as_main
+                and isinstance(n, ast.Call)
+                and ast.unparse(n.func).endswith("getLogger")
+                and [ast.unparse(a) for a in n.args] == ["__name__"]
+            ):
+                lost.append(name)
+    assert lost == []
+
+
 def _python(code: str) -> subprocess.CompletedProcess:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(PKG.parent) + os.pathsep + env.get("PYTHONPATH", "")

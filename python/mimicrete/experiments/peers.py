@@ -59,7 +59,8 @@ from mimicrete.console import show_messages
 
 from .peers_report import FIGURE, STARTS, PeersError, report
 
-logger = logging.getLogger(__name__)
+# named, not __name__: run as `python -m`, this module is __main__, outside the package's logger
+logger = logging.getLogger("mimicrete.experiments.peers")
 
 REPO = Path(__file__).resolve().parents[3]
 DEFAULT_LEROBOT_PYTHON = REPO / ".venv-export" / "bin" / "python"

@@ -18,6 +18,7 @@ tracking noise (3 classes), and the 5 screwing classes spliced from those captur
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,9 @@ import numpy as np
 from . import captured as cap
 from .classes import MODELS_DIR, TASK_MODEL
 from .model import GestureModel, train_builtin
+
+# named, not __name__: run as `python -m`, this module is __main__, outside the package's logger
+log = logging.getLogger("mimicrete.gestures.shipped")
 
 #: Frames per captured test set (the poses / spliced shapes in turn, both hands).
 CAPTURED_FRAMES: dict[str, int] = {"grip": 600, "screw": 1000}
@@ -75,12 +79,11 @@ def remake(
         model.save(Path(out_dir) / f"gesture_{task}.joblib")
         i = model.info
         got = i["captured"].get("accuracy")
-        print(
+        log.info(
             f"{task}: best {i['best_params']}, CV {100 * i['cv_accuracy']:.2f} %, held-out "
             f"synthetic {100 * i['test_accuracy']:.2f} %, captured "
             + (f"{100 * got:.2f} %" if got is not None else "(IWER missing)")
-            + f" ({time.perf_counter() - t0:.0f} s)",
-            flush=True,
+            + f" ({time.perf_counter() - t0:.0f} s)"
         )
         out[task] = model
     return out
@@ -94,6 +97,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--task", choices=["grip", "screw"], action="append", help="default both")
     args = p.parse_args(argv)
+    from mimicrete.console import show_messages
+
+    show_messages()
     remake(args.out, args.seed, tasks=tuple(args.task or ("grip", "screw")))
     return 0
 
