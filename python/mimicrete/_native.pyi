@@ -327,6 +327,14 @@ class SimVecEnv:
     def __new__(
         cls, task: str, num_envs: int, seed: int = 0, num_threads: int = 2
     ) -> SimVecEnv: ...
+    @staticmethod
+    def from_spec_file(
+        path: str, num_envs: int, seed: int = 0, num_threads: int = 2
+    ) -> SimVecEnv:
+        """``num_envs`` envs of the task the spec file at ``path`` describes (as
+        ``SimEnv.from_spec_file``); raises as ``load_task_spec``."""
+    def spec(self) -> dict[str, Any]:
+        """The task spec these envs run, as a dict."""
     def reset(self, seed: int | None = None) -> _F32:
         """Reset all envs with base seed ``seed`` (episode counts restart) → obs (num_envs,
         obs_dim)."""

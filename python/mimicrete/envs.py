@@ -5,6 +5,12 @@ Ids (registered when this module is imported; see :func:`register_envs`):
 * ``mimicrete/TileSuction-v0``: the paper's tile installation with a four-cup suction head.
 * ``mimicrete/BlockGrip-v0``: pick and place a block with a parallel gripper.
 * ``mimicrete/Screw-v0``: grip a nut and screw it down a bolt.
+* ``mimicrete/Task-v0``: the task a spec file describes, ``gym.make("mimicrete/Task-v0",
+  spec="my_task.toml")`` (tile-sim's task spec, version 1: ``crates/tile-sim/tasks/*.toml`` are the
+  three above); its spaces are the sizes of the env the spec builds. ``make_vec("Task-v0", n,
+  seed, spec=PATH)`` and ``gym.make_vec("mimicrete/Task-v0", n, vectorization_mode=
+  "vector_entry_point", spec=PATH)`` give the vector env. A bad spec raises
+  ``mimicrete.SimInputError`` (a ``ValueError``) with its ``field``, ``value`` and ``reason``.
 
 Spaces (all float32): observation ``Box(-inf, inf, (obs_dim,))`` = 5 stacked frames, oldest first,
 zero-padded at episode start (TileSuction frame: 6 joint angles [rad], suction state ±1, cup centre
@@ -13,7 +19,8 @@ motions (× ``MAX_JOINT_STEP`` rad per step, clipped) and the end-effector comma
 close, ≤-0.5 drop / open, otherwise hold); Screw adds the spin command. Rewards are the paper's
 sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate).
 
-Time limit: the simulator itself truncates at 750 steps (``truncated=True``); the ids are
+Time limit: the simulator itself truncates at the spec's ``episode.max_steps`` (750 for the three
+built-in tasks) (``truncated=True``); the ids are
 registered without ``max_episode_steps`` so no ``TimeLimit`` wrapper counts a second time.
 
 ``make_vec(env_id, num_envs, seed)`` returns a :class:`gymnasium.vector.VectorEnv` backed by the
@@ -44,6 +51,7 @@ episode started.
 from __future__ import annotations
 
 import operator
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -53,6 +61,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from mimicrete import _native, tasks
+from mimicrete.render import render_rgb
 
 TASKS = tasks.SIM_TASKS
 ENV_IDS = tasks.ENV_IDS
@@ -147,11 +156,25 @@ def start_options(options: dict[str, Any] | None, num_envs: int | None = None) -
     return out
 
 
-def _spaces(task: str) -> tuple[spaces.Box, spaces.Box]:
-    t = tasks.get(task)
-    obs = spaces.Box(-np.inf, np.inf, shape=(t.obs_dim,), dtype=np.float32)
-    act = spaces.Box(-1.0, 1.0, shape=(t.act_dim,), dtype=np.float32)
+def _spaces(sim: Any) -> tuple[spaces.Box, spaces.Box]:
+    """The observation and action spaces of a built simulator env (its ``obs_dim``, ``act_dim``),
+    or of a built-in task named by ``sim`` (a string: :func:`mimicrete.tasks.get`)."""
+    dims = tasks.get(sim) if isinstance(sim, str) else sim
+    obs = spaces.Box(-np.inf, np.inf, shape=(int(dims.obs_dim),), dtype=np.float32)
+    act = spaces.Box(-1.0, 1.0, shape=(int(dims.act_dim),), dtype=np.float32)
     return obs, act
+
+
+TASK_FILE_ID = "mimicrete/Task-v0"
+
+
+def _spec_path(spec: Any) -> str:
+    """The task spec file ``spec`` names (a path), or a ValueError saying the id needs one."""
+    if spec is None:
+        raise ValueError(f"{TASK_FILE_ID} needs spec=PATH, a task spec file (TOML, version 1)")
+    if not isinstance(spec, (str, os.PathLike)):
+        raise ValueError(f"spec must be the path of a task spec file, got {spec!r}")
+    return os.fspath(spec)
 
 
 class MimicreteEnv(gym.Env):
@@ -159,14 +182,26 @@ class MimicreteEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": int(round(1.0 / CONTROL_DT))}
 
-    def __init__(self, task: str = "TileSuction", render_mode: str | None = None) -> None:
-        self.task = task_of(task)
+    def __init__(
+        self, task: str = "TileSuction", render_mode: str | None = None, *, spec: Any = None
+    ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
-        self.observation_space, self.action_space = _spaces(self.task)
-        self._sim = _native.SimEnv(self.task, 0)
+        #: the task spec file this env runs (None: the built-in spec of ``task``)
+        self.task_file = None if spec is None else _spec_path(spec)
+        if self.task_file is None:
+            self._sim = _native.SimEnv(task_of(task), 0)
+        else:
+            self._sim = _native.SimEnv.from_spec_file(self.task_file, 0)
+        self.task: str = self._sim.task  # the task logic (TileSuction, BlockGrip, Screw)
+        self.observation_space, self.action_space = _spaces(self._sim)
         self._scene = self._sim.scene()
+
+    @property
+    def task_spec(self) -> dict[str, Any]:
+        """The task spec this env runs, as a dict (tile-sim's ``TaskSpec``)."""
+        return self._sim.spec()
 
     @property
     def sim(self) -> Any:
@@ -227,20 +262,39 @@ class ScrewEnv(MimicreteEnv):
         super().__init__("Screw", render_mode)
 
 
+class TaskEnv(MimicreteEnv):
+    """``mimicrete/Task-v0``: the task the spec file ``spec`` describes."""
+
+    def __init__(self, spec: Any = None, render_mode: str | None = None) -> None:
+        super().__init__(render_mode=render_mode, spec=_spec_path(spec))
+
+
 class MimicreteVecEnv(VectorEnv):
     """``num_envs`` worlds of one task in the Rust ``VecEnv``; same-step auto-reset."""
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
     def __init__(
-        self, task: str, num_envs: int, seed: int | None = None, num_threads: int | None = None
+        self,
+        task: str | None,
+        num_envs: int,
+        seed: int | None = None,
+        num_threads: int | None = None,
+        *,
+        spec: Any = None,
     ) -> None:
-        self.task = task_of(task)
         self.num_envs = _count(num_envs, "num_envs")
         threads = _count(num_threads, "num_threads") if num_threads is not None else 2
         base = 0 if seed is None else _seed(seed)
-        self._sim = _native.SimVecEnv(self.task, self.num_envs, base, threads)
-        self.single_observation_space, self.single_action_space = _spaces(self.task)
+        #: the task spec file these envs run (None: the built-in spec of ``task``)
+        self.task_file = None if spec is None else _spec_path(spec)
+        if self.task_file is None:
+            self._sim = _native.SimVecEnv(task_of(str(task)), self.num_envs, base, threads)
+        else:
+            make = _native.SimVecEnv.from_spec_file
+            self._sim = make(self.task_file, self.num_envs, base, threads)
+        self.task: str = self._sim.task
+        self.single_observation_space, self.single_action_space = _spaces(self._sim)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._seed = seed
@@ -250,6 +304,11 @@ class MimicreteVecEnv(VectorEnv):
     def sim(self) -> Any:
         """The underlying ``mimicrete._native.SimVecEnv``."""
         return self._sim
+
+    @property
+    def task_spec(self) -> dict[str, Any]:
+        """The task spec these envs run, as a dict."""
+        return self._sim.spec()
 
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
@@ -353,12 +412,26 @@ class MimicreteVecEnv(VectorEnv):
         return obs, rew, term, trunc, infos
 
 
+def _is_task_file_id(env_id: str) -> bool:
+    return str(env_id).split("/")[-1].lower() in ("task-v0", "task")
+
+
 def make_vec(
-    env_id: str, num_envs: int, seed: int | None = None, num_threads: int | None = None
+    env_id: str,
+    num_envs: int,
+    seed: int | None = None,
+    num_threads: int | None = None,
+    *,
+    spec: Any = None,
 ) -> MimicreteVecEnv:
     """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` worlds (env i starts episode ``seed + i``;
     later episodes: see the module docstring). ``num_envs`` and ``num_threads``: positive
-    integers; ``seed``: None or an integer in [0, 2**64-1]; anything else is a ValueError."""
+    integers; ``seed``: None or an integer in [0, 2**64-1]; anything else is a ValueError.
+    ``env_id`` ``"Task-v0"`` runs the task spec file ``spec`` (and only it takes one)."""
+    if _is_task_file_id(env_id):
+        return MimicreteVecEnv(None, num_envs, seed, num_threads, spec=_spec_path(spec))
+    if spec is not None:
+        raise ValueError(f"spec= goes with {TASK_FILE_ID}, not {env_id!r}")
     return MimicreteVecEnv(task_of(env_id), num_envs, seed, num_threads)
 
 
@@ -376,12 +449,24 @@ make_block_grip_vec = _vector_entry("BlockGrip")
 make_screw_vec = _vector_entry("Screw")
 
 
+def make_task_file_vec(
+    num_envs: int = 1,
+    seed: int | None = None,
+    num_threads: int | None = None,
+    spec: Any = None,
+    **_: Any,
+) -> MimicreteVecEnv:
+    """The vector entry point of ``mimicrete/Task-v0``."""
+    return MimicreteVecEnv(None, num_envs, seed, num_threads, spec=_spec_path(spec))
+
+
 def register_envs() -> None:
-    """Register the three ids with gymnasium (idempotent)."""
+    """Register the three ids and ``mimicrete/Task-v0`` with gymnasium (idempotent)."""
     entries = {
         "TileSuction": ("TileSuctionEnv", "make_tile_suction_vec"),
         "BlockGrip": ("BlockGripEnv", "make_block_grip_vec"),
         "Screw": ("ScrewEnv", "make_screw_vec"),
+        "Task": ("TaskEnv", "make_task_file_vec"),
     }
     for task, (cls, vec) in entries.items():
         env_id = f"mimicrete/{task}-v0"
@@ -396,116 +481,3 @@ def register_envs() -> None:
 
 
 register_envs()
-
-
-# ---------------------------------------------------------------- rendering (rgb_array)
-
-
-def _quat_mat(q: Any) -> np.ndarray:
-    x, y, z, w = (float(v) for v in q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _frame(item: dict[str, Any], snap: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    fr = item["frame"]
-    if fr == "world":
-        return np.eye(3), np.zeros(3)
-    if fr == "object":
-        p = snap["object"]
-    else:
-        p = snap["links"][int(fr[4:])]
-    return _quat_mat(p["q"]), np.asarray(p["t"], dtype=float)
-
-
-def _cross2(u: np.ndarray, v: np.ndarray) -> float:
-    return float(u[0] * v[1] - u[1] * v[0])
-
-
-def _hull(pts: np.ndarray) -> np.ndarray:
-    """Convex hull (monotone chain) of 2-D points."""
-    pts = np.unique(np.round(pts, 9), axis=0)
-    if len(pts) <= 2:
-        return pts
-    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]
-
-    def half(seq: np.ndarray) -> list[np.ndarray]:
-        out: list[np.ndarray] = []
-        for p in seq:
-            while len(out) >= 2 and _cross2(out[-1] - out[-2], p - out[-2]) <= 0:
-                out.pop()
-            out.append(p)
-        return out
-
-    lower, upper = half(pts), half(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
-
-
-def render_rgb(
-    scene: list[dict[str, Any]], snap: dict[str, Any], size: tuple[int, int] = (640, 320)
-) -> np.ndarray:
-    """Top (x-y) and side (x-z) orthographic drawing of the scene → ``(H, W, 3)`` uint8."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Polygon
-
-    fig = Figure(figsize=(size[0] / 100, size[1] / 100), dpi=100)
-    canvas = FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
-    views = [(0, 1, "top (x, y)"), (0, 2, "side (x, z)")]
-    for ax, (_, j, title) in zip(axes, views, strict=True):
-        ax.set_title(title, fontsize=8)
-        ax.set_aspect("equal")
-        ax.set_xlim(-0.55, 0.45)
-        ax.set_ylim(-0.15, 0.6) if j == 1 else ax.set_ylim(-0.1, 0.55)
-        ax.tick_params(labelsize=6)
-    for item in scene:
-        if item["name"] == "table":
-            continue
-        rot, org = _frame(item, snap)
-        local_r = _quat_mat(item["rotation"])
-        local_t = np.asarray(item["translation"], dtype=float)
-        color = tuple(item["rgba"][:3])
-        alpha = float(item["rgba"][3])
-        kind = item["kind"]
-        if kind == "capsule":
-            a = rot @ (local_r @ np.asarray(item["a"]) + local_t) + org
-            b = rot @ (local_r @ np.asarray(item["b"]) + local_t) + org
-            width = float(item["radius"]) * 2 * 100 * 1.0
-            for ax, (i, j, _) in zip(axes, views, strict=True):
-                ax.plot(
-                    [a[i], b[i]],
-                    [a[j], b[j]],
-                    color=color,
-                    lw=max(width, 1.0),
-                    solid_capstyle="round",
-                    alpha=alpha,
-                )
-            continue
-        if kind == "box":
-            h = np.asarray(item["half_extents"], dtype=float)
-        else:
-            r, hh = float(item["radius"]), float(item["half_height"])
-            h = np.array([r, r, hh])
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
-        world = (rot @ (local_r @ corners.T + local_t[:, None])).T + org
-        for ax, (i, j, _) in zip(axes, views, strict=True):
-            hull = _hull(world[:, [i, j]])
-            if len(hull) >= 3:
-                ax.add_patch(
-                    Polygon(hull, closed=True, facecolor=color, edgecolor="k", lw=0.3, alpha=alpha)
-                )
-    axes[1].axhline(0.0, color=(0.45, 0.35, 0.25), lw=2)
-    label = f"step {snap['step']}  held={snap['held']}  picked={snap['picked']}"
-    fig.suptitle(label, fontsize=8)
-    canvas.draw()
-    img = np.asarray(canvas.buffer_rgba())[..., :3].copy()
-    return img

@@ -1,13 +1,18 @@
 """The task table: one place for the three tasks' names, ids and sizes.
 
-The sizes come from the simulator itself (``tile-sim`` through ``_native.sim_constants()``); the
-names are the user-facing ones (``suction``, ``grip``, ``screw``), the simulator's
+The sizes come from the simulator itself (``tile-sim`` through ``_native.sim_constants()``), the
+episode length and the effector kind from each task's built-in spec file
+(``crates/tile-sim/tasks/*.toml`` through ``_native.task_spec``, :meth:`TaskSpec.builtin_spec`);
+the names are the user-facing ones (``suction``, ``grip``, ``screw``), the simulator's
 (``TileSuction``, ``BlockGrip``, ``Screw``) and the gymnasium ids (``mimicrete/TileSuction-v0``).
-Everything else in the package looks tasks up here.
+Everything else in the package looks tasks up here. A researcher's own spec file runs one of
+these tasks' logic (:func:`load_task_file`).
 """
 
 from __future__ import annotations
 
+import os
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,14 +37,22 @@ class TaskSpec:
     obs_frame_dim: int
     obs_dim: int
     act_dim: int
+    max_steps: int  # episode length in control steps (the spec's episode.max_steps)
+    effector: str  # the spec's effector kind: suction | gripper
 
     @property
     def env_id(self) -> str:
         return f"mimicrete/{self.sim}-v0"
 
+    def builtin_spec(self) -> dict[str, Any]:
+        """The task's built-in spec (``crates/tile-sim/tasks/<task>.toml``) as a dict (a new one
+        each call)."""
+        return _native.task_spec(self.sim)
+
 
 def _task(name: str, sim: str, gesture_model: str, success: str) -> TaskSpec:
     d = _CONST["tasks"][sim]
+    spec = _native.task_spec(sim)
     return TaskSpec(
         name,
         sim,
@@ -48,6 +61,8 @@ def _task(name: str, sim: str, gesture_model: str, success: str) -> TaskSpec:
         int(d["obs_frame_dim"]),
         int(d["obs_dim"]),
         int(d["act_dim"]),
+        int(spec["episode"]["max_steps"]),
+        str(spec["effector"]["kind"]),
     )
 
 
@@ -83,3 +98,36 @@ def get(name: str) -> TaskSpec:
             f"unknown task {name!r}; known: {', '.join(TASKS)} (or {', '.join(ENV_IDS)})"
         )
     return TABLE[_ALIASES[key]]
+
+
+def load_task_file(path: str | os.PathLike[str]) -> tuple[TaskSpec, dict[str, Any]]:
+    """A researcher's task spec file, read, checked and built once → the task whose logic it runs
+    (tile-sim picks it from the effector: its names, gesture model and sizes) and the spec as a
+    dict. Raises as ``_native.SimEnv.from_spec_file``: ``SimInputError`` for a bad spec (see
+    :func:`task_file_error`), ``OSError`` for an unreadable file."""
+    env = _native.SimEnv.from_spec_file(os.fspath(path), 0)
+    return get(env.task), env.spec()
+
+
+_TOML_AT = re.compile(r"TOML parse error at line (\d+), column (\d+)")
+_SOURCE_LINE = re.compile(r"^\s*\d+\s*\|(.*)$")
+
+
+def task_file_error(path: str | os.PathLike[str], error: BaseException) -> str:
+    """One line saying why the spec file ``path`` was refused: ``FILE: FIELD = VALUE: why`` for a
+    bad value, ``FILE: line L, column C (the line's text): why`` for a TOML or structure error
+    (an unknown field, a wrong type), ``FILE: why`` for a file that cannot be read."""
+    path = os.fspath(path)
+    field = getattr(error, "field", None)
+    if field is not None:
+        return f"{path}: {field} = {getattr(error, 'value', None)}: {getattr(error, 'reason', '')}"
+    if isinstance(error, OSError):
+        return f"{path}: {error.strerror or error}"
+    lines = [ln for ln in str(error).splitlines() if ln.strip()]
+    at = _TOML_AT.search(lines[0]) if lines else None
+    if at is None:
+        return f"{path}: {' '.join(ln.strip() for ln in lines)}"
+    source = [m.group(1).split("#")[0].strip() for m in map(_SOURCE_LINE.match, lines) if m]
+    shown = f" ({source[0]})" if source and source[0] else ""
+    why = lines[-1].strip() if len(lines) > 1 else "not a task spec"
+    return f"{path}: line {at.group(1)}, column {at.group(2)}{shown}: {why}"

@@ -269,6 +269,24 @@ impl SimVecEnv {
         Ok(SimVecEnv { venv, buf, task, num_envs, num_threads, obs_dim, act_dim })
     }
 
+    /// `num_envs` envs of the task the spec file at `path` describes (as `SimEnv.from_spec_file`;
+    /// raises as `load_task_spec`).
+    #[staticmethod]
+    #[pyo3(signature = (path, num_envs, seed = 0, num_threads = 2))]
+    fn from_spec_file(path: &str, num_envs: usize, seed: u64, num_threads: usize) -> PyResult<Self> {
+        let spec = Arc::new(read_spec(path)?);
+        let t = spec.task();
+        let venv = VecEnv::from_spec(spec, num_envs, seed, num_threads).map_err(sim_err)?;
+        let (task, num_threads, obs_dim, act_dim) = (t.name(), venv.num_threads(), t.obs_dim(), t.act_dim());
+        let buf = StepBuffers::new(t, num_envs);
+        Ok(SimVecEnv { venv, buf, task, num_envs, num_threads, obs_dim, act_dim })
+    }
+
+    /// The spec these envs run, as a dict.
+    fn spec<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        to_py(py, &**self.venv.spec())
+    }
+
     /// Reset all envs, env i with seed `seed + i` (None: a base from the VecEnv's RNG) → obs.
     #[pyo3(signature = (seed = None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Obs<'py>> {

@@ -1,6 +1,9 @@
 """`mimicrete synth-hands`: hand logs of the scripted demonstrator (`mimicrete.demonstrator`), or
 with ``--through-teleop`` its demos recorded through a live ``mimicrete teleop`` server with hand
-shapes captured on a Quest (`mimicrete.demonstrator.live_client`)."""
+shapes captured on a Quest (`mimicrete.demonstrator.live_client`). ``--task-file SPEC.toml``: the
+person demonstrates the task a spec file describes (its starts, object and target; the task's
+logic, and so its gestures, follow from the spec's effector); a bad spec is one line naming the
+file, the field, the value and why, exit 2."""
 
 from __future__ import annotations
 
@@ -14,7 +17,15 @@ from mimicrete.tasks import TASKS
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Flags of ``mimicrete synth-hands``."""
-    parser.add_argument("--task", choices=TASKS, default="suction", help="task to demonstrate")
+    parser.add_argument(
+        "--task", choices=TASKS, default=None, help="task to demonstrate (suction)"
+    )
+    parser.add_argument(
+        "--task-file",
+        metavar="SPEC.toml",
+        help="demonstrate the task this spec file describes (tile-sim task spec, version 1; "
+        "crates/tile-sim/tasks/*.toml are the built-in ones); --task, if given, must match it",
+    )
     parser.add_argument("--episodes", type=int, default=60, help="hand logs to write (60)")
     parser.add_argument("--seed", type=int, default=0, help="seed: same seed, same files (0)")
     parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
@@ -46,13 +57,39 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def task_file_arg(path: str, task: str | None) -> str:
+    """The task (``suction`` | ``grip`` | ``screw``) the spec file at ``path`` runs, the file
+    read and checked; a bad or unreadable spec, or one of another task than ``--task``, is a
+    :class:`UsageError` naming the file (and the field, the value and why)."""
+    from mimicrete._native import SimInputError
+
+    try:
+        spec_task, _ = tasks.load_task_file(path)
+    except (SimInputError, OSError) as e:
+        raise UsageError(f"--task-file {tasks.task_file_error(path, e)}") from None
+    if task is not None and tasks.get(task).name != spec_task.name:
+        raise UsageError(
+            f"--task-file {path} runs the {spec_task.name} task ({spec_task.sim}), "
+            f"not --task {task}"
+        )
+    return spec_task.name
+
+
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete synth-hands``."""
     from mimicrete.demonstrator import synth_hands
 
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.task_file is not None:
+        args.task = task_file_arg(args.task_file, args.task)
+    args.task = args.task or "suction"
     if args.through_teleop:
+        if args.task_file is not None:
+            raise UsageError(
+                f"--task-file {args.task_file}: --through-teleop records the built-in tasks "
+                "only (the teleop server reads no spec yet)"
+            )
         if args.handedness != "right" or args.layout != "openxr":
             raise UsageError(
                 "--through-teleop records the page's right hand (WebXR): drop --layout/--handedness"
@@ -73,6 +110,7 @@ def main(args: argparse.Namespace) -> int:
         layout=args.layout,
         handedness=args.handedness,
         progress=True,
+        task_file=args.task_file,
     )
     print(f"wrote {len(paths)} hand logs to {args.out}")
     return 0

@@ -84,9 +84,10 @@ def synth_episode(
     layout: str = "openxr",
     calib: Calibration | None = None,
     handedness: str = "right",
+    extra: dict[str, Any] | None = None,
 ) -> SynthEpisode:
     """Synthesise one demonstration of ``scene``; the same ``(scene, seed)`` gives the same
-    episode."""
+    episode. ``extra``: more header fields (the task spec file a scene came from)."""
     layout = layouts.check_layout(layout)
     calib = calib or Calibration()
     rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
@@ -135,6 +136,7 @@ def synth_episode(
                 "tremor_mm": round(person.tremor_mm, 3),
             },
             "rate_hz": HAND_RATE_HZ,
+            **(extra or {}),
         },
     )
     return SynthEpisode(header, t, tracked, out, phases, frames, gestures, changing)
@@ -174,13 +176,27 @@ def synth_hands(
     handedness: str = "right",
     scene_fn: Any = None,
     progress: bool = False,
+    task_file: str | Path | None = None,
 ) -> list[Path]:
     """Write ``episodes`` hand logs for ``task`` into ``out``; returns their paths.
 
-    ``scene_fn(task, episode_seed) -> Scene`` defaults to :func:`scene_from_env`.
+    ``scene_fn(task, episode_seed) -> Scene`` defaults to :func:`scene_from_env`; with
+    ``task_file`` (a task spec file running ``task``'s logic) the scenes are that spec's episode
+    starts and each header names the file and the spec (``task_file``, ``task_spec``).
     """
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    extra: dict[str, Any] | None = None
+    if task_file is not None:
+        from mimicrete import _native
+
+        spec_path = str(task_file)
+        extra = {"task_file": spec_path, "task_spec": _native.load_task_spec(spec_path)}
+        if scene_fn is None:
+
+            def scene_fn(task: str, seed: int) -> Scene:
+                return scene_from_env(task, seed, spec_path)
+
     scene_fn = scene_fn or scene_from_env
     out = Path(out)
     paths = []
@@ -192,6 +208,8 @@ def synth_hands(
         it = tqdm(it, total=episodes, desc=f"synth {task}", unit="ep")
     for i, ep_seed in it:
         scene = scene_fn(task, ep_seed)
-        ep = synth_episode(scene, seed * 1_000_003 + i, layout=layout, handedness=handedness)
+        ep = synth_episode(
+            scene, seed * 1_000_003 + i, layout=layout, handedness=handedness, extra=extra
+        )
         paths.append(write_handlog(out / f"{task}_{i:04d}.handlog.jsonl", ep))
     return paths

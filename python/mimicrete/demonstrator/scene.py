@@ -153,10 +153,11 @@ def have_simulator() -> bool:
     return hasattr(_native, "SimEnv")
 
 
-def scene_from_env(task: str, seed: int) -> Scene:
+def scene_from_env(task: str, seed: int, task_file: str | None = None) -> Scene:
     """The scene of episode ``seed`` as the simulator resets it (the one switch for where the
     demonstrator's knowledge comes from): positions of the end effector, the object and the
-    target, which a person sees in the VR scene."""
+    target, which a person sees in the VR scene. ``task_file``: the task spec file whose env
+    is reset (its starts, object and target), instead of ``task``'s built-in one."""
     from mimicrete import _native
 
     if not have_simulator():
@@ -164,7 +165,10 @@ def scene_from_env(task: str, seed: int) -> Scene:
             "mimicrete._native was built without the simulator bindings (tile-sim); "
             "rebuild with `make native`"
         )
-    env = _native.SimEnv(tasks.get(task).sim)
+    if task_file is not None:
+        env = _native.SimEnv.from_spec_file(task_file, 0)
+    else:
+        env = _native.SimEnv(tasks.get(task).sim)
     env.reset(int(seed))
     snap = env.snapshot()
     tcp = np.array(snap["tcp"]["t"], dtype=np.float64)

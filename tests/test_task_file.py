@@ -1,0 +1,255 @@
+"""A researcher's task spec file from Python (issue 26 §1): ``gym.make("mimicrete/Task-v0",
+spec=PATH)`` and its vector env run the file (an unchanged copy of a built-in spec gives the
+built-in env's episodes bit for bit; a bigger tile gives other observations), the task table reads
+the built-in specs, and ``mimicrete synth-hands --task-file`` plans from the file or refuses a bad
+one in one line (file, field, value, why), exit 2, through the real command line."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from mimicrete import _native, envs, tasks
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _cli_run import run_cli  # noqa: E402
+
+TILE = "half_extents = [0.075, 0.075, 0.005]"
+BIG_TILE = "half_extents = [0.1, 0.1, 0.006]"
+
+
+def spec_copy(tmp_path: Path, task: str = "TileSuction", *edits: tuple[str, str]) -> Path:
+    text = _native.task_spec(task, as_toml=True)
+    for old, new in edits:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    path = tmp_path / f"{task.lower()}_{len(list(tmp_path.iterdir()))}.toml"
+    path.write_text(text)
+    return path
+
+
+def actions(n: int, act_dim: int, seed: int, batch: int | None = None) -> np.ndarray:
+    shape = (n, act_dim) if batch is None else (n, batch, act_dim)
+    return np.random.default_rng(seed).uniform(-1, 1, size=shape).astype(np.float32)
+
+
+def run_episode(env: gym.Env, seed: int, acts: np.ndarray) -> list:
+    obs, info = env.reset(seed=seed)
+    out = [(obs, info["episode_seed"], info["start"])]
+    for a in acts:
+        obs, r, term, trunc, info = env.step(a)
+        out.append((obs, r, term, trunc, info))
+        if term or trunc:
+            break
+    return out
+
+
+def assert_same(a: object, b: object) -> None:
+    if isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray) and a.dtype == b.dtype and np.array_equal(a, b)
+    elif isinstance(a, (list, tuple)):
+        assert isinstance(b, (list, tuple)) and len(a) == len(b)
+        for x, y in zip(a, b, strict=True):
+            assert_same(x, y)
+    elif isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys()
+        for k in a:
+            assert_same(a[k], b[k])
+    else:
+        assert a == b
+
+
+@pytest.mark.parametrize("task", ["TileSuction", "BlockGrip", "Screw"])
+def test_an_unchanged_copy_gives_the_builtin_episodes_bit_for_bit(tmp_path: Path, task) -> None:
+    path = spec_copy(tmp_path, task)
+    mine = gym.make("mimicrete/Task-v0", spec=str(path))
+    builtin = gym.make(f"mimicrete/{task}-v0")
+    assert mine.unwrapped.task == task and mine.unwrapped.task_file == str(path)
+    assert mine.observation_space == builtin.observation_space
+    assert mine.action_space == builtin.action_space
+    assert mine.unwrapped.task_spec == _native.task_spec(task)
+    acts = actions(150, builtin.action_space.shape[0], seed=5)
+    for seed in (0, 11):
+        a, b = run_episode(mine, seed, acts), run_episode(builtin, seed, acts)
+        assert len(a) > 1
+        assert_same(a, b)
+
+
+def test_a_bigger_tile_gives_other_observations(tmp_path: Path) -> None:
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    mine = gym.make("mimicrete/Task-v0", spec=big)  # a Path is accepted too
+    builtin = gym.make("mimicrete/TileSuction-v0")
+    assert mine.unwrapped.task_spec["object"]["half_extents"] == [0.1, 0.1, 0.006]
+    (o1, _), (o0, _) = mine.reset(seed=3), builtin.reset(seed=3)
+    frame = tasks.get("suction").obs_frame_dim
+    # the newest frame's tile centre [13:16] and target [10:13]: z is half a thickness up, 6 mm
+    # instead of 5 (on the table; on the pad 0.04 m up); x, y are the same start
+    new1, new0 = o1[-frame:], o0[-frame:]
+    assert new0[15] == pytest.approx(0.005, abs=1e-6) and new1[15] == pytest.approx(0.006, abs=1e-6)
+    assert new1[12] - new0[12] == pytest.approx(0.001, abs=1e-6)
+    np.testing.assert_array_equal(new1[13:15], new0[13:15])
+    acts = actions(60, 7, seed=2)
+    a, b = run_episode(mine, 3, acts), run_episode(builtin, 3, acts)
+    assert not np.array_equal(a[-1][0], b[-1][0])
+
+
+def test_spaces_come_from_the_env_the_spec_builds(tmp_path: Path) -> None:
+    # a Screw spec (tile-sim picks Screw's logic from the gripper's spin rate): 18-dim frames and
+    # a spin command, whatever the file's name
+    path = spec_copy(tmp_path, "Screw", ('name = "Screw"', 'name = "MyNut"'))
+    env = gym.make("mimicrete/Task-v0", spec=str(path))
+    assert env.unwrapped.task == "Screw" and env.unwrapped.task_spec["name"] == "MyNut"
+    assert env.observation_space.shape == (90,) and env.action_space.shape == (8,)
+    vec = envs.make_vec("Task-v0", 2, seed=0, spec=path)
+    assert vec.single_action_space.shape == (8,) and vec.observation_space.shape == (2, 90)
+
+
+def test_the_vector_env_runs_the_file(tmp_path: Path) -> None:
+    copy = spec_copy(tmp_path, "TileSuction")
+    mine = envs.make_vec("mimicrete/Task-v0", 3, seed=7, spec=str(copy))
+    builtin = envs.make_vec("TileSuction-v0", 3, seed=7)
+    assert mine.task == "TileSuction" and mine.task_spec == _native.task_spec("TileSuction")
+    assert_same(mine.reset(seed=7), builtin.reset(seed=7))
+    for a in actions(40, 7, seed=1, batch=3):
+        assert_same(mine.step(a), builtin.step(a))
+    # the episode length is the file's: 5 steps, then the same-step auto-reset
+    short = spec_copy(tmp_path, "TileSuction", ("max_steps = 750", "max_steps = 5"))
+    vec = gym.make_vec(
+        "mimicrete/Task-v0", num_envs=2, vectorization_mode="vector_entry_point", spec=str(short)
+    )
+    assert isinstance(vec, envs.MimicreteVecEnv) and vec.task_spec["episode"]["max_steps"] == 5
+    vec.reset(seed=0)
+    flags = [vec.step(np.zeros((2, 7), np.float32))[3].tolist() for _ in range(5)]
+    assert flags == [[False, False]] * 4 + [[True, True]]
+    # state / restore rebuilds a spec env mid-episode
+    big_tile = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    big = envs.make_vec("Task-v0", 2, seed=4, spec=big_tile)
+    big.reset(seed=4)
+    for a in actions(7, 7, seed=3, batch=2):
+        obs = big.step(a)[0]
+    other = envs.make_vec("Task-v0", 2, seed=0, spec=big.task_file)
+    np.testing.assert_array_equal(other.restore(big.state()), obs)
+
+
+def test_the_task_file_id_refuses_what_is_not_a_spec(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="needs spec=PATH"):
+        gym.make("mimicrete/Task-v0")
+    with pytest.raises(ValueError, match="needs spec=PATH"):
+        envs.make_vec("Task-v0", 2)
+    with pytest.raises(ValueError, match="spec= goes with mimicrete/Task-v0"):
+        envs.make_vec("TileSuction-v0", 2, spec=spec_copy(tmp_path))
+    bad = spec_copy(tmp_path, "TileSuction", ("mass = 0.5 ", "mass = -2 "))
+    for make in (lambda: gym.make("mimicrete/Task-v0", spec=str(bad)),
+                 lambda: envs.make_vec("Task-v0", 2, spec=str(bad))):  # fmt: skip
+        with pytest.raises(_native.SimInputError) as e:
+            make()
+        assert (e.value.field, e.value.value) == ("object.mass", "-2.0")
+    with pytest.raises(FileNotFoundError):
+        gym.make("mimicrete/Task-v0", spec=str(tmp_path / "missing.toml"))
+
+
+def test_the_task_table_reads_the_builtin_specs() -> None:
+    for t in tasks.TABLE.values():
+        spec = t.builtin_spec()
+        assert spec["name"] == t.sim
+        assert t.max_steps == spec["episode"]["max_steps"] == tasks.MAX_EPISODE_STEPS
+        assert t.effector == spec["effector"]["kind"]
+        sim = _native.SimEnv(t.sim, 0)
+        assert (t.obs_dim, t.act_dim) == (sim.obs_dim, sim.act_dim)
+        assert t.obs_frame_dim == sim.obs_frame_dim
+    assert [t.effector for t in tasks.TABLE.values()] == ["suction", "gripper", "gripper"]
+
+
+# ----------------------------------------------------------------------------------------------
+# mimicrete synth-hands --task-file, through the real command line
+# ----------------------------------------------------------------------------------------------
+
+
+def frames(path: Path) -> tuple[dict, list[str]]:
+    lines = path.read_text().splitlines()
+    return json.loads(lines[0]), lines[1:]
+
+
+def test_synth_hands_plans_from_the_task_file(tmp_path: Path) -> None:
+    copy = spec_copy(tmp_path, "TileSuction")
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    outs = {}
+    for name, extra in [("builtin", []), ("copy", ["--task-file", str(copy)]),
+                        ("big", ["--task-file", str(big)])]:  # fmt: skip
+        outs[name] = tmp_path / name
+        r = run_cli("synth-hands", *extra, "--episodes", "2", "--seed", "3",
+                    "--out", str(outs[name]))  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        assert "wrote 2 hand logs" in r.stdout
+    for log in sorted(outs["builtin"].glob("*.jsonl")):
+        h0, f0 = frames(log)
+        h1, f1 = frames(outs["copy"] / log.name)
+        h2, f2 = frames(outs["big"] / log.name)
+        assert "task_file" not in h0["extra"]
+        assert h1["extra"]["task_file"] == str(copy) and h1["task"] == "suction"
+        assert h1["extra"]["task_spec"] == json.loads(json.dumps(_native.task_spec("TileSuction")))
+        assert h1["extra"]["scene"] == h0["extra"]["scene"] and f1 == f0  # the same person
+        assert h2["extra"]["task_spec"]["object"]["half_extents"] == [0.1, 0.1, 0.006]
+        assert h2["extra"]["scene"]["object"][2] == pytest.approx(0.006, abs=1e-6)
+        assert h2["extra"]["scene"]["target"][2] - h0["extra"]["scene"]["target"][2] == (
+            pytest.approx(0.001, abs=1e-6)
+        )
+        assert f2 != f0  # the hand goes to the thicker tile
+
+
+BAD_SPECS = [
+    # (edit of tile_suction.toml, what the one line must say)
+    (("mass = 0.5 ", "mass = -2 "), ["object.mass = -2.0", "must be a finite number > 0"]),
+    (("version = 1", "version = 2"), ["version = 2", "reads version 1"]),
+    (("object_x = [0.0, 0.15]", "object_x = [0.9, 1.0]"),
+     ["starts.paper.object_x = [0.9, 1.0]", "within"]),
+    (("mass = 0.5 ", "masss = 0.5 "), ["line 33, column 1 (masss = 0.5)", "unknown field `masss`"]),
+    (("mass = 0.5 ", 'mass = "heavy" '),
+     ['line 33, column 8 (mass = "heavy")', 'invalid type: string "heavy"']),
+    (('kind = "suction"', 'kind = "vacuum"'), ['(kind = "vacuum")', "unknown variant `vacuum`"]),
+]  # fmt: skip
+
+
+def one_error_line(r, *parts: str) -> str:
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr and r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    line = lines[0]
+    assert line.startswith("mimicrete synth-hands: error: --task-file ")
+    for p in parts:
+        assert p in line, (p, line)
+    return line
+
+
+@pytest.mark.parametrize("edit,says", BAD_SPECS, ids=[s[1][0] for s in BAD_SPECS])
+def test_a_bad_task_file_is_one_line_and_exit_2(tmp_path: Path, edit, says) -> None:
+    bad = spec_copy(tmp_path, "TileSuction", edit)
+    out = tmp_path / "out"
+    r = run_cli("synth-hands", "--task-file", str(bad), "--episodes", "1", "--out", str(out))
+    one_error_line(r, f"{bad}: ", *says)
+    assert not out.exists()
+
+
+def test_a_task_file_that_is_no_file_or_another_task_is_refused(tmp_path: Path) -> None:
+    out = str(tmp_path / "out")
+    missing = tmp_path / "missing.toml"
+    r = run_cli("synth-hands", "--task-file", str(missing), "--out", out)
+    one_error_line(r, f"{missing}: No such file or directory")
+    r = run_cli("synth-hands", "--task-file", str(tmp_path), "--out", out)
+    one_error_line(r, f"{tmp_path}: Is a directory")
+    garbage = tmp_path / "garbage.toml"
+    garbage.write_text("not a spec [[[\n")
+    one_error_line(run_cli("synth-hands", "--task-file", str(garbage), "--out", out),
+                   f"{garbage}: line 1, column", "(not a spec [[[)")  # fmt: skip
+    spec = spec_copy(tmp_path, "TileSuction")
+    r = run_cli("synth-hands", "--task-file", str(spec), "--task", "screw", "--out", out)
+    one_error_line(r, str(spec), "runs the suction task (TileSuction), not --task screw")
+    r = run_cli("synth-hands", "--task-file", str(spec), "--through-teleop", "--out", out)
+    one_error_line(r, f"{spec}: --through-teleop records the built-in tasks only")
+    assert not Path(out).exists()
