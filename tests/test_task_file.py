@@ -200,6 +200,15 @@ def test_synth_hands_plans_from_the_task_file(tmp_path: Path) -> None:
             pytest.approx(0.001, abs=1e-6)
         )
         assert f2 != f0  # the hand goes to the thicker tile
+    # convert replays in the built-in task's scene, so it refuses these logs rather than record
+    # demos of another tile (until it takes a --task-file)
+    demos = tmp_path / "demos"
+    r = run_cli("convert", str(outs["big"]), "--task", "suction", "--out", str(demos),
+                "--no-progress")  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    errors = r.stderr.strip().splitlines()
+    assert len(errors) == 2 and all(f"written for the task spec file {big}" in e for e in errors)
+    assert not demos.exists()
 
 
 BAD_SPECS = [

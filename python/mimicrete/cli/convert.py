@@ -98,6 +98,12 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
         name = cv.path_text(path)
         try:
             log = cv.load_log(path, mode)
+            task_file = (log.header.get("extra") or {}).get("task_file")
+            if task_file is not None:  # its scene is not the built-in task's: refuse, say why
+                raise cv.ConvertError(
+                    f"{name}: written for the task spec file {task_file} (synth-hands "
+                    "--task-file); convert runs the built-in tasks only (no --task-file yet)"
+                )
             res = cv.convert_log(
                 log,
                 args.task,
