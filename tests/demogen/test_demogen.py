@@ -229,3 +229,23 @@ def test_cli_task_from_the_demos_and_mixed_tasks(source_dir, gripper_source, tmp
     r = run_cli("demogen", "--demos", str(mixed), "--count", "1", "--out", str(tmp_path / "o3"))
     assert r.returncode == 2 and "mixes tasks" in r.stderr and task in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_grasp_jitter_grasps_off_centre_and_places_the_block_not_the_tcp(tmp_path):
+    """BlockGrip with ``grasp_jitter``: the block is held off the TCP by up to the jitter along
+    the fingers, the place is shifted by that offset, and the block still lands on the target."""
+    src_dir = tmp_path / "src"
+    _expert_demo("BlockGrip", 11, src_dir / "src_0000.mcap")
+    sources = dg.load_sources(src_dir)
+    starts = dg.draw_starts(6, seed=5, starts="wide", task="BlockGrip")
+    rep = dg.generate(
+        sources, 6, tmp_path / "out", starts=starts, seed=5, max_attempts=6, grasp_jitter=0.02
+    )
+    assert rep.kept >= 5, rep.failures
+    lay = dg.task_frames("BlockGrip").lay
+    offsets = []
+    for sl_obs in (demos.load(p).obs for p in rep.files):
+        last = sl_obs[-1, -16:]
+        offsets.append(np.linalg.norm((last[lay["object"]] - last[lay["tcp"]])[:2]))
+        assert np.linalg.norm((last[lay["object"]] - last[lay["target"]])[:2]) < 0.005
+    assert max(offsets) > 0.005 and max(offsets) < 0.025

@@ -94,6 +94,28 @@ def test_choose_only_unsolved_demos_and_own_starts_at_reset_prob():
     assert {_cur([50], reset_prob=0.0).choose() for _ in range(100)} == {-1}
 
 
+def test_pooled_demos_share_one_stage_and_window():
+    """pooled: the frontier episodes of any demos fill one window; when it holds enough
+    installs, every unsolved demo moves back one step of its own schedule."""
+    c = _cur([100, 50, 100], window=3, threshold=0.67, step_fraction=0.2, pooled=True)
+    assert [c.start(d) for d in range(3)] == [80, 40, 80]
+    c.record(0, True)
+    c.record(1, True)
+    c.record(2, False, frontier=False)  # a passed start: logged, not judged
+    assert c.stage == [0, 0, 0] and list(c.pool_results) == [True, True]
+    c.record(2, True)
+    assert c.stage == [1, 1, 1] and [c.start(d) for d in range(3)] == [60, 30, 60]
+    assert all(len(r) == 0 for r in c.results)  # the per-demo windows stay unused
+    d = _cur([100, 50, 100], window=3, threshold=0.67, step_fraction=0.2, pooled=True)
+    c.record(1, True)
+    d.load_state_dict(c.state_dict())
+    assert d.stage == c.stage and list(d.pool_results) == [True]
+    for _ in range(3 * 5):
+        c.record(0, True)
+    assert c.unsolved == [] and math.isclose(c.progress(), 1.0)
+    assert "pool_results" not in _cur([10]).state_dict()  # unpooled checkpoints unchanged
+
+
 def test_horizon_cut_only_for_demo_starts_that_did_not_end():
     c = _cur([40, 40])
     c.env_demo[:] = [-1, 0, 1, 0]

@@ -209,9 +209,19 @@ def generate_episode(
     *,
     blend: float = 0.5,
     rotate: bool = False,
+    grasp_jitter: float = 0.0,
 ) -> GeneratedEpisode:
     """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv`` of the
-    source's task)."""
+    source's task).
+
+    ``grasp_jitter`` (m, 0: off): the object-relative segment is shifted along the tool's x axis
+    (the gripper fingers' faces, where closing does not centre the object) by a uniform draw in
+    ``[-grasp_jitter, grasp_jitter]`` (from ``seed``), so the object is grasped off-centre as a
+    policy grasps it; once held, the target-relative segment is shifted by minus the object's
+    horizontal offset from the TCP, so the object, not the TCP, arrives where the source put it.
+    Without it every generated grasp is centred (BlockGrip: the block within 2 mm of the TCP at
+    the place), and neither BC nor a reverse curriculum over the demos shows a place that
+    corrects for an off-centre block."""
     spec = src.spec
     ep = GeneratedEpisode(src.name, start, int(seed), task=spec.sim)
     obs = sim.reset(
@@ -227,11 +237,18 @@ def generate_episode(
     }
     run = _Runner(sim, ep, np.asarray(obs, np.float32), spec)
     last = run.pose()
+    shift = float(np.random.default_rng([int(seed), 0x617]).uniform(-1, 1)) * grasp_jitter
     try:
         for seg in src.segments:
+            moved = seg.moved_to(frames[seg.relative_to])
             if seg.relative_to == "target":
                 _await_grasp(run, spec, last, src.segments[0].commands[-1])
-            poses = _blended(seg.moved_to(frames[seg.relative_to]), run.pose(), blend)
+                if grasp_jitter > 0:
+                    moved[:, :2, 3] -= _in_hand_offset(run)
+            elif grasp_jitter > 0:
+                x = moved[-1, :3, 0] * [1.0, 1.0, 0.0]
+                moved[:, :3, 3] += shift * x / max(float(np.linalg.norm(x)), 1e-9)
+            poses = _blended(moved, run.pose(), blend)
             for p, c in zip(poses, seg.commands, strict=True):
                 run.step(p, c)
             last = poses[-1]
@@ -240,6 +257,12 @@ def generate_episode(
     except _Abort as e:
         ep.why = str(e)
     return ep
+
+
+def _in_hand_offset(run: _Runner) -> np.ndarray:
+    """The held object's horizontal offset from the TCP (m, Base frame)."""
+    snap = run.sim.snapshot()
+    return (np.asarray(snap["object"]["t"]) - np.asarray(snap["tcp"]["t"]))[:2]
 
 
 def _await_grasp(run: _Runner, spec: TaskFrames, last: np.ndarray, cmd: np.ndarray) -> None:
@@ -352,10 +375,12 @@ def generate(
     max_attempts: int | None = None,
     progress: Callable[[Report], None] | None = None,
     rotate: bool = False,
+    grasp_jitter: float = 0.0,
 ) -> Report:
     """Generate until ``count`` installing demos are written into ``out`` (or ``max_attempts``,
     default ``4 · count + 20``, are used up). ``starts``: a named distribution (drawn with
-    ``seed``) or explicit starts, used in order and cycled."""
+    ``seed``) or explicit starts, used in order and cycled. ``grasp_jitter``: off-centre grasps
+    with the place corrected for them (:func:`generate_episode`)."""
     if not sources:
         raise DemoGenError("no source demo")
     task = sources[0].task
@@ -380,7 +405,9 @@ def generate(
         src = sources[int(rng.integers(len(sources)))]
         ep_seed = int(rng.integers(0, 2**62))
         try:
-            ep = generate_episode(sim, src, start, ep_seed, rotate=rotate)
+            ep = generate_episode(
+                sim, src, start, ep_seed, rotate=rotate, grasp_jitter=grasp_jitter
+            )
         except ValueError as e:  # the simulator refused the start (off the table, out of reach)
             raise DemoGenError(f"start {rep.attempts}: {e}") from None
         rep.attempts += 1

@@ -124,6 +124,7 @@ class DemoCurriculumSettings:
     min_horizon: int = 30  # ... plus this many steps
     old_start_prob: float = 0.3  # share of demo starts at a start already passed
     max_demos: int | None = None  # walk back at most this many demos (the first ones); BC uses all
+    pooled: bool = False  # one shared start stage and window for all the demos (curriculum.py)
     forward_to: str | None = None  # "wide": then widen the env's own starts to tile-sim's wide ones
     forward_step: float = 0.1  # scale step of the forward curriculum (0 = paper's, 1 = wide)
     forward_window: int = 32  # own-start episodes judged at a scale

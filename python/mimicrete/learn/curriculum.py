@@ -35,6 +35,15 @@ of the last ``forward_window`` episodes from the env's own starts installed, the
 ``forward_step``. The episodes the scale is judged on started after it was set.
 ``Curriculum/Forward Scale`` logs it.
 
+**Pooled stages** (``pooled: true``, for many generated demos). Each demo walking back on its own
+needs ``window`` frontier episodes per step per demo, so a curriculum over 500 generated demos
+would never finish, and one over a handful teaches the place at a handful of targets only
+(BlockGrip, ``max_demos: 5``: the block is set down where those 5 demos' targets were, 3-8 cm from
+a moved one). Pooled, all demos share one stage (the same reverse step of each demo's own
+schedule) and one judging window: a curriculum reset draws any unsolved demo, and the stage moves
+back for all of them once ``threshold`` of the last ``window`` frontier episodes, whichever demos
+they came from, succeeded. Off (the default), every demo has its own stage, as before.
+
 Replayed steps are simulator work but not agent steps: they are not in the rollout and do not
 count towards ``max_steps`` (RFCL sets states directly); ``Curriculum/Replayed Steps`` logs them.
 """
@@ -122,6 +131,7 @@ class ReverseCurriculum:
         self.schedules = [start_schedule(t.length, settings.step_fraction) for t in tracks]
         self.stage = [0] * len(tracks)  # index into each schedule
         self.results: list[deque[bool]] = [deque(maxlen=settings.window) for _ in tracks]
+        self.pool_results: deque[bool] = deque(maxlen=settings.window)  # pooled: the shared one
         self.env_demo = np.full(num_envs, -1, np.int64)  # demo of each running episode, -1: own
         self.env_steps = np.zeros(num_envs, np.int64)
         self.env_horizon = np.zeros(num_envs, np.int64)
@@ -167,11 +177,12 @@ class ReverseCurriculum:
             return
         if self.solved(d):
             return
-        res = self.results[d]
+        res = self.pool_results if self.s.pooled else self.results[d]
         res.append(bool(installed))
         self.episodes_done.append(bool(installed))
         if len(res) == res.maxlen and np.mean(res) >= self.s.threshold:
-            self.stage[d] += 1
+            for e in self.unsolved if self.s.pooled else [d]:
+                self.stage[e] += 1
             res.clear()
 
     def record_own(self, i: int, installed: bool) -> None:
@@ -266,6 +277,7 @@ class ReverseCurriculum:
         return {
             "stage": list(self.stage),
             "results": [list(r) for r in self.results],
+            **({"pool_results": list(self.pool_results)} if self.s.pooled else {}),
             "replayed_steps": self.replayed_steps,
             "rng": self.rng.bit_generator.state,
             "env_demo": self.env_demo.copy(),
@@ -283,6 +295,8 @@ class ReverseCurriculum:
         for r, saved in zip(self.results, s["results"], strict=True):
             r.clear()
             r.extend(bool(x) for x in saved)
+        self.pool_results.clear()
+        self.pool_results.extend(bool(x) for x in s.get("pool_results", []))
         self.replayed_steps = int(s["replayed_steps"])
         self.rng.bit_generator.state = s["rng"]
         if "env_demo" not in s:  # an older checkpoint: its envs restart from their own starts
