@@ -135,14 +135,14 @@ def test_screw_classes_recorded_trained_and_used(tmp_path):
     assert np.sum(r["confusion"]) == r["n_test"] and r["test_accuracy"] >= 0.9
     model_file = user_model_path(tmp_path, "screw")
     assert trained["model"]["file"] == str(model_file) == r["model"]
-    assert live.model_source == "user"
+    assert live.desk.model_source == "user"
     data = g.read_gesture_csv(user_csv_path(tmp_path, "screw"))
     assert data.layout == "webxr" and len(data.labels) == 125
     assert sorted(set(data.sequence)) == ["1", "2", "3", "4", "5"]  # one take per class
     # the next run of the same folder
     again = Live("screw", tmp_path)
-    assert again.model_source == "user" and again.model.info["path"] == str(model_file)
-    assert again.model_status()["test_accuracy"] == r["test_accuracy"]
+    assert again.desk.model_source == "user" and again.model.info["path"] == str(model_file)
+    assert again.desk.model_status()["test_accuracy"] == r["test_accuracy"]
 
 
 def test_left_pinch_walks_through_the_classes(tmp_path):
@@ -218,7 +218,7 @@ def test_requests_the_server_refuses(tmp_path):
             await v.send(type="gestures", action="exit")
             await c.frame(None)
         assert server.stats.dropped["not_driver"] == 1 and server.stats.dropped["unknown"] == 1
-        assert live.gesture_mode and not live.recording
+        assert live.desk.active and not live.recording
 
     server_ref: dict[str, Any] = {}
 
@@ -255,5 +255,5 @@ def test_a_stale_user_model_is_not_used(tmp_path):
     model.save(user_model_path(tmp_path, "suction"))
     with pytest.warns(RuntimeWarning, match="not used"):
         live = Live("suction", tmp_path)
-    assert live.model_source == "shipped"
-    assert Path(live.model_status()["file"]).name == "gesture_grip.joblib"
+    assert live.desk.model_source == "shipped"
+    assert Path(live.desk.model_status()["file"]).name == "gesture_grip.joblib"

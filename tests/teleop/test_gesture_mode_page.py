@@ -114,7 +114,7 @@ def taught(tmp_path_factory) -> Iterator[dict[str, Any]]:
         pytest.fail(f"{STATIC} has no built page: run `make web`")
     out = tmp_path_factory.mktemp("mine")
     live = Live("suction", out, gestures=True, gesture_samples=PER_CLASS, seed=4)
-    shipped_file = live.model_status()["file"]
+    shipped_file = live.desk.model_status()["file"]
     seen: dict[str, Any] = {"out": out, "shipped_file": shipped_file}
     server = TeleopServer(live)
     with br.launch() as chromium, ServerThread(server) as run:
@@ -173,8 +173,8 @@ def taught(tmp_path_factory) -> Iterator[dict[str, Any]]:
                 for label, value, _ in page.evaluate("window.__mimicrete.headsetLines()")
             }
             page.screenshot(path=str(out / "gesture_mode.png"))
-            seen["frames_while_training"] = run.call(lambda: live.gestures.frames_while_training)
-            seen["server_model"] = run.call(live.model_status)
+            seen["frames_while_training"] = run.call(lambda: live.desk.mode.frames_while_training)
+            seen["server_model"] = run.call(live.desk.model_status)
             # leave the gesture mode; the user model reads the live hand
             page.click("#btn-gestures")
             page.wait_for_function("() => !window.__mimicrete.gestures.active")
@@ -351,7 +351,7 @@ def test_next_run_picks_up_the_user_model(taught, tmp_path, capsys):
     assert f"{100 * acc:.2f} % held-out" in text
     # and the library does the same
     live = Live("suction", taught["out"])
-    assert live.model_status()["source"] == "user" and live.model.info["path"] == str(model)
+    assert live.desk.model_status()["source"] == "user" and live.model.info["path"] == str(model)
     assert taught["shipped_file"] != str(model)
     fresh = _start_lines(["--task", "grip", "--out", str(tmp_path), "--gestures"])
     shipped = json.loads(SHIPPED_SIDECAR.read_text())["info"]["test_accuracy"]
@@ -408,7 +408,7 @@ def recorded(taught) -> dict[str, Any]:
     # recentred and absolute, so that the calibration the logs carry decides where the tool goes
     # (under the clutch a recentre's translation changes nothing: test_clutch.py)
     live = Live("suction", out, seed=21, mapping="absolute")
-    assert live.model_status()["source"] == "user"
+    assert live.desk.model_status()["source"] == "user"
     saved: list[dict[str, Any]] = []
     with br.launch() as chromium, ServerThread(TeleopServer(live)) as run:
         with br.vr_page(

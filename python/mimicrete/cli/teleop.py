@@ -140,7 +140,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"  {url}")
     print(model_line(live))
     if args.gestures:
-        gm = live.gesture_status()
+        gm = live.desk.status()
         print(
             f"gesture mode: record {' / '.join(gm['classes'])} ({gm['target']} samples each) in "
             f"the page; the model is saved as {user_model_path(out, args.task)}"
@@ -170,7 +170,7 @@ def main(args: argparse.Namespace) -> int:
 
 def model_line(live: Live) -> str:
     """Which gesture model drives, for the start-up message."""
-    st = live.model_status()
+    st = live.desk.model_status()
     acc = st["test_accuracy"]
     held = f", {100 * acc:.2f} % held-out" if acc is not None else ""
     if st["source"] == "user":

@@ -10,19 +10,16 @@ Episode control without controllers (:mod:`.left_hand`): a left-hand pinch (thum
 tip under 2 cm) held for 1 s starts a recording, or stops the one running; a left fist held for
 1.5 s discards the one running.
 
-The gesture mode (:mod:`.gesturemode`, no recording meanwhile) turns the right hand's frames into
-labelled samples of the task's gesture classes and trains the user's own SVM on them; the left
-pinch then records the next class (or pauses the one recording, or, once every class is full,
-leaves the gesture mode). A trained model drives every session from then on. The gesture model
-is, in this order: the one given, the user's own in ``out/gesture_<task>_user.joblib``, the
-shipped one; its file and held-out accuracy go into every demo's metadata.
+The gesture side (:mod:`.gesture_desk`: the model that reads the hand, and the gesture mode that
+makes the user's own, no recording meanwhile) is :attr:`Live.desk`; in the gesture mode the left
+pinch records the next class (or pauses the one recording, or, once every class is full, leaves
+the gesture mode). The model's file and held-out accuracy go into every demo's metadata.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import warnings
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -34,15 +31,8 @@ from mimicrete import gestures as gest
 from mimicrete import tasks
 from mimicrete.kin import Calibration, parse_calibration
 
-from .gesturemode import (
-    DEFAULT_PER_CLASS,
-    PROMPTS,
-    GestureMode,
-    GestureModeError,
-    check_per_class,
-    task_classes,
-    user_model_path,
-)
+from .gesture_desk import GestureDesk
+from .gesturemode import DEFAULT_PER_CLASS, GestureModeError
 from .left_hand import LeftHandControl
 from .protocol import FrameError, WireFrame
 from .provenance import what_read
@@ -93,7 +83,21 @@ class Live:
                 json.loads(self.calib_path.read_text()), str(self.calib_path), None, "calibration"
             )
         self.calibration = calibration or standing_calibration()
-        self.model, self.model_source = self._pick_model(model)
+        self.events: list[dict[str, Any]] = []  # episode messages for the clients
+        #: called from a worker thread when a save or a training has ended (the server wakes its
+        #: loop to send the events and :meth:`GestureDesk.poll`); None: the next :meth:`push`
+        self.notify: Callable[[], None] | None = None
+        #: the gesture model in use and the gesture mode
+        self.desk = GestureDesk(
+            self.task,
+            self.out,
+            model,
+            gesture_samples,
+            gesture_options or {},
+            self.events,
+            on_model=self._model_changed,
+            notify=lambda: self.notify,
+        )
         self.next_index = self._first_free_index()
         self.seed = int(seed)
         self.episode: Recording | None = None
@@ -103,7 +107,6 @@ class Live:
         # worker thread does it, so the frames of the next episode are not held up
         self._io = ThreadPoolExecutor(max_workers=1, thread_name_prefix="teleop-save")
         self._pending: list[Future[None]] = []
-        self.events: list[dict[str, Any]] = []  # episode messages for the clients
         #: the scene the clients were sent (a new session whose scene differs sends it again)
         self.scene: list[dict[str, Any]] | None = None
         self.preview = self._session(self.seed + self.next_index, None)
@@ -112,16 +115,8 @@ class Live:
         self.last_right: np.ndarray | None = None
         #: the newest control step and the session it belongs to (:attr:`last_step`)
         self._last_step: tuple[Session, Step] | None = None
-        # the gesture mode: its samples stay while the user records episodes in between
-        self.gestures: GestureMode | None = None
-        self.gesture_mode = False
-        self._gesture_samples = check_per_class(gesture_samples)
-        self._gesture_options = dict(gesture_options or {})
-        #: called from a worker thread when a training has ended (the server wakes its loop to
-        #: :meth:`poll`); None: the next :meth:`push` / :meth:`poll` applies it
-        self.notify: Callable[[], None] | None = None
         if gestures:
-            self.enter_gestures()
+            self.desk.enter()
 
     # ------------------------------------------------------------------ frames
 
@@ -133,6 +128,11 @@ class Live:
     def recording(self) -> bool:
         return self.episode is not None
 
+    @property
+    def model(self) -> gest.GestureModel:
+        """The gesture model the next session reads the hand with (:attr:`desk`'s)."""
+        return self.desk.model
+
     def push(self, f: WireFrame, recv_ms: float | None = None) -> list[Step]:
         """One hand frame from the driving client, received at ``recv_ms`` (the server's clock;
         None: no stage times). Raises :class:`.protocol.FrameError` (``backwards``) for a frame
@@ -142,23 +142,13 @@ class Live:
         ep = self.episode
         if ep is not None and ep.t and f.t < ep.t[-1]:
             raise FrameError("backwards", f"frame time {f.t} before the previous {ep.t[-1]}")
-        self.poll()
+        self.desk.poll()
         self._left_hand_control(f)
         if f.right_tracked:
             self.last_right = f.right
         ep = self.episode
         joints = f.right if f.right_tracked else np.zeros((25, 3))
-        gm = self.gestures
-        if self.gesture_mode and gm is not None:
-            took = gm.push(f.t, f.right_tracked, joints)
-            if took == "class_done" and gm.next_class() is None:
-                try:  # every class full: train (the page shows it)
-                    self.train_gestures()
-                except GestureModeError as e:  # one is running (a class was redone meanwhile)
-                    self._gesture_event(took)
-                    self.events.append({"type": "error", "message": f"gestures: {e}"})
-            elif took is not None:
-                self._gesture_event("progress" if took == "sample" else took)
+        self.desk.push(f.t, f.right_tracked, joints)
         clutch, self._clutch = self._clutch, None
         if ep is not None:
             if clutch is not None:
@@ -195,8 +185,8 @@ class Live:
         if event == "fist" and self.recording:
             self.discard()
         elif event == "pinch":
-            if self.gesture_mode:
-                self._gesture_pinch()
+            if self.desk.active:
+                self.desk.pinch()
             elif self.recording:
                 self.stop()
             else:
@@ -207,7 +197,7 @@ class Live:
     def start(self) -> None:
         """Begin recording the next episode (a running one is stopped and saved first); not in
         the gesture mode (:class:`GestureModeError`)."""
-        if self.gesture_mode:
+        if self.desk.active:
             raise GestureModeError("leave the gesture mode to record an episode")
         if self.episode is not None:
             self.stop()
@@ -230,7 +220,7 @@ class Live:
         )
         sink = DemoSink(self.out / f"{name}.mcap", meta)
         hand = self.out / f"{name}.handlog.jsonl"
-        read_by = what_read(self.model, self.model_source, self.calibration, hand)
+        read_by = what_read(self.model, self.desk.model_source, self.calibration, hand)
         self.episode = Recording(index, seed, self._session(seed, sink), sink, read_by=read_by)
         self.next_index += 1
         self.last_result = None
@@ -372,7 +362,7 @@ class Live:
             "recording": self.recording,
             "step": s.step_index,
             "last_result": self.last_result,
-            "mode": "gestures" if self.gesture_mode else "teleop",
+            "mode": "gestures" if self.desk.active else "teleop",
         }
 
     @property
@@ -382,159 +372,16 @@ class Live:
             return None
         return self._last_step[1]
 
-    # ------------------------------------------------------------------ gesture model & mode
-
-    def _pick_model(self, given: gest.GestureModel | None) -> tuple[gest.GestureModel, str]:
-        """The model in use and where it comes from (``given`` / ``user`` / ``shipped``); its
-        ``info["path"]`` names its file (the demos' metadata quote it)."""
-        if given is not None:
-            return given, "given"
-        path = user_model_path(self.out, self.task.name)
-        if path.exists():
-            want = set(task_classes(self.task.name))
-            try:
-                m = gest.load_model(path)
-                if set(m.classes) != want:
-                    raise ValueError(f"classes {m.classes}, the task needs {sorted(want)}")
-            except (OSError, ValueError, KeyError, EOFError) as e:
-                warnings.warn(
-                    f"{path}: not used ({e}); the shipped gesture model drives. Record your "
-                    "gestures again with `mimicrete teleop --gestures`",
-                    RuntimeWarning,
-                    stacklevel=3,
-                )
-            else:
-                m.info["path"] = str(path)
-                return m, "user"
-        m = gest.load_default(self.task.name)
-        m.info.setdefault("path", str(gest.default_model_path(self.task.name)))
-        return m, "shipped"
-
-    def model_status(self) -> dict[str, Any]:
-        """The gesture model in use, for the page: ``file``, ``source`` (``given`` / ``user`` /
-        ``shipped``), ``kind``, ``classes``, ``test_accuracy``, ``cv_accuracy``."""
-        i = self.model.info
-        return {
-            "file": i.get("path"),
-            "source": self.model_source,
-            "kind": self.model.kind,
-            "classes": list(self.model.classes),
-            "test_accuracy": i.get("test_accuracy"),
-            "cv_accuracy": i.get("cv_accuracy"),
-        }
-
-    def set_model(self, model: gest.GestureModel, source: str) -> None:
-        """Use ``model`` from the next session on (the preview at once; an episode being
-        recorded keeps the model its metadata names)."""
-        self.model, self.model_source = model, source
+    def _model_changed(self) -> None:
+        """Another gesture model drives: the preview takes it at once (an episode being recorded
+        keeps the model its metadata names; the next one takes it)."""
         if self.episode is None:
             self.preview = self._session(self.seed + self.next_index, None)
-
-    def enter_gestures(self, per_class: int | None = None) -> None:
-        """Switch to the gesture mode (not while an episode records)."""
-        if self.recording:
-            raise GestureModeError("stop the episode before the gesture mode")
-        if self.gestures is None:
-            opts = {"per_class": per_class or self._gesture_samples, **self._gesture_options}
-            self.gestures = GestureMode(self.task.name, self.out, **opts)
-        elif per_class is not None:
-            self.gestures.per_class = check_per_class(per_class)
-        self.gesture_mode = True
-        self._gesture_event("entered")
-
-    def exit_gestures(self) -> None:
-        """Back to recording demonstrations (the samples stay; a training goes on)."""
-        if self.gestures is not None:
-            self.gestures.pause()
-        self.gesture_mode = False
-        self._gesture_event("exited")
-
-    def record_gesture(self, label: str | None = None) -> str:
-        """Record (or redo) a class, default the next one that is not full."""
-        gm = self._gm()
-        label = gm.record(label)
-        self._gesture_event("recording")
-        return label
-
-    def pause_gesture(self) -> None:
-        self._gm().pause()
-        self._gesture_event("paused")
-
-    def train_gestures(self) -> None:
-        """Train on the samples in the worker thread; :meth:`poll` applies the result."""
-        gm = self._gm()
-        future = gm.train()
-        if self.notify is not None:
-            notify = self.notify
-            future.add_done_callback(lambda _: notify())
-        self._gesture_event("training")
-
-    def poll(self) -> None:
-        """Apply a training that has ended (on the caller's thread): the new model drives, and a
-        ``trained`` (or ``train_failed``) event goes to the clients."""
-        gm = self.gestures
-        if gm is None or not gm.training:
-            return
-        model, error = gm.finished()
-        if model is not None:
-            self.set_model(model, "user")
-            self._gesture_event("trained")
-        elif error is not None:
-            self._gesture_event("train_failed")
-
-    def gesture_status(self, event: str = "status") -> dict[str, Any]:
-        """The ``gestures`` message: the mode's state (empty counts before it was entered)."""
-        if self.gestures is not None:
-            body = self.gestures.status()
-        else:
-            classes = task_classes(self.task.name)
-            body = {
-                "task": self.task.name,
-                "classes": list(classes),
-                "prompts": {
-                    c: {"meaning": m, "try": t} for c, (m, t) in PROMPTS[self.task.name].items()
-                },
-                "target": self._gesture_samples,
-                "counts": {c: 0 for c in classes},
-                "current": None,
-                "next": classes[0],
-                "training": False,
-                "report": None,
-                "error": None,
-            }
-        return {
-            "type": "gestures",
-            "event": event,
-            "active": self.gesture_mode,
-            **body,
-            "model": self.model_status(),
-        }
-
-    def _gm(self) -> GestureMode:
-        if not self.gesture_mode or self.gestures is None:
-            raise GestureModeError("not in the gesture mode")
-        return self.gestures
-
-    def _gesture_event(self, event: str) -> None:
-        self.events.append(self.gesture_status(event))
-
-    def _gesture_pinch(self) -> None:
-        """Left pinch held in the gesture mode: pause the class recording, else record the next
-        class, else (every class full, trained or training) leave the gesture mode."""
-        gm = self._gm()
-        if gm.current is not None:
-            self.pause_gesture()
-        elif gm.next_class() is not None:
-            self.record_gesture()
-        else:
-            self.exit_gestures()
 
     def close(self) -> None:
         """Wait for saves and a training in progress (their results are applied)."""
         self.flush()
-        if self.gestures is not None:
-            self.gestures.close()
-            self.poll()
+        self.desk.close()
 
     # ------------------------------------------------------------------ internals
 

@@ -117,7 +117,7 @@ class TeleopServer:
         self.live.notify = lambda: loop.call_soon_threadsafe(self._wake)
 
     def _wake(self) -> None:
-        self.live.poll()
+        self.live.desk.poll()
         asyncio.ensure_future(self._flush_events())
 
     # ------------------------------------------------------------------ http
@@ -224,9 +224,9 @@ class TeleopServer:
             "mapping": live.mapping,
             "scene": live.scene,
             "view_from_base": view_from_base(live.calibration),
-            "mode": "gestures" if live.gesture_mode else "teleop",
-            "gesture_model": live.model_status(),
-            "gestures": live.gesture_status("hello"),
+            "mode": "gestures" if live.desk.active else "teleop",
+            "gesture_model": live.desk.model_status(),
+            "gestures": live.desk.status("hello"),
             **{k: v for k, v in live.state().items() if k == "frames"},
         }
 
@@ -234,20 +234,20 @@ class TeleopServer:
         """A gesture-mode request of the driver (docs/formats.md §3)."""
         live, action = self.live, msg.get("action")
         if action == "enter":
-            live.enter_gestures(msg.get("per_class"))
+            live.desk.enter(msg.get("per_class"), live.recording)
         elif action == "exit":
-            live.exit_gestures()
+            live.desk.exit()
         elif action == "record":
             label = msg.get("class")
             if label is not None and not isinstance(label, str):
                 raise GestureModeError(f"class must be a string, got {label!r}")
-            live.record_gesture(label)
+            live.desk.record(label)
         elif action == "pause":
-            live.pause_gesture()
+            live.desk.pause()
         elif action == "train":
-            live.train_gestures()
+            live.desk.train()
         elif action == "status":
-            live.events.append(live.gesture_status())
+            live.events.append(live.desk.status())
         else:
             self.stats.dropped["unknown"] += 1
 
