@@ -376,3 +376,42 @@ def test_inspect_cli(demo: Path, tmp_path: Path, capsys):
     cut.write_bytes(demo.read_bytes()[:3000])
     assert cli.main(["inspect", str(cut)]) == 1
     assert "salvage" in capsys.readouterr().out
+
+
+def _first_scene(path: Path) -> dict[str, dict]:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            if channel.topic == "/scene":
+                return {e["id"]: e for e in json.loads(message.data)["entities"]}
+    raise AssertionError("no /scene")
+
+
+def _one_step_demo(path: Path, meta: dict, **kw) -> Path:
+    with mc.demos.DemoWriter(str(path), meta, **kw) as w:
+        w.write_step(0, 0.0, np.zeros(16, np.float32), np.zeros(7, np.float32), 0.0, False, False,
+                     "fixed", [0.0] * 6, [0, 0, 0, 0, 0, 0, 1], [0, 0, 0, 0, 0, 0, 1])
+        w.finish(False)
+    return path
+
+
+def test_a_demo_records_its_envs_scene(tmp_path: Path):
+    """DemoWriter(env=SimEnv) draws the env's own start (a wide one moves the pad with the
+    target); without env, the task's paper start for the seed; entity for entity the same scene
+    the live page gets from the env (``scene_entities``)."""
+    from mimicrete import _native
+
+    sim = _native.SimEnv("TileSuction", 0)
+    sim.reset(7, object_pose=[0.25, 0.27, 0.3], target_offset=[0.03, -0.02])
+    meta = {"task": "TileSuction", "seed": 7, "robot_model": "ur3"}
+    own = _first_scene(_one_step_demo(tmp_path / "own.mcap", meta, env=sim))
+    paper = _first_scene(_one_step_demo(tmp_path / "paper.mcap", meta))
+    assert own.keys() == paper.keys() and "robot/upper_arm" in own
+    pad = lambda s: s["pad"]["cubes"][0]["pose"]["position"]  # noqa: E731
+    moved = {k: pad(own)[k] - pad(paper)[k] for k in ("x", "y")}
+    assert moved == pytest.approx({"x": 0.03, "y": -0.02}, abs=1e-6)
+    live = {e["id"]: e for e in sim.scene_entities()}
+    assert pad(live) == pytest.approx(pad(own), abs=1e-9)
+    with pytest.raises(TypeError, match="env must be a SimEnv, not str"):
+        mc.demos.DemoWriter(str(tmp_path / "bad.mcap"), meta, env="TileSuction")

@@ -557,8 +557,12 @@ def demo_write_handlog(
 class DemoWriter:
     """Records one episode into an MCAP demo (``path + ".partial"`` until ``finish``).
 
-    ``DemoWriter(path, meta, chunk_size=65536, flush_every_steps=50)``. A context manager: a normal
-    exit finishes with success=False if ``finish`` was not called; an exception abandons the file.
+    ``DemoWriter(path, meta, chunk_size=65536, flush_every_steps=50, env=None)``. The first
+    ``/scene`` is the robot and the task's scene: ``env``'s (a ``SimEnv`` after the episode's
+    reset: its own start and spec) when given, else the task's at its paper start for
+    ``meta["seed"]``; ``meta["scene"]`` entities replace those of the same id. A context manager:
+    a normal exit finishes with success=False if ``finish`` was not called; an exception abandons
+    the file.
     """
 
     def __new__(
@@ -567,6 +571,7 @@ class DemoWriter:
         meta: dict[str, Any],
         chunk_size: int = 65536,
         flush_every_steps: int = 50,
+        env: SimEnv | None = None,
     ) -> DemoWriter: ...
     def write_step(
         self,

@@ -39,7 +39,7 @@
 //! | `/demo/step` | `mimicrete.DemoStep.v1` | episode, step, t, obs (f32), action (f32), reward, terminated, truncated, gesture, joints (6, rad), ee_pose, tile_pose |
 //! | `/hand/joints` | `mimicrete.HandFrame.v1` | the raw hand frame (its own `t`, tracked, joints, orientations); channel metadata: layout, space, handedness |
 //! | `/tf` | `foxglove.FrameTransforms` | `base` → URDF links (`shoulder_link` … `wrist_3_link`, `flange`, `tool0`) from the step's joints, and `base` → `tile` |
-//! | `/scene` | `foxglove.SceneUpdate` | on the first step: the robot ([`robot_entities`]: the UR3 as tile-sim's arm capsules, a cylinder and two end spheres per entity, locked to the URDF links; other models as cylinders between the links' origins), the task's scene from tile-sim's geometry ([`task_scene`]: table, pad, target, end effector locked to `tool0`, object locked to `tile`), the caller's static scene (replacing entities of the same id); later: per-step entity updates |
+//! | `/scene` | `foxglove.SceneUpdate` | on the first step: the scene the caller hands ([`EpisodeMeta::scene`]; the bindings hand the simulator's through teleop-core's `scene::demo_scene`: the UR3 as tile-sim's arm capsules locked to the URDF links, table, pad, target, end effector locked to `tool0`, object locked to `tile`), after the robot as cylinders between the links' origins ([`robot_link_entities`]) when the handed scene has no `robot/` entities; later: per-step entity updates |
 //! | `/events` | `foxglove.Event` | `gesture_change`, caller events (`pick`, `install`, `fall`), and `success`/`failure` at the end |
 //!
 //! Metadata records: `episode_start` (written first: format, format_version, episode, task, seed,
@@ -56,17 +56,18 @@
 
 mod arrays;
 mod files;
+mod frames;
 mod handlog;
 mod meta;
 mod reader;
 mod salvage;
 mod scan;
-mod scene;
 pub mod schemas;
 mod writer;
 
 pub use arrays::{HandArrays, NdArray, shape_text};
 pub use files::read_input;
+pub use frames::{frame_numbers, frame_poses};
 pub use handlog::{
     HANDLOG_FORMAT, HANDLOG_VERSION, HandFrame, HandLog, HandLogError, HandLogHeader, MAX_COORD_M, ParseMode,
     ParseReport, SkippedLine, frame_json,
@@ -77,12 +78,6 @@ pub use salvage::{
     ChunkCheck, RecoveredMessage, SalvageReport, Salvaged, VerifyReport, salvage, salvage_bytes, salvage_to,
     verify, verify_bytes,
 };
-pub use scene::{
-    arm_capsule_entities, episode_scene, episode_scene_json, frame_numbers, frame_poses, robot_entities,
-    scene_json_at, task_scene,
-};
-/// tile-sim's task names (the scene of a demo is the task's).
-pub use tile_sim::Task;
 /// The URDF links' parent-to-child transforms (ur3-kin's; `/tf` publishes them).
 pub use ur3_kin::urdf::link_transforms;
 pub use writer::{

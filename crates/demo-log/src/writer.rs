@@ -145,8 +145,7 @@ impl SceneEntity {
 pub struct EpisodeMeta {
     /// Episode index within its data set.
     pub episode: u64,
-    /// Task name (tile-sim's: `"TileSuction"` / `"suction"`, `"BlockGrip"`, `"Screw"`, ...); a
-    /// task tile-sim knows gets its scene ([`crate::task_scene`]) on `/scene`.
+    /// Task name (`"TileSuction"` / `"suction"`, `"BlockGrip"`, `"Screw"`, ...), recorded as given.
     pub task: String,
     /// Simulator seed of the episode.
     pub seed: u64,
@@ -165,8 +164,10 @@ pub struct EpisodeMeta {
     pub gesture_model: String,
     /// Seconds per environment step, if fixed (0 = unknown).
     pub control_dt: f64,
-    /// Further static entities, published with the first step after the robot and the task
-    /// scene; one with the id of a task-scene entity replaces it.
+    /// The static scene, published on `/scene` with the first step (the task's table, pad,
+    /// target, effector and object: the caller hands the simulator's, teleop-core's
+    /// `scene::demo_scene`). The robot is drawn as link cylinders before it unless it has
+    /// entities `robot/...` of its own.
     pub scene: Vec<SceneEntity>,
     /// Any further facts, written into the metadata records.
     pub extra: BTreeMap<String, String>,
@@ -1091,20 +1092,12 @@ fn metadata_map(
     md
 }
 
-/// The first `/scene` message of a demo: the robot, the task's scene for `meta.task` /
-/// `meta.seed` (when tile-sim knows the task), then `meta.scene`, whose entities replace those of
-/// the same id.
+/// The first `/scene` message of a demo: `meta.scene` as handed, after the robot as
+/// [`robot_link_entities`] unless the handed scene draws it (an entity id starting `robot/`).
 fn first_scene(model: &UrModel, meta: &EpisodeMeta) -> Vec<SceneEntity> {
-    let mut v = match tile_sim::Task::from_name(&meta.task) {
-        Ok(task) => crate::scene::episode_scene(model, task, meta.seed),
-        Err(_) => crate::scene::robot_entities(model),
-    };
-    for e in &meta.scene {
-        match v.iter_mut().find(|x| x.id == e.id) {
-            Some(slot) => *slot = e.clone(),
-            None => v.push(e.clone()),
-        }
-    }
+    let draws_robot = meta.scene.iter().any(|e| e.id.starts_with("robot/"));
+    let mut v = if draws_robot { Vec::new() } else { robot_link_entities(model) };
+    v.extend(meta.scene.iter().cloned());
     v
 }
 

@@ -76,7 +76,7 @@ fn identical_input_gives_identical_bytes() {
 /// DEMO_FORMAT_VERSION / the schema version if readers are affected, then update the digest.
 /// The file embeds the URDF from ur3-kin; its digest is checked first so that a URDF change is
 /// reported as such.
-const GOLDEN_SHA256: &str = "efec7f878151b7686418bd2dd1519aab9ad8a95e73b06ad69990bb87f8345eeb";
+const GOLDEN_SHA256: &str = "81394afedbf332581a15482ad31ffd68b24b04e3b596b2fd7b4bb24585c15dae";
 const GOLDEN_URDF_SHA256: &str = "06cb368f83c7f627ef1ac9a1e4f6df4ede420cc1a08d16666576fd3a0a3a73cb";
 
 #[test]

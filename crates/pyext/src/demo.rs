@@ -7,7 +7,7 @@ use demo_log::{
     ParseMode, ParseReport, Pose, SceneEntity, StepRecord, WriterOptions,
 };
 use numpy::{PyReadonlyArray1, PyReadonlyArrayDyn};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::collections::BTreeMap;
@@ -75,6 +75,14 @@ fn str_map(d: Option<&Dict<'_>>) -> PyResult<BTreeMap<String, String>> {
     })
 }
 
+/// The static scene of `env`'s episode (a `SimEnv`: its start, its spec).
+fn scene_of(env: &Bound<'_, PyAny>) -> PyResult<tile_sim::Scene> {
+    match env.cast::<crate::sim::SimEnv>() {
+        Ok(e) => Ok(e.borrow().env_scene()),
+        Err(_) => Err(PyTypeError::new_err(format!("env must be a SimEnv, not {}", env.get_type().name()?))),
+    }
+}
+
 /// Records one episode into an MCAP demo (`path + ".partial"` until `finish`); a context manager.
 #[pyclass(module = "mimicrete._native", name = "DemoWriter")]
 pub struct PyDemoWriter {
@@ -97,9 +105,24 @@ impl PyDemoWriter {
 #[pymethods]
 impl PyDemoWriter {
     #[new]
-    #[pyo3(signature = (path, meta, chunk_size = 65536, flush_every_steps = 50))]
-    fn new(path: PathBuf, meta: &Dict<'_>, chunk_size: u64, flush_every_steps: u64) -> PyResult<Self> {
-        let m = EpisodeMeta::from_json(&from_py(meta)?).map_err(demo_err)?;
+    #[pyo3(signature = (path, meta, chunk_size = 65536, flush_every_steps = 50, env = None))]
+    fn new(
+        path: PathBuf,
+        meta: &Dict<'_>,
+        chunk_size: u64,
+        flush_every_steps: u64,
+        env: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let mut m = EpisodeMeta::from_json(&from_py(meta)?).map_err(demo_err)?;
+        // demo-log records the scene it is handed: the robot and the task's (the env's own start
+        // and spec when one is given, else the task's paper start for the seed), then meta's
+        let env_scene = env.map(scene_of).transpose()?;
+        if let Ok(model) = ur3_kin::UrModel::by_name(&m.robot_model) {
+            m.scene = match &env_scene {
+                Some(scene) => teleop_core::scene::env_demo_scene(model, scene, &m.scene),
+                None => teleop_core::scene::demo_scene(model, &m.task, m.seed, &m.scene),
+            };
+        }
         let opts = WriterOptions { chunk_size, flush_every_steps, ..Default::default() };
         let w = RsWriter::create_with_options(&path, &m, opts).map_err(demo_err)?;
         Ok(PyDemoWriter { inner: Some(w), path })

@@ -1,5 +1,5 @@
 //! Bindings for tile-sim (`SimEnv`, `SimVecEnv` stepped without the interpreter lock, the expert)
-//! and the task scenes (demo-log's `episode_scene_json`, `frame_numbers`).
+//! and the task scenes (teleop-core's `scene::scene_json`, demo-log's `frame_numbers`).
 
 use crate::errors::{action_shape, demo_err, io_err, matrix, nd_from_py, sim_err, spec_err, to_py, vector};
 use numpy::{AllowTypeChange, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyReadonlyArrayDyn};
@@ -87,7 +87,8 @@ fn variation_of(
 #[pyfunction]
 #[pyo3(signature = (task, seed = 0, model = "ur3"))]
 fn scene_entities<'py>(py: Python<'py>, task: &str, seed: u64, model: &str) -> PyResult<Any<'py>> {
-    to_py(py, &demo_log::episode_scene_json(model, parse_task(task)?, seed).map_err(demo_err)?)
+    let scene = tile_sim::episode_scene(parse_task(task)?, seed);
+    to_py(py, &teleop_core::scene::scene_json(model, &scene).map_err(demo_err)?)
 }
 
 /// `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base: URDF links at `joints`, `tile` at `tile_pose`.
@@ -117,6 +118,13 @@ pub struct SimEnv {
     obs_frame_dim: usize,
     #[pyo3(get)]
     act_dim: usize,
+}
+
+impl SimEnv {
+    /// The static scene of the current episode (its start, its spec).
+    pub(crate) fn env_scene(&self) -> tile_sim::Scene {
+        self.env.scene()
+    }
 }
 
 #[pymethods]
@@ -211,7 +219,7 @@ impl SimEnv {
 
     /// The Foxglove `SceneEntity` list of the current episode (its start's pad, target, plate).
     fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
-        to_py(py, &demo_log::scene_json_at("ur3", self.env.task(), &self.env.start()).map_err(demo_err)?)
+        to_py(py, &teleop_core::scene::scene_json("ur3", &self.env.scene()).map_err(demo_err)?)
     }
 
     /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.

@@ -267,8 +267,7 @@ impl PyTeleopSession {
 
     /// The Foxglove `SceneEntity` list of the episode (its start's pad, target, plate).
     fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
-        let env = self.core.env();
-        to_py(py, &demo_log::scene_json_at("ur3", env.task(), &env.start()).map_err(demo_err)?)
+        to_py(py, &teleop_core::scene::scene_json("ur3", &self.core.env().scene()).map_err(demo_err)?)
     }
 }
 

@@ -15,6 +15,7 @@
 
 mod clutch;
 mod filter;
+pub mod scene;
 mod session;
 
 pub use clutch::{Clutch, ClutchInput, MAX_STEP_M, MAX_STEP_RAD, Mapping, step_toward};

@@ -1,36 +1,26 @@
-//! The complete scene of a demo, from one place: the robot (for the UR3, tile-sim's arm capsules
-//! locked to the URDF links; other models, cylinders between the links' origins), and the task's
-//! table, pad, target, end effector (locked to `tool0`) and object (locked to [`TILE_FRAME`])
-//! taken from tile-sim's geometry. The writer publishes it on `/scene` with the
-//! first step of every demo; the bindings hand the same entities, as Foxglove `SceneEntity` JSON,
-//! to anything else that draws the scene (the live server).
+//! The simulator's scene as a demo's `/scene`: tile-sim's items (table, pad, target, end
+//! effector, object and the UR3's capsules) turned into demo-log's entities. demo-log records the
+//! scene it is handed; this is where the two meet, so neither crate knows the other.
 
-use crate::DemoError;
-use crate::writer::{
-    BASE_FRAME, Pose, Primitive, SceneEntity, Shape, TILE_FRAME, foxglove_entity, robot_link_entities,
+use demo_log::serde_json::Value;
+use demo_log::{
+    BASE_FRAME, DemoError, Pose, Primitive, SceneEntity, Shape, TILE_FRAME, foxglove_entity,
+    robot_link_entities,
 };
-use serde_json::Value;
-use std::collections::BTreeMap;
-use tile_sim::{SceneFrame, Task};
+use tile_sim::{Scene, SceneFrame, Task};
 use ur3_kin::UrModel;
-use ur3_kin::nalgebra::{Point3, UnitQuaternion, Vector3};
+use ur3_kin::nalgebra::{Point3, Quaternion, UnitQuaternion, Vector3};
 
 /// An `f32` constant as the decimal it was written as (0.075, not 0.07500000298023224).
 fn dec(x: f32) -> f64 {
     format!("{x}").parse().unwrap_or(x as f64)
 }
 
-/// tile-sim's scene of episode `seed` of `task` as demo entities (no arm: the robot is drawn by
+/// The task part of a tile-sim scene as demo entities (no arm: the robot is drawn by
 /// [`robot_entities`]). Frames: tile-sim's world → `base`, its tool frame → `tool0`, its
 /// object → [`TILE_FRAME`] (the object frame of every task: tile, block or nut). Ids are the
 /// items' names, numbered when a name repeats (`cup_0` … `cup_3`).
-pub fn task_scene(task: Task, seed: u64) -> Vec<SceneEntity> {
-    task_scene_at(task, &tile_sim::Variation::default().start(task, seed))
-}
-
-/// [`task_scene`] of an episode that began at `start` (its pad, target and plate where it put them).
-pub fn task_scene_at(task: Task, start: &tile_sim::Start) -> Vec<SceneEntity> {
-    let scene = tile_sim::world::scene(task, start);
+pub fn scene_entities(scene: &Scene) -> Vec<SceneEntity> {
     let count = |n: &str| scene.items.iter().filter(|i| i.name == n).count();
     let mut seen = std::collections::BTreeMap::<&str, usize>::new();
     let mut out = Vec::new();
@@ -64,6 +54,11 @@ pub fn task_scene_at(task: Task, start: &tile_sim::Start) -> Vec<SceneEntity> {
     out
 }
 
+/// [`scene_entities`] of episode `seed` of a built-in `task` (the paper's starts).
+pub fn task_scene(task: Task, seed: u64) -> Vec<SceneEntity> {
+    scene_entities(&tile_sim::episode_scene(task, seed))
+}
+
 /// tile-sim's arm (the UR3 as capsules: a cylinder and its two end spheres each) as entities
 /// `robot/<capsule name>`, each locked to the URDF link its DH frame rides on
 /// (`ur3_kin::urdf::dh_frames_in_links`), so `/tf` moves it as tile-sim moves its links.
@@ -81,7 +76,7 @@ pub fn arm_capsule_entities() -> Vec<SceneEntity> {
         let q = it.rotation.map(dec);
         let item = ur3_kin::Pose::from_parts(
             Vector3::from(it.translation.map(dec)).into(),
-            UnitQuaternion::new_normalize(ur3_kin::nalgebra::Quaternion::new(q[3], q[0], q[1], q[2])),
+            UnitQuaternion::new_normalize(Quaternion::new(q[3], q[0], q[1], q[2])),
         );
         let place = |p: [f32; 3]| offset * item * Point3::from(p.map(dec));
         let (pa, pb, d) = (place(a), place(b), 2.0 * dec(radius));
@@ -109,7 +104,7 @@ pub fn arm_capsule_entities() -> Vec<SceneEntity> {
 }
 
 /// The robot `/scene` draws: [`arm_capsule_entities`] for the UR3 (the arm tile-sim simulates),
-/// [`robot_link_entities`] for any other model.
+/// demo-log's [`robot_link_entities`] for any other model.
 pub fn robot_entities(model: &UrModel) -> Vec<SceneEntity> {
     match model.name == ur3_kin::UR3.name {
         true => arm_capsule_entities(),
@@ -117,23 +112,40 @@ pub fn robot_entities(model: &UrModel) -> Vec<SceneEntity> {
     }
 }
 
-/// Everything `/scene` draws for episode `seed` of `task`: [`robot_entities`] then
-/// [`task_scene`].
-pub fn episode_scene(model: &UrModel, task: Task, seed: u64) -> Vec<SceneEntity> {
+/// Everything `/scene` draws for an episode whose scene is `scene`: [`robot_entities`] then
+/// [`scene_entities`].
+pub fn episode_entities(model: &UrModel, scene: &Scene) -> Vec<SceneEntity> {
     let mut v = robot_entities(model);
-    v.extend(task_scene(task, seed));
+    v.extend(scene_entities(scene));
     v
 }
 
-/// Pose in `base` of every frame the scene's entities are locked to, at joint angles `joints`
-/// with the object at `tile_pose`: the URDF links (`shoulder_link` … `tool0`), then
-/// [`TILE_FRAME`]. The same transforms `/tf` publishes, composed from `base`.
-pub fn frame_poses(model: &UrModel, joints: &[f64; 6], tile_pose: &Pose) -> Vec<(&'static str, Pose)> {
-    let mut v: Vec<(&'static str, Pose)> = ur3_kin::urdf::link_poses(model, joints)
-        .into_iter()
-        .map(|(name, p)| (name, Pose::from_isometry(&p)))
-        .collect();
-    v.push((TILE_FRAME, *tile_pose));
+/// The scene a demo of `task` (any name tile-sim accepts) and `seed` records: the robot, the
+/// task's scene at its paper start for that seed (the robot alone for a task tile-sim does not
+/// know), then `given` ([`with_given`]). What a caller without an env hands demo-log's writer as
+/// its `EpisodeMeta::scene`.
+pub fn demo_scene(model: &UrModel, task: &str, seed: u64, given: &[SceneEntity]) -> Vec<SceneEntity> {
+    let mut v = robot_entities(model);
+    if let Ok(task) = Task::from_name(task) {
+        v.extend(task_scene(task, seed));
+    }
+    with_given(v, given)
+}
+
+/// The scene a demo of an env whose scene is `scene` records (its own start, its own spec):
+/// [`episode_entities`], then `given` ([`with_given`]).
+pub fn env_demo_scene(model: &UrModel, scene: &Scene, given: &[SceneEntity]) -> Vec<SceneEntity> {
+    with_given(episode_entities(model, scene), given)
+}
+
+/// `v`, each entity of `given` replacing the one of the same id, the rest appended in order.
+pub fn with_given(mut v: Vec<SceneEntity>, given: &[SceneEntity]) -> Vec<SceneEntity> {
+    for e in given {
+        match v.iter_mut().find(|x| x.id == e.id) {
+            Some(slot) => *slot = e.clone(),
+            None => v.push(e.clone()),
+        }
+    }
     v
 }
 
@@ -142,34 +154,11 @@ fn model(name: &str) -> Result<&'static UrModel, DemoError> {
     UrModel::by_name(name).map_err(|e| DemoError::Invalid(e.to_string()))
 }
 
-/// [`episode_scene`] of the model named `model_name`, each entity as the Foxglove `SceneEntity`
-/// JSON object `/scene` carries (stamped 0): what the live page draws.
+/// [`episode_entities`] of the model named `model_name`, each entity as the Foxglove
+/// `SceneEntity` JSON object `/scene` carries (stamped 0): what the live page draws.
 ///
 /// # Errors
 /// [`DemoError::Invalid`] for an unknown model.
-pub fn episode_scene_json(model_name: &str, task: Task, seed: u64) -> Result<Vec<Value>, DemoError> {
-    scene_json_at(model_name, task, &tile_sim::Variation::default().start(task, seed))
-}
-
-/// [`episode_scene_json`] of an episode that began at `start`.
-///
-/// # Errors
-/// [`DemoError::Invalid`] for an unknown model.
-pub fn scene_json_at(model_name: &str, task: Task, start: &tile_sim::Start) -> Result<Vec<Value>, DemoError> {
-    let mut v = robot_entities(model(model_name)?);
-    v.extend(task_scene_at(task, start));
-    Ok(v.iter().map(|e| foxglove_entity(e, 0)).collect())
-}
-
-/// [`frame_poses`] of the model named `model_name` as `{frame: [x, y, z, qx, qy, qz, qw]}`.
-///
-/// # Errors
-/// [`DemoError::Invalid`] for an unknown model.
-pub fn frame_numbers(
-    model_name: &str,
-    joints: &[f64; 6],
-    tile_pose: &Pose,
-) -> Result<BTreeMap<&'static str, [f64; 7]>, DemoError> {
-    let poses = frame_poses(model(model_name)?, joints, tile_pose);
-    Ok(poses.into_iter().map(|(k, p)| (k, p.to_numbers())).collect())
+pub fn scene_json(model_name: &str, scene: &Scene) -> Result<Vec<Value>, DemoError> {
+    Ok(episode_entities(model(model_name)?, scene).iter().map(|e| foxglove_entity(e, 0)).collect())
 }
