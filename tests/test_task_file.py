@@ -200,15 +200,62 @@ def test_synth_hands_plans_from_the_task_file(tmp_path: Path) -> None:
             pytest.approx(0.001, abs=1e-6)
         )
         assert f2 != f0  # the hand goes to the thicker tile
-    # convert replays in the built-in task's scene, so it refuses these logs rather than record
-    # demos of another tile (until it takes a --task-file)
-    demos = tmp_path / "demos"
-    r = run_cli("convert", str(outs["big"]), "--task", "suction", "--out", str(demos),
+    converted_in_their_spec(tmp_path, outs, copy, big)
+
+
+def first_scene(path: Path) -> dict[str, dict]:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        for _, _, message in make_reader(f).iter_messages(topics=["/scene"]):
+            return {e["id"]: e for e in json.loads(message.data)["entities"]}
+    raise AssertionError("no /scene")
+
+
+def converted_in_their_spec(tmp_path: Path, outs: dict[str, Path], copy: Path, big: Path) -> None:
+    """``mimicrete convert`` runs each log in the spec file its header names: an unchanged copy
+    of the built-in spec gives the built-in demos' steps bit for bit, the bigger tile another
+    episode whose demo draws and names that tile; a spec changed since, or gone, is one line
+    per log, exit 2, and no demo."""
+    from mimicrete import demos
+
+    made = {}
+    for name in outs:
+        made[name] = tmp_path / f"demos_{name}"
+        r = run_cli("convert", str(outs[name]), "--task", "suction", "--out", str(made[name]),
+                    "--no-progress")  # fmt: skip
+        assert r.returncode == 0, r.stderr
+    for demo in sorted(made["builtin"].glob("*.mcap")):
+        d0, d1, d2 = (demos.read(made[k] / demo.name) for k in ("builtin", "copy", "big"))
+        for key in ("obs", "actions", "rewards", "terminated", "truncated"):
+            assert np.array_equal(d0[key], d1[key]), key
+        assert d1["meta"]["task_file"] == str(copy) and "task_file" not in d0["meta"]
+        assert json.loads(d2["meta"]["task_spec"])["object"]["half_extents"] == [0.1, 0.1, 0.006]
+        assert len(d2["obs"]) != len(d0["obs"]) or not np.array_equal(d2["obs"], d0["obs"])
+        tile = first_scene(made["big"] / demo.name)["tile"]["cubes"][0]["size"]
+        assert tile == pytest.approx({"x": 0.2, "y": 0.2, "z": 0.012}, abs=1e-6)
+        assert first_scene(made["copy"] / demo.name) == first_scene(demo)
+    # the spec changed after the logs were recorded: refused, one line per log
+    big.write_text(big.read_text().replace("mass = 0.5 ", "mass = 0.6 "))
+    out = tmp_path / "changed"
+    r = run_cli("convert", str(outs["big"]), "--task", "suction", "--out", str(out),
                 "--no-progress")  # fmt: skip
     assert r.returncode == 2 and "Traceback" not in r.stderr
     errors = r.stderr.strip().splitlines()
-    assert len(errors) == 2 and all(f"written for the task spec file {big}" in e for e in errors)
-    assert not demos.exists()
+    assert len(errors) == 2, r.stderr
+    assert all(f"task file {big} is not the spec the log was recorded with" in e for e in errors)
+    assert not list(out.glob("*.mcap"))
+    # --task-file points elsewhere: a missing file is named
+    r = run_cli("convert", str(outs["copy"]), "--task", "suction", "--out", str(out),
+                "--task-file", str(tmp_path / "gone.toml"), "--no-progress")  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"task file {tmp_path / 'gone.toml'}" in r.stderr
+    # another task's spec for suction logs
+    grip = spec_copy(tmp_path, "BlockGrip")
+    r = run_cli("convert", str(outs["copy"]), "--task", "suction", "--out", str(out),
+                "--task-file", str(grip), "--no-progress")  # fmt: skip
+    assert r.returncode == 2
+    assert f"task file {grip} runs the grip task, converting as suction" in r.stderr
 
 
 BAD_SPECS = [
@@ -259,6 +306,21 @@ def test_a_task_file_that_is_no_file_or_another_task_is_refused(tmp_path: Path) 
     spec = spec_copy(tmp_path, "TileSuction")
     r = run_cli("synth-hands", "--task-file", str(spec), "--task", "screw", "--out", out)
     one_error_line(r, str(spec), "runs the suction task (TileSuction), not --task screw")
-    r = run_cli("synth-hands", "--task-file", str(spec), "--through-teleop", "--out", out)
-    one_error_line(r, f"{spec}: --through-teleop records the built-in tasks only")
     assert not Path(out).exists()
+
+
+def test_synth_hands_through_teleop_records_in_the_task_file(tmp_path: Path) -> None:
+    """The scripted person through a live ``mimicrete teleop`` server run in the spec file: the
+    demo installs the bigger tile, names the spec and draws its tile."""
+    from mimicrete import demos
+
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    out = tmp_path / "live"
+    r = run_cli("synth-hands", "--through-teleop", "--task-file", str(big), "--episodes", "1",
+                "--seed", "2", "--out", str(out))  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "recorded 1 demos through mimicrete teleop" in r.stdout and "1 succeeded" in r.stdout
+    d = demos.read(out / "suction_0000.mcap")
+    assert d["meta"]["task_file"] == str(big) and d["meta"]["success"] == "true"
+    tile = first_scene(out / "suction_0000.mcap")["tile"]["cubes"][0]["size"]
+    assert tile == pytest.approx({"x": 0.2, "y": 0.2, "z": 0.012}, abs=1e-6)

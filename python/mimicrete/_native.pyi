@@ -700,6 +700,7 @@ class TeleopSession:
         seed: int,
         writer: DemoWriter | None = None,
         mapping: str = "absolute",
+        task_file: _StrPath | None = None,
     ) -> TeleopSession: ...
     def push(
         self,

@@ -19,7 +19,7 @@ pub(crate) fn parse_task(name: &str) -> PyResult<Task> {
 
 /// Read and check the task spec file at `path` (I/O errors → `IoError`, a bad spec →
 /// `SimInputError` with `field`, `value`, `reason`).
-fn read_spec(path: &str) -> PyResult<TaskSpec> {
+pub(crate) fn read_spec(path: &str) -> PyResult<TaskSpec> {
     let text = std::fs::read_to_string(path).map_err(|e| io_err(Path::new(path), &e))?;
     TaskSpec::from_toml(&text, path).map_err(spec_err)
 }

@@ -4,7 +4,7 @@
 use crate::demo::PyDemoWriter;
 use crate::errors::{demo_err, kin_err, sim_err, to_py};
 use crate::kin::Calib;
-use crate::sim::parse_task;
+use crate::sim::{parse_task, read_spec};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
@@ -96,7 +96,8 @@ impl PyTeleopSession {
 #[pymethods]
 impl PyTeleopSession {
     #[new]
-    #[pyo3(signature = (task, layout, handedness, calibration, seed, writer = None, mapping = "absolute"))]
+    #[pyo3(signature = (task, layout, handedness, calibration, seed, writer = None, mapping = "absolute", task_file = None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         task: &str,
         layout: &str,
@@ -105,6 +106,7 @@ impl PyTeleopSession {
         seed: u64,
         writer: Option<Py<PyDemoWriter>>,
         mapping: &str,
+        task_file: Option<&str>,
     ) -> PyResult<Self> {
         let mapping = Mapping::from_name(mapping).ok_or_else(|| {
             PyValueError::new_err(format!("mapping must be 'absolute' or 'clutch', got {mapping:?}"))
@@ -116,6 +118,7 @@ impl PyTeleopSession {
             calibration: calibration.get()?,
             seed,
             mapping,
+            spec: task_file.map(read_spec).transpose()?.map(std::sync::Arc::new),
         };
         Ok(PyTeleopSession { core: Session::new(cfg).map_err(teleop_err)?, writer })
     }

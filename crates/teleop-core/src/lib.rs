@@ -58,6 +58,9 @@ pub enum TeleopError {
     /// The smoothed gesture is not one of [`GESTURE_COMMANDS`].
     #[error("unknown gesture class {0:?}")]
     UnknownGesture(String),
+    /// The session's task spec runs another task's logic than the session's task.
+    #[error("the task spec runs {spec}'s logic, the session is {session}")]
+    SpecTask { spec: &'static str, session: &'static str },
     /// The simulator refused a step or a reset.
     #[error(transparent)]
     Sim(#[from] tile_sim::SimError),

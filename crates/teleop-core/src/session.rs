@@ -5,7 +5,8 @@ use crate::filter::OneEuro;
 use crate::{BRANCH_JUMP, TeleopError, command_of, joint_action, recorded_command, wrap_to_pi};
 use demo_log::{DemoError, DemoWriter, HandFrame, Pose as RecPose, StepRecord};
 use std::collections::BTreeMap;
-use tile_sim::{Constants, Env, Snapshot, Task};
+use std::sync::Arc;
+use tile_sim::{Constants, Env, Snapshot, Task, TaskSpec};
 use ur3_kin::nalgebra::Matrix4;
 use ur3_kin::{Calibration, HandLayout, HandPoints, Handedness, IkOptions, UR3, urdf};
 
@@ -122,7 +123,7 @@ pub struct Frame<'a> {
 }
 
 /// How an episode starts.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct SessionConfig {
     /// The task.
     pub task: Task,
@@ -136,6 +137,9 @@ pub struct SessionConfig {
     pub seed: u64,
     /// How the hand's pose becomes the tool's target.
     pub mapping: Mapping,
+    /// The task spec the episode's env is built from (a researcher's spec file running
+    /// `task`'s logic); `None`: `task`'s built-in spec.
+    pub spec: Option<Arc<TaskSpec>>,
 }
 
 /// One episode of teleoperation (paper §3.2): every hand frame, from a file or live, goes
@@ -189,9 +193,16 @@ impl Session {
     /// A session at the start of its episode.
     ///
     /// # Errors
-    /// The simulator's, if it cannot reset.
+    /// [`TeleopError::SpecTask`] if `cfg.spec` runs another task's logic than `cfg.task`;
+    /// the simulator's, if it cannot reset.
     pub fn new(cfg: SessionConfig) -> Result<Session, TeleopError> {
-        let mut env = Env::new(cfg.task, 0);
+        let mut env = match &cfg.spec {
+            Some(spec) if spec.task() != cfg.task => {
+                return Err(TeleopError::SpecTask { spec: spec.task().name(), session: cfg.task.name() });
+            }
+            Some(spec) => Env::from_spec(spec.clone(), 0),
+            None => Env::new(cfg.task, 0),
+        };
         let obs = env.reset_owned(Some(cfg.seed))?;
         let q = frame_joints(cfg.task, &obs);
         let links = urdf::link_transforms(&UR3, &env.snapshot().q);

@@ -18,6 +18,7 @@ fn session_with(task: Task, mapping: Mapping) -> Session {
         calibration: Calibration::default(),
         seed: 3,
         mapping,
+        spec: None,
     };
     Session::new(cfg).unwrap()
 }

@@ -97,6 +97,25 @@ def calibration_arg(path: str | None):  # -> Calibration | None
         raise UsageError(f"--calibration {path}: {getattr(e, 'strerror', None) or e}") from None
 
 
+def task_file_arg(path: str, task: str | None) -> str:
+    """The task (``suction`` | ``grip`` | ``screw``) the spec file at ``path`` runs, the file
+    read and checked; a bad or unreadable spec, or one of another task than ``--task``, is a
+    :class:`UsageError` naming the file (and the field, the value and why)."""
+    from mimicrete import tasks
+    from mimicrete._native import SimInputError
+
+    try:
+        spec_task, _ = tasks.load_task_file(path)
+    except (SimInputError, OSError) as e:
+        raise UsageError(f"--task-file {tasks.task_file_error(path, e)}") from None
+    if task is not None and tasks.get(task).name != spec_task.name:
+        raise UsageError(
+            f"--task-file {path} runs the {spec_task.name} task ({spec_task.sim}), "
+            f"not --task {task}"
+        )
+    return spec_task.name
+
+
 def user_errors() -> tuple[type[BaseException], ...]:
     """Exceptions that mean "bad input": the CLI prints them as one line and exits 2."""
     from mimicrete import LogFormatError

@@ -35,6 +35,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "carries, else the default for its space)",
     )
     parser.add_argument(
+        "--task-file",
+        metavar="SPEC.toml",
+        help="run every log in this task spec file's env (default: the one a log recorded with "
+        "synth-hands --task-file names in its header, else the built-in task); it must be the "
+        "spec the log was recorded with",
+    )
+    parser.add_argument(
         "--overwrite", action="store_true", help="replace demos that exist in --out already"
     )
     parser.add_argument(
@@ -98,12 +105,6 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
         name = cv.path_text(path)
         try:
             log = cv.load_log(path, mode)
-            task_file = (log.header.get("extra") or {}).get("task_file")
-            if task_file is not None:  # its scene is not the built-in task's: refuse, say why
-                raise cv.ConvertError(
-                    f"{name}: written for the task spec file {task_file} (synth-hands "
-                    "--task-file); convert runs the built-in tasks only (no --task-file yet)"
-                )
             res = cv.convert_log(
                 log,
                 args.task,
@@ -112,6 +113,7 @@ def _convert(args: argparse.Namespace, cv: Any, logs: list[Path], out: Path) -> 
                 episode_index=i,
                 model=model,
                 calibration=calib,
+                task_file=args.task_file,
             )
         except (LogFormatError, cv.ConvertError, ValueError, OSError) as e:
             failed += 1

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 
 from mimicrete import tasks
-from mimicrete.cli import UsageError
+from mimicrete.cli import UsageError, task_file_arg
 from mimicrete.hands.layouts import LAYOUT_JOINTS
 from mimicrete.tasks import TASKS
 
@@ -57,24 +57,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def task_file_arg(path: str, task: str | None) -> str:
-    """The task (``suction`` | ``grip`` | ``screw``) the spec file at ``path`` runs, the file
-    read and checked; a bad or unreadable spec, or one of another task than ``--task``, is a
-    :class:`UsageError` naming the file (and the field, the value and why)."""
-    from mimicrete._native import SimInputError
-
-    try:
-        spec_task, _ = tasks.load_task_file(path)
-    except (SimInputError, OSError) as e:
-        raise UsageError(f"--task-file {tasks.task_file_error(path, e)}") from None
-    if task is not None and tasks.get(task).name != spec_task.name:
-        raise UsageError(
-            f"--task-file {path} runs the {spec_task.name} task ({spec_task.sim}), "
-            f"not --task {task}"
-        )
-    return spec_task.name
-
-
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete synth-hands``."""
     from mimicrete.demonstrator import synth_hands
@@ -85,11 +67,6 @@ def main(args: argparse.Namespace) -> int:
         args.task = task_file_arg(args.task_file, args.task)
     args.task = args.task or "suction"
     if args.through_teleop:
-        if args.task_file is not None:
-            raise UsageError(
-                f"--task-file {args.task_file}: --through-teleop records the built-in tasks "
-                "only (the teleop server reads no spec yet)"
-            )
         if args.handedness != "right" or args.layout != "openxr":
             raise UsageError(
                 "--through-teleop records the page's right hand (WebXR): drop --layout/--handedness"
@@ -97,7 +74,13 @@ def main(args: argparse.Namespace) -> int:
         from mimicrete.demonstrator.live_client import record_live
 
         saved = record_live(
-            args.task, args.episodes, args.seed, args.out, mapping=args.mapping, progress=True
+            args.task,
+            args.episodes,
+            args.seed,
+            args.out,
+            mapping=args.mapping,
+            progress=True,
+            task_file=args.task_file,
         )
         ok = sum(s["result"] == tasks.get(args.task).success for s in saved)
         print(f"recorded {len(saved)} demos through mimicrete teleop to {args.out}: {ok} succeeded")

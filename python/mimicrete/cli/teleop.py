@@ -8,7 +8,7 @@ import signal
 import sys
 from typing import TYPE_CHECKING
 
-from mimicrete.cli import UsageError, calibration_arg, gesture_model_arg
+from mimicrete.cli import UsageError, calibration_arg, gesture_model_arg, task_file_arg
 from mimicrete.teleop.gesturemode import DEFAULT_PER_CLASS, MIN_PER_CLASS
 
 if TYPE_CHECKING:
@@ -32,7 +32,18 @@ open the page:
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = HELP_OPEN.format(port=8012)
-    parser.add_argument("--task", choices=["suction", "grip", "screw"], default="suction")
+    parser.add_argument(
+        "--task",
+        choices=["suction", "grip", "screw"],
+        help="the task to record (suction; with --task-file, the task the spec runs)",
+    )
+    parser.add_argument(
+        "--task-file",
+        metavar="SPEC.toml",
+        help="record in the task this spec file describes (tile-sim task spec, version 1: its "
+        "object, target, starts; docs/tasks.md); the page draws its scene, the demos and hand "
+        "logs name it",
+    )
     parser.add_argument(
         "--out", required=True, metavar="DIR", help="where demos and hand logs are saved"
     )
@@ -107,8 +118,11 @@ def main(args: argparse.Namespace) -> int:
     model = gesture_model_arg(args.gesture_model)
     if not MIN_PER_CLASS <= args.gesture_samples <= 5000:
         raise UsageError(f"--gesture-samples must be in {MIN_PER_CLASS}..5000")
+    task = args.task or "suction"
+    if args.task_file is not None:
+        task = task_file_arg(args.task_file, args.task)
     live = Live(
-        args.task,
+        task,
         out,
         calibration=calib,
         seed=args.seed,
@@ -116,6 +130,7 @@ def main(args: argparse.Namespace) -> int:
         gestures=args.gestures,
         gesture_samples=args.gesture_samples,
         mapping=args.mapping,
+        task_file=args.task_file,
     )
     loopback = srv.is_loopback(args.host)
     token = None if loopback else srv.new_token()
@@ -136,14 +151,15 @@ def main(args: argparse.Namespace) -> int:
     if args.emulate:
         query.append("emulate=quest3")
     url = f"{scheme}://{shown}:{args.port}/" + ("?" + "&".join(query) if query else "")
-    print(f"mimicrete teleop: {args.task}, saving to {out}/ (episode {live.next_index} next)")
+    spec = f" ({args.task_file})" if args.task_file else ""
+    print(f"mimicrete teleop: {task}{spec}, saving to {out}/ (episode {live.next_index} next)")
     print(f"  {url}")
     print(model_line(live))
     if args.gestures:
         gm = live.desk.status()
         print(
             f"gesture mode: record {' / '.join(gm['classes'])} ({gm['target']} samples each) in "
-            f"the page; the model is saved as {user_model_path(out, args.task)}"
+            f"the page; the model is saved as {user_model_path(out, task)}"
         )
     print(HELP_OPEN.format(port=args.port))
     sys.stdout.flush()

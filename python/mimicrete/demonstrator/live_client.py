@@ -158,22 +158,24 @@ def record_live(
     *,
     mapping: str = "clutch",
     progress: bool = False,
+    task_file: str | None = None,
 ) -> list[dict[str, Any]]:
     """Record ``episodes`` demonstrations of ``task`` through a ``mimicrete teleop`` server run
     here (loopback), into ``out`` (demos and hand logs, as a live session writes them); returns
     the server's ``saved`` messages. Episode ``i`` plays on the server's seed ``seed + i``;
-    ``progress``: a bar over the episodes."""
+    ``progress``: a bar over the episodes; ``task_file``: the server records in that task spec
+    (``mimicrete teleop --task-file``) and the person plans from its scenes."""
     from mimicrete.teleop.live import Live
     from mimicrete.teleop.server import ServerThread, TeleopServer
     from mimicrete.teleop.view import standing_calibration
 
     calib = standing_calibration()
-    live = Live(task, out, calibration=calib, seed=seed, mapping=mapping)
+    live = Live(task, out, calibration=calib, seed=seed, mapping=mapping, task_file=task_file)
     rng = np.random.default_rng([seed, 0x11FE])
     takes = []
     first = live.next_index
     for i in range(episodes):
-        scene = scene_from_env(task, seed + first + i)
+        scene = scene_from_env(task, seed + first + i, task_file)
         ep = synth_episode(scene, seed * 1_000_003 + first + i, layout="webxr", calib=calib)
         takes.append(quest_take(ep, rng))
     with ServerThread(TeleopServer(live)) as run:

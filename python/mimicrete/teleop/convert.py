@@ -15,22 +15,24 @@ demo being written keeps two converters out of each other's files.
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from mimicrete import _native, tasks
 from mimicrete import gestures as gest
-from mimicrete._native import MimicreteError
+from mimicrete._native import MimicreteError, SimInputError
 from mimicrete.hands import log as handlog
 from mimicrete.hands.log import HandLogData
 from mimicrete.kin import Calibration, parse_calibration
 from mimicrete.safe_io import FileLock
 
 from .provenance import ModelFileError, driving_of, model_of
-from .record import DemoSink, episode_meta, source_keys
+from .record import DemoSink, episode_meta, source_keys, spec_keys
 from .session import Counts, Session
 
 #: Hand-log file suffixes stripped to name the demo (longest first).
@@ -163,6 +165,37 @@ def out_dir_lock(out_dir: Path) -> FileLock:
 # ----------------------------------------------------------------------------------------------
 
 
+def spec_file_of(
+    header: dict[str, Any],
+    given: str | os.PathLike[str] | None,
+    task: tasks.TaskSpec,
+    source: str,
+) -> tuple[str | None, dict[str, str]]:
+    """The task spec file a log runs in (``given``, else the one its header names, else None:
+    the built-in task) and the demo metadata naming it. Raises :class:`ConvertError` for a spec
+    that is missing or bad, runs another task than ``task``, or differs from the one the log
+    recorded."""
+    extra = header.get("extra") if isinstance(header.get("extra"), dict) else {}
+    path = os.fspath(given) if given is not None else extra.get("task_file")
+    if path is None:
+        return None, {}
+    try:
+        spec_task, spec = tasks.load_task_file(path)
+    except (OSError, SimInputError) as e:
+        raise ConvertError(f"{source}: task file {tasks.task_file_error(path, e)}") from None
+    if spec_task.name != task.name:
+        raise ConvertError(
+            f"{source}: task file {path} runs the {spec_task.name} task, converting as {task.name}"
+        )
+    recorded = extra.get("task_spec")
+    if recorded is not None and recorded != json.loads(json.dumps(spec)):
+        raise ConvertError(
+            f"{source}: task file {path} is not the spec the log was recorded with (it changed "
+            "since; the log's header holds the spec as it was, extra.task_spec)"
+        )
+    return path, spec_keys(path, spec)
+
+
 def convert_log(
     log: HandLogData | str | os.PathLike[str],
     task: str,
@@ -172,6 +205,7 @@ def convert_log(
     episode_index: int = 0,
     model: gest.GestureModel | None = None,
     calibration: Calibration | None = None,
+    task_file: str | os.PathLike[str] | None = None,
 ) -> ConvertedEpisode:
     """Run one hand log through a :class:`Session`; write its MCAP demo to ``out`` (a file path
     ending in ``.mcap``, a directory to write :func:`demo_name` into, or ``None``: simulate only).
@@ -187,9 +221,16 @@ def convert_log(
     the log's ``extra.calibration``, else the default for its space. The demo's metadata says
     which (``gesture_model_from``, ``calibration_from``: ``given`` / ``handlog`` / ``default``).
 
+    A log recorded for a task spec file (``extra.task_file``, ``synth-hands --task-file``) runs
+    in that spec's env (``task_file`` if given, else the file the log names); the spec must be
+    the one the log recorded (``extra.task_spec``), and the demo names it (``task_file``,
+    ``task_spec``) and draws its scene.
+
     Raises:
         ConvertError: the log is for another task, the gesture model it names is missing, has
-            changed (another SHA-256) or is not a model, or the robot never followed the hand.
+            changed (another SHA-256) or is not a model, its task spec file is missing, bad, of
+            another task or changed since the log was recorded, or the robot never followed the
+            hand.
     """
     if not isinstance(log, HandLogData):
         source = source if source is not None else log
@@ -210,6 +251,7 @@ def convert_log(
             )
     seed = int(log.header.get("episode_seed") or 0)
     mapping, clutch = driving_of(log.header, len(log.t), source)
+    spec_file, spec_extra = spec_file_of(log.header, task_file, spec, source)
     extra = log.header.get("extra")
     logged_cal = isinstance(extra, dict) and extra.get("calibration") is not None
     calib_from = "given" if calibration is not None else "handlog" if logged_cal else "default"
@@ -253,11 +295,16 @@ def convert_log(
                         "converter": "mimicrete convert",
                         "hand_rate_hz": _rate(log),
                         **what_read,
+                        **spec_extra,
                     },
                 )
                 # the hash of the bytes parsed, not the file as it is now (it may have grown)
                 meta.update(source_keys(source_path, out_path, log.report.get("sha256") or None))
-                sink = DemoSink(out_path, meta)
+                scene_env = None
+                if spec_file is not None:  # the demo draws the spec's object and pad
+                    scene_env = _native.SimEnv.from_spec_file(spec_file, 0)
+                    scene_env.reset(seed)
+                sink = DemoSink(out_path, meta, env=scene_env)
             session = Session(
                 spec.name,
                 log.header["layout"],
@@ -267,6 +314,7 @@ def convert_log(
                 model=model,
                 recorder=sink,
                 mapping=mapping,
+                task_file=spec_file,
             )
             skipped = 0  # frames after the end, never pushed
             for k in range(len(log.t)):

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import _native, tasks
 from mimicrete import gestures as gest
-from mimicrete import tasks
 from mimicrete.kin import Calibration, parse_calibration
 
 from .gesture_desk import GestureDesk
@@ -36,7 +36,16 @@ from .gesturemode import DEFAULT_PER_CLASS, GestureModeError
 from .left_hand import LeftHandControl
 from .protocol import FrameError, WireFrame
 from .provenance import what_read
-from .record import LAYOUT, SPACE, DemoSink, Recording, episode_meta, source_keys, write_handlog
+from .record import (
+    LAYOUT,
+    SPACE,
+    DemoSink,
+    Recording,
+    episode_meta,
+    source_keys,
+    spec_keys,
+    write_handlog,
+)
 from .session import Session, Step
 from .view import HINTS, effector_state, follow_why, standing_calibration, view_from_base
 
@@ -58,6 +67,8 @@ class Live:
             (``settle_s``, ``min_interval_s``, ``grid``).
         mapping: ``clutch`` (the tool moves by the hand's motion since the clutch engaged) or
             ``absolute`` (the tool goes where the hand is, the paper's).
+        task_file: a task spec file running ``task``'s logic: the episodes run in its env, the
+            page draws its scene, the demos and hand logs name it (read once, here).
     """
 
     def __init__(
@@ -72,8 +83,18 @@ class Live:
         gesture_samples: int = DEFAULT_PER_CLASS,
         gesture_options: dict[str, Any] | None = None,
         mapping: str = "clutch",
+        task_file: str | None = None,
     ) -> None:
         self.task = tasks.get(task)
+        #: (the spec file, the spec as read) the episodes run in; None: the built-in task
+        self.spec: tuple[str, dict[str, Any]] | None = None
+        if task_file is not None:
+            spec_task, spec = tasks.load_task_file(task_file)
+            if spec_task.name != self.task.name:
+                raise ValueError(
+                    f"{task_file} runs the {spec_task.name} task, not {self.task.name}"
+                )
+            self.spec = (str(task_file), spec)
         self.mapping = mapping  # how the hand drives the tool (teleop.session.Session)
         self.out = Path(out)
         self.out.mkdir(parents=True, exist_ok=True)
@@ -216,9 +237,14 @@ class Live:
             extra={
                 "recorder": "mimicrete teleop",
                 "calibration": self.calibration.to_dict(),
+                **(spec_keys(*self.spec) if self.spec else {}),
             },
         )
-        sink = DemoSink(self.out / f"{name}.mcap", meta)
+        scene_env = None
+        if self.spec is not None:  # the demo draws the spec's object and pad
+            scene_env = _native.SimEnv.from_spec_file(self.spec[0], 0)
+            scene_env.reset(seed)
+        sink = DemoSink(self.out / f"{name}.mcap", meta, env=scene_env)
         hand = self.out / f"{name}.handlog.jsonl"
         read_by = what_read(self.model, self.desk.model_source, self.calibration, hand)
         self.episode = Recording(index, seed, self._session(seed, sink), sink, read_by=read_by)
@@ -263,7 +289,7 @@ class Live:
         hand = self.out / f"{name}.handlog.jsonl"
         source = None
         if ep.t:
-            write_handlog(hand, ep, self.task.name, self.mapping)
+            write_handlog(hand, ep, self.task.name, self.mapping, self.spec)
             source = source_keys(hand, demo)
         ep.sink.close(s.installed, s.counts, {"result": res, "finished": finished}, source)
         if not finished:
@@ -398,6 +424,7 @@ class Live:
             model=self.model,
             recorder=sink,
             mapping=self.mapping,
+            task_file=None if self.spec is None else self.spec[0],
         )
         scene = s.scene_entities()
         if scene != self.scene:

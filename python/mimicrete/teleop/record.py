@@ -83,11 +83,15 @@ class DemoSink:
     the session (teleop-core, in Rust) writes every hand frame and step into; this opens it with
     the episode's metadata and finishes, abandons or discards it."""
 
-    def __init__(self, path: str | os.PathLike[str], meta: dict[str, Any]) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str], meta: dict[str, Any], env: Any = None
+    ) -> None:
+        """``env``: a ``SimEnv`` reset to the episode's start, whose scene the demo draws (a
+        task spec file's object and pad); None: the built-in task's at the seed's start."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
-        self.w = demos.DemoWriter(str(path), meta)
+        self.w = demos.DemoWriter(str(path), meta, env=env)
 
     def close(
         self,
@@ -142,9 +146,26 @@ class Recording:
         self.stages = StageClock(self.sink.w)
 
 
-def write_handlog(path: Path, rec: Recording, task: str, mapping: str) -> None:
+def spec_keys(task_file: str, spec: dict[str, Any]) -> dict[str, str]:
+    """A demo's metadata naming the task spec file its episode ran in (``task_file``) and the
+    spec as it was read (``task_spec``, JSON)."""
+    return {"task_file": task_file, "task_spec": json.dumps(spec, sort_keys=True)}
+
+
+def write_handlog(
+    path: Path,
+    rec: Recording,
+    task: str,
+    mapping: str,
+    spec: tuple[str, dict[str, Any]] | None = None,
+) -> None:
     """The recording's raw hand log (docs/formats.md §1): every frame the page sent, and in its
-    header's ``extra`` what read the hand and how it drove the robot."""
+    header's ``extra`` what read the hand and how it drove the robot, and ``spec`` (the task
+    spec file and the spec it ran in: ``task_file``, ``task_spec``, as synth-hands writes them,
+    so ``convert`` replays it there)."""
+    extra: dict[str, Any] = {**rec.read_by, "mapping": mapping, "clutch": rec.clutch}
+    if spec is not None:
+        extra.update(task_file=spec[0], task_spec=spec[1])
     header = {
         "format": "mimicrete.handlog",
         "version": 1,
@@ -155,7 +176,7 @@ def write_handlog(path: Path, rec: Recording, task: str, mapping: str) -> None:
         "task": task,
         "episode_seed": rec.seed,
         "source": "mimicrete teleop (WebXR page)",
-        "extra": {**rec.read_by, "mapping": mapping, "clutch": rec.clutch},
+        "extra": extra,
     }
     handlog.write(
         path,

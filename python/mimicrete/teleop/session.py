@@ -108,6 +108,8 @@ class Session:
         seed: the simulator seed of the episode (the tile's position).
         model: the gesture model (default: the shipped one for the task).
         recorder: where steps and hand frames are written (None: nowhere).
+        task_file: a task spec file running ``task``'s logic (its object, target, starts and
+            thresholds; :func:`mimicrete.tasks.load_task_file`); None: the built-in task.
     """
 
     def __init__(
@@ -121,8 +123,10 @@ class Session:
         model: gest.GestureModel | None = None,
         recorder: Recorder | None = None,
         mapping: str = "absolute",
+        task_file: str | None = None,
     ) -> None:
         self.task = tasks.get(task)
+        self.task_file = task_file
         self.layout = check_layout(layout)
         if handedness not in ("left", "right"):
             raise ValueError(f"handedness must be 'left' or 'right', got {handedness!r}")
@@ -141,6 +145,7 @@ class Session:
             self.seed,
             None if recorder is None else recorder.w,
             mapping,
+            task_file,
         )
         #: ``absolute`` (the tool goes where the hand is: the paper's, and every hand log that
         #: names no mapping) or ``clutch`` (the tool moves by the hand's motion since the clutch
