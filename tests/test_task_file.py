@@ -324,3 +324,63 @@ def test_synth_hands_through_teleop_records_in_the_task_file(tmp_path: Path) -> 
     assert d["meta"]["task_file"] == str(big) and d["meta"]["success"] == "true"
     tile = first_scene(out / "suction_0000.mcap")["tile"]["cubes"][0]["size"]
     assert tile == pytest.approx({"x": 0.2, "y": 0.2, "z": 0.012}, abs=1e-6)
+
+
+# ----------------------------------------------------------------------------------------------
+# a researcher's task end to end: synth-hands -> convert -> train -> eval, no Rust touched
+# ----------------------------------------------------------------------------------------------
+
+SMALL_TRAIN = [
+    "--config", "configs/fewdemo.yaml", "--max-steps", "1024", "--num-envs", "8",
+    "--no-progress", "--eval-episodes", "2",
+    "--set", "behavior.hyperparameters.buffer_size=512",
+    "--set", "behavior.hyperparameters.batch_size=256",
+    "--set", "behavior.network_settings.hidden_units=32",
+    "--set", "behavior.demo_episodes=2",
+]  # fmt: skip
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
+    """``train --task-file`` trains in the spec (its policy file, evaluation and eval.json name
+    it) on demos recorded there; demos of the built-in task for a spec run, or the spec's demos
+    for a built-in run, are refused naming the demo and both specs, exit 2."""
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    hands, demos_dir = tmp_path / "hands", tmp_path / "demos"
+    assert run_cli("synth-hands", "--task-file", str(big), "--episodes", "2", "--seed", "5",
+                   "--out", str(hands)).returncode == 0  # fmt: skip
+    r = run_cli("convert", str(hands), "--task", "suction", "--out", str(demos_dir),
+                "--no-progress")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    run = tmp_path / "run"
+    r = run_cli("train", *SMALL_TRAIN, "--task-file", str(big), "--demos", str(demos_dir),
+                "--run-dir", str(run), cwd=REPO)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    resolved = (run / "resolved_config.yaml").read_text()
+    assert "env_id: Task-v0" in resolved and f"task_file: {big}" in resolved
+    r = run_cli("eval", str(run), "--episodes", "2", "--starts", "wide", cwd=REPO)
+    assert r.returncode == 0, r.stderr[-2000:]
+    res = json.loads((run / "eval_wide.json").read_text())
+    assert res["env_id"] == "Task-v0" and res["task_file"] == str(big) and res["episodes"] == 2
+    # the built-in task's demos for the spec run, and the spec's demos for a built-in run
+    builtin = tmp_path / "builtin_demos"
+    run_cli("synth-hands", "--episodes", "2", "--seed", "5", "--out", str(tmp_path / "h0"))
+    run_cli("convert", str(tmp_path / "h0"), "--task", "suction", "--out", str(builtin),
+            "--no-progress")  # fmt: skip
+    for extra, demos_path, says in [
+        (["--task-file", str(big)], builtin,
+         f"a demo recorded in TileSuction's built-in spec, the run trains in {big}"),
+        ([], demos_dir,
+         f"a demo recorded in {big}, the run trains in TileSuction's built-in spec "
+         "(train it with --task-file)"),
+    ]:  # fmt: skip
+        r = run_cli("train", *SMALL_TRAIN, *extra, "--demos", str(demos_path),
+                    "--run-dir", str(tmp_path / "refused"), cwd=REPO)  # fmt: skip
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+        assert says in r.stderr, r.stderr
+    # a bad spec is one line before anything trains
+    bad = spec_copy(tmp_path, "TileSuction", ("mass = 0.5 ", "mass = -2 "))
+    r = run_cli("train", *SMALL_TRAIN, "--task-file", str(bad), "--demos", str(demos_dir),
+                "--run-dir", str(tmp_path / "bad"), cwd=REPO)  # fmt: skip
+    assert r.returncode == 2 and "object.mass = -2.0" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "bad").exists()

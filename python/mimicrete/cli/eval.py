@@ -86,8 +86,9 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError("--robust and --starts: give one of them")
     try:
         fmt = None
-        env_id = load_policy(run_dir)[1].env_settings.env_id
-        starts = starts_mod.resolve("robust" if args.robust else args.starts, env_id)
+        es = load_policy(run_dir)[1].env_settings
+        named = "robust" if args.robust else args.starts
+        starts = starts_mod.resolve(named, es.env_id, es.task_file)
         if args.video:  # what would stop the videos, before the evaluation runs
             fmt = video.resolve_format(args.video_format)
             video.check_renderable(load_policy(run_dir)[1].env_settings.env_id)
@@ -105,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
 
         eps = [e for e in res["per_episode"] if "object_pose" in e]
         if not eps:
-            raise UsageError(f"--map: {env_id} episodes have no object start to draw")
+            raise UsageError(f"--map: {es.env_id} episodes have no object start to draw")
         title = f"{run_dir.name}, {res['starts']}"
         out = success_map([(title, eps)], written.with_name(written.stem + "_map.png"))
         print(f"wrote {out}")

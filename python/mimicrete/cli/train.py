@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from mimicrete.cli import UsageError
+from mimicrete.cli import UsageError, task_file_arg
 from mimicrete.console import show_messages
 from mimicrete.learn.config import DEFAULT_DEMOS, DEFAULT_GROUP, DEFAULT_MAX_STEPS  # no torch
 
@@ -35,6 +35,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="train on the loadable demo files of a directory, listing the bad ones in run.json "
         "(default: a bad file is an error)",
+    )
+    parser.add_argument(
+        "--task-file",
+        metavar="SPEC.toml",
+        help="train and evaluate in the task this spec file describes (sets env_settings.env_id "
+        "Task-v0 and env_settings.task_file; its demos must be recorded in that spec: "
+        "synth-hands / teleop / convert --task-file)",
     )
     parser.add_argument("--run-dir", help="default runs/<config name>-seed<seed>")
     group = parser.add_mutually_exclusive_group()
@@ -89,10 +96,14 @@ def main(args: argparse.Namespace) -> int:
         resolved = Path(args.run_dir) / "resolved_config.yaml"
         if resolved.is_file():
             config_file = str(resolved)
+    overrides = list(args.set or [])
+    if args.task_file is not None:
+        task_file_arg(args.task_file, None)  # read and checked: a bad spec is one line
+        overrides += ["env_settings.env_id=Task-v0", f"env_settings.task_file={args.task_file}"]
     try:
         cfg, cfg_path = config.resolve(
             config_file,
-            overrides=args.set,
+            overrides=overrides,
             seed=args.seed,
             num_envs=args.num_envs,
             max_steps=args.max_steps,
@@ -103,7 +114,7 @@ def main(args: argparse.Namespace) -> int:
         cfg.behavior.stop_on_convergence = config.ConvergenceSettings()
     run_dir = Path(args.run_dir) if args.run_dir else config.default_run_dir(cfg_path, cfg)
     demos = args.demos or cfg.demo_path
-    compare = _compare_source(args.compare, cfg.env_settings.env_id)
+    compare = _compare_source(args.compare, cfg.env_settings.env_id, cfg.env_settings.task_file)
     bc = cfg.behavior.behavioral_cloning
     if args.make_demos and demos and bc is not None and bc.generate_from and not args.demos:
         learn.ensure_generated_demos(
@@ -141,9 +152,11 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _compare_source(policy: str | None, env_id: str) -> Path | None:
+def _compare_source(
+    policy: str | None, env_id: str, task_file: str | None = None
+) -> Path | None:
     """The policy.pt ``--compare`` names (a run dir's or the file given), checked up front: a
-    readable policy of the task this run trains (``env_id``)."""
+    readable policy of the task this run trains (``env_id``, ``task_file``)."""
     if policy is None:
         return None
     from mimicrete.learn.env import sim_task_of
@@ -154,10 +167,11 @@ def _compare_source(policy: str | None, env_id: str) -> Path | None:
     if not src.is_file():
         raise UsageError(f"--compare {p}: no such policy file or run directory with a policy.pt")
     try:
-        theirs = load_policy_file(src)[1].env_settings.env_id
+        es = load_policy_file(src)[1].env_settings
     except PolicyFileError as e:
         raise UsageError(f"--compare {e}") from None
-    theirs, ours = sim_task_of(theirs) or theirs, sim_task_of(env_id) or env_id
+    theirs = sim_task_of(es.env_id, es.task_file) or es.env_id
+    ours = sim_task_of(env_id, task_file) or env_id
     if theirs != ours:
         raise UsageError(
             f"--compare {src}: a policy of {theirs}, but this run trains {ours}; "

@@ -171,6 +171,9 @@ class EnvSettings:
     env_id: str = "TileSuction-v0"
     num_envs: int = 32
     seed: int = 0
+    # extension: the task spec file a ``Task-v0`` run trains and evaluates in (a researcher's
+    # task running a built-in task's logic; docs/tasks.md); only with env_id Task-v0
+    task_file: str | None = None
 
 
 @dataclass
@@ -418,6 +421,12 @@ def _validate(cfg: TrainerConfig) -> None:
         )
     if cfg.env_settings.num_envs <= 0 or h.buffer_size % cfg.env_settings.num_envs:
         raise ConfigError("env_settings.num_envs must divide hyperparameters.buffer_size")
+    task_file_id = cfg.env_settings.env_id.split("/")[-1] == "Task-v0"
+    if task_file_id != (cfg.env_settings.task_file is not None):
+        raise ConfigError(
+            "env_settings.task_file: give a task spec file with env_id Task-v0 and only then "
+            f"(env_id is {cfg.env_settings.env_id}, task_file {cfg.env_settings.task_file})"
+        )
 
 
 def from_dict(data: dict[str, Any]) -> TrainerConfig:

@@ -5,6 +5,7 @@ fresh checkout has none (``ensure_demos``: the same synth-hands + convert as ``m
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 from dataclasses import dataclass, field
@@ -56,6 +57,29 @@ class LoadedDemos:
                 raise DemoDataError(
                     f"{file}: a demo of task {theirs}, the config trains {sim} (demo path "
                     f"{path}; {len(self.tasks) - others} of {len(self.tasks)} files are {theirs})"
+                )
+
+
+    def check_spec(self, sim: str, task_file: str | None, path: str | os.PathLike[str]) -> None:
+        """:class:`DemoDataError` naming the first demo file recorded in another task spec than
+        the run's (``task_file``'s spec, or ``sim``'s built-in one): a demo names the spec file it
+        ran in (``task_spec``; none: its task's built-in spec)."""
+        from mimicrete import tasks
+
+        def plain(spec: dict[str, Any]) -> dict[str, Any]:  # as JSON keeps it
+            return json.loads(json.dumps(spec))
+
+        builtin = plain(tasks.get(sim).builtin_spec())
+        ours = builtin if task_file is None else plain(tasks.load_task_file(task_file)[1])
+        for (file, _), meta in zip(self.tasks, self.metas, strict=False):
+            raw = meta.get("task_spec")
+            if (builtin if raw is None else json.loads(raw)) != ours:
+                where = meta.get("task_file") or f"{sim}'s built-in spec"
+                run = task_file or f"{sim}'s built-in spec"
+                hint = "" if task_file else " (train it with --task-file)"
+                raise DemoDataError(
+                    f"{file}: a demo recorded in {where}, the run trains in {run}{hint} (demo "
+                    f"path {path})"
                 )
 
 
@@ -182,10 +206,12 @@ def read_training_demos(
     action_dims: int,
     *,
     skip_bad: bool = False,
+    task_file: str | None = None,
 ) -> TrainingDemos:
     """The first ``episodes`` demos at ``path`` for a run on ``env_id`` (whose actions have
-    ``action_dims`` dimensions): :class:`ConfigError` without a path or for actions of another
-    size, :class:`DemoDataError` for demos recorded on another simulator task."""
+    ``action_dims`` dimensions; ``Task-v0``: in the spec file ``task_file``): :class:`ConfigError`
+    without a path or for actions of another size, :class:`DemoDataError` for demos recorded on
+    another simulator task or in another task spec."""
     if not path:
         raise ConfigError("gail/behavioral_cloning/demo_curriculum need a demo_path or --demos")
     loaded = read_demos(path, episodes, skip_bad=skip_bad)
@@ -196,9 +222,10 @@ def read_training_demos(
             f"{path}: demo actions of {got} dims, {env_id} takes {action_dims} (demos of "
             "another task?)"
         )
-    sim = sim_task_of(env_id)
+    sim = sim_task_of(env_id, task_file)
     if sim is not None:  # the sizes can match across tasks (grip and suction do)
         loaded.check_task(sim, path)
+        loaded.check_spec(sim, task_file, path)
     return TrainingDemos(loaded, arrays)
 
 

@@ -19,24 +19,29 @@ N_CONT = 6
 TOY_PREFIX = "Toy"
 
 
-def make_env(env_id: str, num_envs: int, seed: int) -> Any:
-    """``num_envs`` vectorised envs of ``env_id`` seeded with ``seed``."""
+def make_env(env_id: str, num_envs: int, seed: int, task_file: str | None = None) -> Any:
+    """``num_envs`` vectorised envs of ``env_id`` seeded with ``seed`` (``Task-v0``: of the task
+    spec file ``task_file``)."""
     if env_id.startswith(TOY_PREFIX):
         from mimicrete.testing import toyenv
 
         return toyenv.make_vec(num_envs, seed=seed)
     from mimicrete import envs
 
+    if task_file is not None:
+        return envs.make_vec(env_id, num_envs=num_envs, seed=seed, spec=task_file)
     return envs.make_vec(env_id, num_envs=num_envs, seed=seed)
 
 
-def sim_task_of(env_id: str) -> str | None:
-    """The simulator task (``TileSuction``, ``BlockGrip``, ``Screw``) an env id runs; None for the
-    toy env."""
+def sim_task_of(env_id: str, task_file: str | None = None) -> str | None:
+    """The simulator task (``TileSuction``, ``BlockGrip``, ``Screw``) an env id runs (``Task-v0``:
+    the one the spec file ``task_file`` runs); None for the toy env."""
     if env_id.startswith(TOY_PREFIX):
         return None
     from mimicrete import tasks
 
+    if task_file is not None:
+        return tasks.load_task_file(task_file)[0].sim
     try:
         return tasks.get(env_id).sim
     except ValueError:

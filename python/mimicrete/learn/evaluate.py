@@ -97,32 +97,35 @@ def run_episodes(
     robust: bool = False,
     starts: str | StartList = "training",
     per_episode: bool = False,
+    task_file: str | None = None,
 ) -> dict[str, Any]:
     """Mean statistics of ``episodes`` episodes of ``actor``, deterministic or sampled, from the
     named ``starts`` (``robust=True`` is ``starts="robust"``) or, for a :class:`StartList`, one
     episode from each of its starts (``episodes`` is then ignored). With ``per_episode``, also
     ``per_episode``: each episode's start (``object_pose``, ``target_offset``, ``pad_offset``;
-    the simulator's tasks) with its ``picked``, ``installed`` and ``length``, in finishing order."""
+    the simulator's tasks) with its ``picked``, ``installed`` and ``length``, in finishing order.
+    ``task_file``: the task spec file a ``Task-v0`` policy runs in."""
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         if isinstance(starts, StartList):
-            done = _run_listed(actor, env_id, starts, seed, max_envs, stochastic)
+            env = make_env(env_id, min(max_envs, len(starts.starts)), seed, task_file)
+            done = _run_listed(actor, env, starts, seed, stochastic)
         else:
             name = "robust" if robust else starts
-            done = _run_episodes(actor, env_id, episodes, seed, max_envs, stochastic, name)
+            env = make_env(env_id, _num_envs_for(episodes, max_envs), seed, task_file)
+            done = _run_episodes(actor, env, env_id, episodes, seed, stochastic, name)
     return _stats(done, per_episode)
 
 
 def _run_listed(
-    actor: Actor, env_id: str, starts: StartList, seed: int, max_envs: int, stochastic: bool
+    actor: Actor, env: Any, starts: StartList, seed: int, stochastic: bool
 ) -> list[Finished]:
-    """One episode from each listed start, in batches of up to ``max_envs`` envs (a batch's
-    spare envs repeat its first start and are not counted)."""
+    """One episode from each listed start, in batches of ``env``'s envs (a batch's spare envs
+    repeat its first start and are not counted)."""
     todo = list(starts.starts)
-    n = min(max_envs, len(todo))
-    env = make_env(env_id, n, seed)
+    n = int(env.num_envs)
     results: list[Finished] = []
     for b in range(0, len(todo), n):
         batch = todo[b : b + n]
@@ -150,16 +153,15 @@ def _run_listed(
 
 def _run_episodes(
     actor: Actor,
+    env: Any,
     env_id: str,
     episodes: int,
     seed: int,
-    max_envs: int,
     stochastic: bool,
     starts: str,
 ) -> list[Finished]:
-    n = _num_envs_for(episodes, max_envs)
+    n = int(env.num_envs)
     per_env = episodes // n
-    env = make_env(env_id, n, seed)
     if starts != "training":
         sim = getattr(env, "sim", None)
         if sim is None:
@@ -212,13 +214,16 @@ def evaluate_run(
     env_id = cfg.env_settings.env_id
     if robust:
         starts = "robust"
+    task_file = cfg.env_settings.task_file
     res = run_episodes(
-        actor, env_id, episodes, s, stochastic=stochastic, starts=starts, per_episode=True
-    )
+        actor, env_id, episodes, s, stochastic=stochastic, starts=starts, per_episode=True,
+        task_file=task_file,
+    )  # fmt: skip
     res = {
         **res,
         "seed": s,
         "env_id": env_id,
+        **({"task_file": task_file} if task_file else {}),
         "policy": "stochastic" if stochastic else "deterministic",
         "starts": label(starts),
     }

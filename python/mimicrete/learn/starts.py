@@ -79,9 +79,10 @@ def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return dict(pairs)
 
 
-def read_starts_file(path: str | Path, task: str) -> StartList:
-    """The explicit starts in ``path`` for ``task``, each checked by the simulator; raises
-    :class:`StartsFileError` naming the file and line."""
+def read_starts_file(path: str | Path, task: str, task_file: str | None = None) -> StartList:
+    """The explicit starts in ``path`` for ``task`` (in the task spec file ``task_file`` if
+    given), each checked by the simulator; raises :class:`StartsFileError` naming the file and
+    line."""
     p = Path(path)
     if not p.is_file():
         raise StartsFileError(f"{p}: no such starts file (or not a regular file)")
@@ -93,7 +94,10 @@ def read_starts_file(path: str | Path, task: str) -> StartList:
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
         raise StartsFileError(f"{p}:{line}: not UTF-8 text") from None
-    sim = _native.SimEnv(task, 0)
+    if task_file is None:
+        sim = _native.SimEnv(task, 0)
+    else:
+        sim = _native.SimEnv.from_spec_file(task_file, 0)
     starts: list[dict[str, list[float]]] = []
     for k, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -115,15 +119,17 @@ def read_starts_file(path: str | Path, task: str) -> StartList:
     return StartList(p, hashlib.sha256(data).hexdigest(), tuple(starts))
 
 
-def resolve(starts: str | Path, env_id: str) -> str | StartList:
+def resolve(starts: str | Path, env_id: str, task_file: str | None = None) -> str | StartList:
     """A named start set (``training``, ``robust``, ``wide``) or a starts file for the task of
-    ``env_id``."""
+    ``env_id`` (``Task-v0``: of the spec file ``task_file``)."""
     s = str(starts)
     if s in NAMED:
         return s
     if s.endswith(".jsonl") or Path(s).exists():
         from mimicrete.envs import task_of
 
+        if task_file is not None:
+            return read_starts_file(s, "", task_file)
         return read_starts_file(s, task_of(env_id))
     raise StartsFileError(f"starts: expected training, robust, wide or a FILE.jsonl, got {s!r}")
 

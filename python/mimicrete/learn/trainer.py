@@ -64,7 +64,8 @@ class Trainer:
         np.random.seed(self.seed % 2**32)
         torch.manual_seed(self.seed)
 
-        env = make_env(cfg.env_settings.env_id, cfg.env_settings.num_envs, self.seed)
+        es = cfg.env_settings
+        env = make_env(es.env_id, es.num_envs, self.seed, es.task_file)
         self.obs_dim = int(env.single_observation_space.shape[0])
         self.n_branches = command_branches(env)  # 1 (end effector), Screw 2 (+ spin)
         b = self.behavior
@@ -73,7 +74,8 @@ class Trainer:
         if any(x is not None for x in wants_demos):  # read once, for all three
             self.demos = read_training_demos(
                 demos_override or cfg.demo_path, b.demo_episodes, b.demo_drop_idle,
-                cfg.env_settings.env_id, N_CONT + self.n_branches, skip_bad=skip_bad_demos,
+                es.env_id, N_CONT + self.n_branches, skip_bad=skip_bad_demos,
+                task_file=es.task_file,
             )  # fmt: skip
         self.state: RunState = new_run_state(
             cfg, env, self.obs_dim, self.n_branches, self.demos, self.seed

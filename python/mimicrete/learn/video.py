@@ -310,7 +310,11 @@ def record_run_videos(
     def policy(obs: np.ndarray) -> np.ndarray:
         return actor.deterministic(torch.from_numpy(obs)[None])[0].numpy()
 
-    env = envs.MimicreteEnv(envs.task_of(env_id), render_mode="rgb_array")
+    task_file = cfg.env_settings.task_file
+    if task_file is not None:
+        env = envs.MimicreteEnv(render_mode="rgb_array", spec=task_file)
+    else:
+        env = envs.MimicreteEnv(envs.task_of(env_id), render_mode="rgb_array")
     done = []
     try:
         for k in range(count):
