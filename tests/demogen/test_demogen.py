@@ -249,3 +249,38 @@ def test_grasp_jitter_grasps_off_centre_and_places_the_block_not_the_tcp(tmp_pat
         offsets.append(np.linalg.norm((last[lay["object"]] - last[lay["tcp"]])[:2]))
         assert np.linalg.norm((last[lay["object"]] - last[lay["target"]])[:2]) < 0.005
     assert max(offsets) > 0.005 and max(offsets) < 0.025
+
+
+def test_screw_demos_close_the_gripper_from_the_first_step_at_the_nut(tmp_path):
+    """Screw (``TaskFrames.close_in_reach``): a person's demo holds the fingers open at the nut
+    for many steps before closing; the generated demos command "close" from the first step whose
+    state is within the simulator's grasp tolerance on, so a cloned policy's command at the nut
+    is "close" (before, ~24 "open" steps per demo there against ~9 "close": its argmax never
+    closed). The other tasks keep the source's commands."""
+    from mimicrete import demonstrator as synth
+    from mimicrete.teleop import convert
+
+    assert dg.TASKS["Screw"].close_in_reach
+    assert not dg.TASKS["TileSuction"].close_in_reach and not dg.TASKS["BlockGrip"].close_in_reach
+    src_dir = tmp_path / "src"
+    src_dir.mkdir()
+    (log,) = synth.synth_hands("screw", 1, 0, tmp_path / "hands")
+    convert.convert_log(log, "screw", src_dir, episode_index=0)
+    (src,) = dg.load_sources(src_dir)
+    spec, lay = src.spec, src.spec.lay
+    starts = dg.draw_starts(3, seed=5, starts="wide", task="Screw")
+    sim = _native.SimEnv("Screw", 0)
+    for k, st in enumerate(starts):
+        ep = dg.generate_episode(sim, src, st, 40 + k)
+        assert ep.installed, ep.why
+        f = np.array([r["obs"][-spec.frame_dim :] for r in ep.rows], np.float64)
+        a = np.array([r["action"] for r in ep.rows])
+        pick = next(i for i, r in enumerate(ep.rows) if "pick" in r["events"])
+        # well inside the tolerance (6 mm across, 2 cm along the tool; the flange points down):
+        # the nut within 5 mm of the TCP horizontally and 1.5 cm vertically, before the step
+        gap = f[:, lay["tcp"]] - f[:, lay["object"]]
+        near = (np.linalg.norm(gap[:, :2], axis=1) < 0.005) & (np.abs(gap[:, 2]) < 0.015)
+        first = int(np.flatnonzero(near)[0])
+        assert first < pick - 10  # the source reached the nut well before it grasped
+        assert np.all(a[first : pick + 1, 6] >= 0.5), np.flatnonzero(a[first : pick + 1, 6] < 0.5)
+        assert not any(g.startswith("opening") for g in (r["gesture"] for r in ep.rows[first:]))

@@ -9,10 +9,11 @@ the joint actions a teleoperated demo records (teleop-core's ``joint_action``:
 ``clip(wrap(q_ik − q) / MAX_JOINT_STEP, −1, 1)``, the IK warm-started at its last answer). The
 effector commands are the source's (the suction's only at its switch, once the cup is within
 reach of the grasp point; the gripper's and the spin as recorded, the gripper kept closing until
-it holds). What differs per task is one row of :data:`.segment.TASKS`. Only episodes that
-succeed (install, place, screw) are kept (MimicGen keeps successes); each is written as an MCAP
-demo with the project's writer, its metadata saying it was generated, from which source and
-where it started (``mimicrete train --demos DIR`` reads it unchanged).
+it holds; Screw's gripper "close" from the first step within the grasp tolerance of the nut on,
+``TaskFrames.close_in_reach``). What differs per task is one row of :data:`.segment.TASKS`.
+Only episodes that succeed (install, place, screw) are kept (MimicGen keeps successes); each is
+written as an MCAP demo with the project's writer, its metadata saying it was generated, from
+which source and where it started (``mimicrete train --demos DIR`` reads it unchanged).
 """
 
 from __future__ import annotations
@@ -28,7 +29,15 @@ import numpy as np
 
 from mimicrete import IkError, MimicreteError, _native, kin, tasks
 
-from .segment import TASK, DemoGenError, SourceDemo, TaskFrames, frame, task_frames
+from .segment import (
+    SCREW_GRASP_TOL,
+    TASK,
+    DemoGenError,
+    SourceDemo,
+    TaskFrames,
+    frame,
+    task_frames,
+)
 
 MAX_JOINT_STEP = tasks.MAX_JOINT_STEP
 CONTROL_DT = tasks.CONTROL_DT
@@ -249,7 +258,13 @@ def generate_episode(
                 x = moved[-1, :3, 0] * [1.0, 1.0, 0.0]
                 moved[:, :3, 3] += shift * x / max(float(np.linalg.norm(x)), 1e-9)
             poses = _blended(moved, run.pose(), blend)
+            relabel = spec.close_in_reach and seg.relative_to == "object"
+            closing = False
             for p, c in zip(poses, seg.commands, strict=True):
+                if relabel and (closing or _in_grasp_reach(run)):
+                    closing = True  # "close" from the first step at the nut on
+                    c = c.copy()
+                    c[0] = 1.0
                 run.step(p, c)
             last = poses[-1]
         _finish(run, spec, last, src.segments[-1].commands[-1])
@@ -257,6 +272,31 @@ def generate_episode(
     except _Abort as e:
         ep.why = str(e)
     return ep
+
+
+def _quat_matrix(q: Any) -> np.ndarray:
+    """The rotation matrix of a unit quaternion ``[x, y, z, w]``."""
+    x, y, z, w = (float(v) for v in q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _in_grasp_reach(run: _Runner) -> bool:
+    """Whether the nut lies within the simulator's grasp tolerance of the fingers now
+    (:data:`.segment.SCREW_GRASP_TOL`: its centre in the TCP frame, the flange pointing down)."""
+    snap = run.sim.snapshot()
+    rot = _quat_matrix(snap["tcp"]["q"])
+    p = rot.T @ (np.asarray(snap["object"]["t"], np.float64) - np.asarray(snap["tcp"]["t"]))
+    tol = SCREW_GRASP_TOL
+    aligned = float(-rot[2, 2]) > tol["align_cos"]  # the tool's z against Base −Z
+    return bool(
+        aligned and abs(p[0]) < tol["xy"] and abs(p[1]) < tol["xy"] and abs(p[2]) < tol["z"]
+    )
 
 
 def _in_hand_offset(run: _Runner) -> np.ndarray:

@@ -57,7 +57,12 @@ class TaskFrames:
     steps at the object); ``latched``: the effector holds its state, so its command is sent only
     when it switches (the suction; as teleop-core records it); ``finish``: what follows the last
     segment when the episode has not ended: ``carry`` the held object the rest of the way onto
-    the target, ``hold`` the last pose and command (the spin), or ``none``."""
+    the target, ``hold`` the last pose and command (the spin), or ``none``; ``close_in_reach``:
+    the gripper's command in the object-relative segment is "close" from the first step whose
+    state lies within the simulator's grasp tolerance (:data:`SCREW_GRASP_TOL`), whatever the
+    source commanded there (Screw: the scripted person holds the fingers open at the nut for
+    tens of steps before closing, so most states at the nut were labelled "open" and a cloned
+    policy's argmax never closed, docs/wide_starts.md)."""
 
     sim: str
     frame_dim: int
@@ -67,6 +72,7 @@ class TaskFrames:
     grasp_in_object: bool
     latched: bool
     finish: str
+    close_in_reach: bool = False
 
     @property
     def commands(self) -> slice:
@@ -83,8 +89,15 @@ def _lay(task: str) -> dict[str, slice]:
 TASKS: dict[str, TaskFrames] = {
     "TileSuction": TaskFrames("TileSuction", 16, 7, _lay("suction"), 6, False, True, "carry"),
     "BlockGrip": TaskFrames("BlockGrip", 16, 7, _lay("grip"), 6, True, False, "none"),
-    "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold"),
+    "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold", True),
 }
+
+#: Screw's grasp tolerance, tile-sim's ``nut_contact`` (crates/tile-sim/src/task/screw.rs): the
+#: nut's centre in the TCP frame within ``xy`` (m, ``CENTRE_TOL``) across and along the fingers
+#: and within ``z`` (m) of the TCP along the tool axis (the fingers' half length 0.025 minus the
+#: nut's half height 0.005, ``tasks/screw.toml``), with the flange within ``align_cos`` of
+#: pointing down (the spec's ``thresholds.align_cos``)
+SCREW_GRASP_TOL = {"xy": 0.006, "z": 0.02, "align_cos": 0.94}
 
 
 def task_frames(task: str) -> TaskFrames:
