@@ -264,9 +264,9 @@ BAD_SPECS = [
     (("version = 1", "version = 2"), ["version = 2", "reads version 1"]),
     (("object_x = [0.0, 0.15]", "object_x = [0.9, 1.0]"),
      ["starts.paper.object_x = [0.9, 1.0]", "within"]),
-    (("mass = 0.5 ", "masss = 0.5 "), ["line 33, column 1 (masss = 0.5)", "unknown field `masss`"]),
+    (("mass = 0.5 ", "masss = 0.5 "), ["line 41, column 1 (masss = 0.5)", "unknown field `masss`"]),
     (("mass = 0.5 ", 'mass = "heavy" '),
-     ['line 33, column 8 (mass = "heavy")', 'invalid type: string "heavy"']),
+     ['line 41, column 8 (mass = "heavy")', 'invalid type: string "heavy"']),
     (('kind = "suction"', 'kind = "vacuum"'), ['(kind = "vacuum")', "unknown variant `vacuum`"]),
 ]  # fmt: skip
 
@@ -345,7 +345,10 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
     """``train --task-file`` trains in the spec (its policy file, evaluation and eval.json name
     it) on demos recorded there; demos of the built-in task for a spec run, or the spec's demos
     for a built-in run, are refused naming the demo and both specs, exit 2."""
-    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    sentence = "Install the large-format tile on the pad."
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), (
+        'instruction = "Pick up the tile with the suction head and install it on the target pad."',
+        f'instruction = "{sentence}"'))  # fmt: skip
     hands, demos_dir = tmp_path / "hands", tmp_path / "demos"
     assert run_cli("synth-hands", "--task-file", str(big), "--episodes", "2", "--seed", "5",
                    "--out", str(hands)).returncode == 0  # fmt: skip
@@ -362,6 +365,14 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr[-2000:]
     res = json.loads((run / "eval_wide.json").read_text())
     assert res["env_id"] == "Task-v0" and res["task_file"] == str(big) and res["episodes"] == 2
+    # exported for LeRobot: replayed in the spec, its sentence the dataset's task text
+    r = run_cli("export", str(demos_dir), "--format", "lerobot", "--out", str(tmp_path / "lr"))
+    assert r.returncode == 0, r.stderr[-2000:]
+    import pyarrow.parquet as pq
+
+    assert pq.read_table(tmp_path / "lr/meta/tasks.parquet").to_pylist() == [
+        {"task_index": 0, "task": sentence}
+    ]
     # the built-in task's demos for the spec run, and the spec's demos for a built-in run
     builtin = tmp_path / "builtin_demos"
     run_cli("synth-hands", "--episodes", "2", "--seed", "5", "--out", str(tmp_path / "h0"))
@@ -378,6 +389,11 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
                     "--run-dir", str(tmp_path / "refused"), cwd=REPO)  # fmt: skip
         assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
         assert says in r.stderr, r.stderr
+    # the spec changed since: the export cannot replay there and says so
+    big.write_text(big.read_text().replace("mass = 0.5 ", "mass = 0.7 "))
+    r = run_cli("export", str(demos_dir), "--format", "lerobot", "--out", str(tmp_path / "lr2"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"task file {big} is not the spec the demo was recorded in" in r.stderr
     # a bad spec is one line before anything trains
     bad = spec_copy(tmp_path, "TileSuction", ("mass = 0.5 ", "mass = -2 "))
     r = run_cli("train", *SMALL_TRAIN, "--task-file", str(bad), "--demos", str(demos_dir),

@@ -1,8 +1,9 @@
 """The task table: one place for the three tasks' names, ids and sizes.
 
-The sizes come from the simulator itself (``tile-sim`` through ``_native.sim_constants()``), the
-episode length and the effector kind from each task's built-in spec file
-(``crates/tile-sim/tasks/*.toml`` through ``_native.task_spec``, :meth:`TaskSpec.builtin_spec`);
+The sizes come from the simulator itself (``tile-sim`` through ``_native.sim_constants()``); the
+episode length, the effector kind, the success's name, the gesture classes and the task's sentence
+from each task's built-in spec file (``crates/tile-sim/tasks/*.toml`` through
+``_native.task_spec``, :meth:`TaskSpec.builtin_spec`);
 the names are the user-facing ones (``suction``, ``grip``, ``screw``), the simulator's
 (``TileSuction``, ``BlockGrip``, ``Screw``) and the gymnasium ids (``mimicrete/TileSuction-v0``).
 Everything else in the package looks tasks up here. A researcher's own spec file runs one of
@@ -32,13 +33,14 @@ class TaskSpec:
 
     name: str  # suction | grip | screw: the CLI's and the hand logs' name
     sim: str  # tile-sim's name
-    gesture_model: str  # the gesture classifier it uses (its classes: gestures.TASK_CLASSES)
-    success: str  # what its success is called in results ("installed", "placed", "screwed")
+    gesture_model: str  # the spec's about.gestures: its classifier (gestures.TASK_CLASSES)
+    success: str  # the spec's about.success ("installed", "placed", "screwed")
     obs_frame_dim: int
     obs_dim: int
     act_dim: int
     max_steps: int  # episode length in control steps (the spec's episode.max_steps)
     effector: str  # the spec's effector kind: suction | gripper
+    instruction: str  # the spec's about.instruction: the task as one sentence
 
     @property
     def env_id(self) -> str:
@@ -50,29 +52,26 @@ class TaskSpec:
         return _native.task_spec(self.sim)
 
 
-def _task(name: str, sim: str, gesture_model: str, success: str) -> TaskSpec:
+def _task(name: str, sim: str) -> TaskSpec:
     d = _CONST["tasks"][sim]
     spec = _native.task_spec(sim)
     return TaskSpec(
         name,
         sim,
-        gesture_model,
-        success,
+        str(spec["about"]["gestures"]),
+        str(spec["about"]["success"]),
         int(d["obs_frame_dim"]),
         int(d["obs_dim"]),
         int(d["act_dim"]),
         int(spec["episode"]["max_steps"]),
         str(spec["effector"]["kind"]),
+        str(spec["about"]["instruction"]),
     )
 
 
 TABLE: dict[str, TaskSpec] = {
     t.name: t
-    for t in (
-        _task("suction", "TileSuction", "grip", "installed"),
-        _task("grip", "BlockGrip", "grip", "placed"),
-        _task("screw", "Screw", "screw", "screwed"),
-    )
+    for t in (_task("suction", "TileSuction"), _task("grip", "BlockGrip"), _task("screw", "Screw"))
 }
 TASKS: tuple[str, ...] = tuple(TABLE)
 SIM_TASKS: tuple[str, ...] = tuple(t.sim for t in TABLE.values())

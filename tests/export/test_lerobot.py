@@ -14,10 +14,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from mimicrete import demos
+from mimicrete import demos, tasks
 from mimicrete.cli import main as cli_main
 from mimicrete.export import lerobot as lr
-from mimicrete.export.source import TASK_TEXT
 
 REPO = Path(__file__).resolve().parents[2]
 PROBE = Path(__file__).with_name("lerobot_probe.py")
@@ -65,7 +64,7 @@ def test_files_match_the_demos(demos3, tmp_path):
     assert [e["length"] for e in eps] == [s.stop - s.start for s in d.episode_slices()]
     assert [e["mimicrete/seed"] for e in eps] == [int(m["seed"]) for m in d.metas]
     assert [e["mimicrete/source_demo"] for e in eps] == [Path(f).name for f in d.files]
-    assert eps[0]["tasks"] == [TASK_TEXT["suction"]]
+    assert eps[0]["tasks"] == [tasks.get("suction").instruction]
     assert eps[1]["dataset_from_index"] == eps[0]["dataset_to_index"]
     n0 = eps[0]["length"]
     mean0 = d.actions[:n0].astype(np.float64).mean(0)
@@ -74,8 +73,8 @@ def test_files_match_the_demos(demos3, tmp_path):
     stats = json.loads((out / "meta/stats.json").read_text())
     np.testing.assert_allclose(stats["observation.state"]["max"], d.obs.max(0), rtol=1e-6)
     assert stats["action"]["count"] == [len(d)]
-    tasks = pq.read_table(out / "meta/tasks.parquet").to_pylist()
-    assert tasks == [{"task_index": 0, "task": TASK_TEXT["suction"]}]
+    rows = pq.read_table(out / "meta/tasks.parquet").to_pylist()
+    assert rows == [{"task_index": 0, "task": tasks.get("suction").instruction}]
 
 
 def test_stats_quantiles():
@@ -111,7 +110,7 @@ def test_lerobot_loads_60_demos(demos60, tmp_path):
     np.testing.assert_array_equal(np.float32(got["first_action"]), d.actions[0])
     np.testing.assert_array_equal(np.float32(got["last_action"]), d.actions[-1])
     np.testing.assert_array_equal(np.float32(got["first_state"]), d.obs[0])
-    assert got["first_task"] == TASK_TEXT["suction"]
+    assert got["first_task"] == tasks.get("suction").instruction
     last_len = slices[-1].stop - slices[-1].start
     assert got["last_frame_index"] == last_len - 1
     assert got["last_timestamp"] == pytest.approx((last_len - 1) / 25, abs=1e-4)

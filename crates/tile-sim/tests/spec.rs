@@ -165,6 +165,17 @@ fn bad_values_name_the_field_the_value_and_why() {
     let (f, _, _) = invalid(&edited("friction = 0.6                        #", "friction = -1.0 #"));
     assert_eq!(f, "object.friction");
 
+    let (f, v, why) = invalid(&edited("gestures = \"grip\"", "gestures = \"screw\""));
+    assert_eq!((f.as_str(), v.as_str()), ("about.gestures", "\"screw\""));
+    assert!(why.contains("TileSuction logic is driven by the \"grip\" gesture classes"), "{why}");
+
+    let (f, v, why) = invalid(&edited("success = \"installed\"", "success = \" \""));
+    assert_eq!((f.as_str(), v.as_str()), ("about.success", "\" \""));
+    assert!(why.contains("line of text"), "{why}");
+
+    let (f, _, _) = invalid(&edited("instruction = \"Pick", "instruction = \"\\nPick"));
+    assert_eq!(f, "about.instruction");
+
     let e = TaskSpec::from_toml(&edited("version = 1", "version = 7"), "x.toml").unwrap_err();
     assert_eq!(e.field(), Some("version"));
     assert_eq!(e.to_string(), "version = 7: this simulator reads version 1");

@@ -37,7 +37,6 @@ import numpy as np
 from mimicrete.export.source import (
     ACTION_NAMES,
     FRAME_NAMES,
-    TASK_TEXT,
     DemoSet,
     ExportError,
     check_new_output,
@@ -210,7 +209,7 @@ def write(ds: DemoSet, out: str | os.PathLike[str]) -> Path:
 
 def _write(ds: DemoSet, root: Path, pa: Any, pq: Any) -> None:
     feats = features(ds)
-    task_text = TASK_TEXT[ds.task]
+    task_text = ds.instruction
     (root / "meta").mkdir(parents=True)
     pq.write_table(_tasks_table(task_text), root / "meta" / "tasks.parquet")
 

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete.export.source import INFO_KEYS, TASK_TEXT, DemoSet, check_new_output
+from mimicrete.export.source import INFO_KEYS, DemoSet, check_new_output
 
 
 def default_dataset_id(ds: DemoSet) -> str:
@@ -118,7 +118,7 @@ def write(
                 author=author,
                 observation_space=obs_space,
                 action_space=act_space,
-                description=f"{TASK_TEXT[ds.task]} {len(ds.episodes)} demonstrations recorded "
+                description=f"{ds.instruction} {len(ds.episodes)} demonstrations recorded "
                 f"with mimicrete ({ds.env_id}, {ds.fps} Hz control).",
                 requirements=requirements,
                 data_format="arrow",

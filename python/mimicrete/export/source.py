@@ -13,6 +13,7 @@ per episode) and the per-step ``picked`` / ``held`` / ``installed`` / ``fell`` f
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,13 +22,6 @@ from typing import Any
 import numpy as np
 
 from mimicrete._native import MimicreteError
-
-#: The task as one sentence (LeRobot stores it as the frame's task text).
-TASK_TEXT: dict[str, str] = {
-    "suction": "Pick up the tile with the suction head and install it on the target pad.",
-    "grip": "Pick up the block with the parallel gripper and place it on the target.",
-    "screw": "Grip the nut and screw it down the bolt.",
-}
 
 #: Names of one observation frame's floats per task (tile-sim's ``Task::obs_frame_dim`` layout).
 _JOINTS = [f"q{i}" for i in range(6)]
@@ -97,6 +91,10 @@ class DemoSet:
     obs_dim: int
     act_dim: int
     episodes: list[DemoEpisode]
+    #: the task as one sentence (its spec's ``about.instruction``: LeRobot's task text)
+    instruction: str = ""
+    #: the task spec file the demos were recorded in (None: the built-in task)
+    task_file: str | None = None
 
     @property
     def num_frames(self) -> int:
@@ -167,6 +165,7 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
         spec = tasks.get(task_name)
     except ValueError as e:
         raise ExportError(f"{files[0]}: {e}") from None
+    task_file, about = _recorded_spec(Path(demos_dir), raw, spec)
 
     control_dt = {float(ep["meta"].get("control_dt", "nan")) for _, ep in raw}
     if len(control_dt) != 1 or not all(np.isfinite(list(control_dt))):
@@ -184,7 +183,7 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
                 f"{spec.name} ({spec.obs_dim}/{spec.act_dim})"
             )
         seed = int(ep["meta"].get("seed", "0"))
-        final_obs, info = _replay(f, spec.sim, seed, obs, act, ep)
+        final_obs, info = _replay(f, spec.sim, seed, obs, act, ep, task_file)
         episodes.append(
             DemoEpisode(
                 file=str(f),
@@ -209,17 +208,59 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
         obs_dim=spec.obs_dim,
         act_dim=spec.act_dim,
         episodes=episodes,
+        instruction=about["instruction"],
+        task_file=task_file,
     )
 
 
+def _recorded_spec(
+    demos_dir: Path, raw: list[tuple[Path, dict[str, Any]]], task: Any
+) -> tuple[str | None, dict[str, str]]:
+    """The task spec file the demos were recorded in (None: the built-in task) and its ``about``
+    section. The demos must share one spec (``task_spec``, none: the built-in one) and its file
+    must still hold it: the replay runs there."""
+    recorded = {ep["meta"].get("task_spec") for _, ep in raw}
+    if len(recorded) > 1:
+        n = sum(1 for _, ep in raw if ep["meta"].get("task_spec") is None)
+        raise ExportError(
+            f"{demos_dir}: demos recorded in {len(recorded)} task specs ({n} in the built-in "
+            "one); a dataset holds one: put each spec's demos in its own folder"
+        )
+    from mimicrete import tasks
+
+    raw_spec = recorded.pop()
+    if raw_spec is None:
+        return None, task.builtin_spec()["about"]
+    f, ep = raw[0]
+    path = ep["meta"].get("task_file", "")
+    try:
+        spec_task, spec = tasks.load_task_file(path)
+    except (OSError, ValueError) as e:
+        raise ExportError(f"{f}: task file {tasks.task_file_error(path, e)}") from None
+    if json.loads(json.dumps(spec, sort_keys=True)) != json.loads(raw_spec):
+        raise ExportError(
+            f"{f}: task file {path} is not the spec the demo was recorded in (it changed since)"
+        )
+    if spec_task.name != task.name:
+        raise ExportError(f"{f}: task file {path} runs {spec_task.name}, the demo is {task.name}")
+    return path, spec["about"]
+
+
 def _replay(
-    f: Path, sim: str, seed: int, obs: np.ndarray, act: np.ndarray, ep: dict[str, Any]
+    f: Path,
+    sim: str,
+    seed: int,
+    obs: np.ndarray,
+    act: np.ndarray,
+    ep: dict[str, Any],
+    task_file: str | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Step a fresh simulator reset with ``seed`` through ``act``; check it reproduces the demo;
-    return the observation after the last step and the per-step info flags."""
+    """Step a fresh simulator (of ``task_file`` if given) reset with ``seed`` through ``act``;
+    check it reproduces the demo; return the observation after the last step and the per-step
+    info flags."""
     from mimicrete import _native
 
-    env = _native.SimEnv(sim)
+    env = _native.SimEnv(sim) if task_file is None else _native.SimEnv.from_spec_file(task_file, 0)
     o = np.asarray(env.reset(seed), dtype=np.float32)
     info = {k: np.zeros(len(act), dtype=bool) for k in INFO_KEYS}
     rewards = np.asarray(ep["rewards"], dtype=np.float32)

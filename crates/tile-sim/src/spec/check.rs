@@ -177,6 +177,24 @@ fn check_thresholds(task: Task, t: &ThresholdsSpec) -> Result<(), SpecError> {
 }
 
 impl TaskSpec {
+    fn check_about(&self) -> Result<(), SpecError> {
+        let a = &self.about;
+        for (field, text) in [("about.instruction", &a.instruction), ("about.success", &a.success)] {
+            if text.trim().is_empty() || text.len() > 300 || text.chars().any(char::is_control) {
+                return invalid(field, text, "must be a line of text (1 to 300 characters)");
+            }
+        }
+        let want = if self.task() == Task::Screw { "screw" } else { "grip" };
+        if a.gestures != want {
+            return invalid(
+                "about.gestures",
+                &a.gestures,
+                format!("the {} logic is driven by the \"{want}\" gesture classes", self.task().name()),
+            );
+        }
+        Ok(())
+    }
+
     /// Check every field (see the module docs).
     ///
     /// # Errors
@@ -188,6 +206,7 @@ impl TaskSpec {
         if self.name.is_empty() || !self.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
             return invalid("name", &self.name, "must be a non-empty name of letters, digits and '_'");
         }
+        self.check_about()?;
         if self.robot.model != "ur3" {
             return invalid("robot.model", &self.robot.model, "only the UR3 (\"ur3\") is simulated so far");
         }

@@ -34,6 +34,8 @@ pub struct TaskSpec {
     pub version: u32,
     /// The task's name (the gymnasium id is `mimicrete/<name>-v0`), e.g. `"TileSuction"`.
     pub name: String,
+    /// What people read about the task: its sentence, its success's name, its gestures.
+    pub about: AboutSpec,
     /// The arm.
     pub robot: RobotSpec,
     /// The table the arm's base stands on.
@@ -52,6 +54,20 @@ pub struct TaskSpec {
     pub rewards: RewardsSpec,
     /// Episode length.
     pub episode: EpisodeSpec,
+}
+
+/// What people read about a task (the simulator itself reads none of it).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AboutSpec {
+    /// The task as one sentence: an exported data set's task text (LeRobot's `task`).
+    pub instruction: String,
+    /// What a success is called in results and on the page (`"installed"`, `"placed"`).
+    pub success: String,
+    /// The gesture classes a hand drives the effector with: `"grip"` (closing, opening, fixed:
+    /// suction and gripper) or `"screw"` (the five closing/opening × tightening/loosening/fixed
+    /// classes; the screwing effector, whose spin needs them).
+    pub gestures: String,
 }
 
 /// The arm.
