@@ -108,7 +108,9 @@ class LogFormatError(MimicreteError):
 
 class SimInputError(SimError, ValueError):
     """The simulator refused the caller's input: an unknown task, a non-finite action, an invalid
-    state or argument (a ``SimError`` and a ``ValueError``; ``reason``: what)."""
+    state or argument (a ``SimError`` and a ``ValueError``; ``reason``: what). A bad task spec
+    also has ``field`` and ``value`` (a value out of range), or ``line``, ``column`` and ``text``
+    (TOML or structure: where, and that line without its comment)."""
 
 class ActionShapeError(SimInputError):
     """An action array of the wrong shape (``SimEnv.step``, ``SimVecEnv.step``): ``expected`` and

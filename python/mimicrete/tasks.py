@@ -13,7 +13,6 @@ these tasks' logic (:func:`load_task_file`).
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -108,10 +107,6 @@ def load_task_file(path: str | os.PathLike[str]) -> tuple[TaskSpec, dict[str, An
     return get(env.task), env.spec()
 
 
-_TOML_AT = re.compile(r"TOML parse error at line (\d+), column (\d+)")
-_SOURCE_LINE = re.compile(r"^\s*\d+\s*\|(.*)$")
-
-
 def task_file_error(path: str | os.PathLike[str], error: BaseException) -> str:
     """One line saying why the spec file ``path`` was refused: ``FILE: FIELD = VALUE: why`` for a
     bad value, ``FILE: line L, column C (the line's text): why`` for a TOML or structure error
@@ -122,11 +117,10 @@ def task_file_error(path: str | os.PathLike[str], error: BaseException) -> str:
         return f"{path}: {field} = {getattr(error, 'value', None)}: {getattr(error, 'reason', '')}"
     if isinstance(error, OSError):
         return f"{path}: {error.strerror or error}"
-    lines = [ln for ln in str(error).splitlines() if ln.strip()]
-    at = _TOML_AT.search(lines[0]) if lines else None
-    if at is None:
-        return f"{path}: {' '.join(ln.strip() for ln in lines)}"
-    source = [m.group(1).split("#")[0].strip() for m in map(_SOURCE_LINE.match, lines) if m]
-    shown = f" ({source[0]})" if source and source[0] else ""
-    why = lines[-1].strip() if len(lines) > 1 else "not a task spec"
-    return f"{path}: line {at.group(1)}, column {at.group(2)}{shown}: {why}"
+    line = getattr(error, "line", None)
+    reason = " ".join(str(getattr(error, "reason", None) or error).split())
+    if line is None:
+        return f"{path}: {reason}"
+    text = getattr(error, "text", "")
+    shown = f" ({text})" if text else ""
+    return f"{path}: line {line}, column {getattr(error, 'column', None)}{shown}: {reason}"

@@ -186,6 +186,10 @@ pub(crate) fn spec_err(e: tile_sim::SpecError) -> PyErr {
                 E::Invalid { field, value, reason } => {
                     json!({"reason": reason, "field": field, "value": value})
                 }
+                E::Parse { line, column, text, reason, .. } => json!({
+                    "reason": reason, "field": null, "value": null,
+                    "line": line, "column": column, "text": text,
+                }),
                 _ => json!({"reason": msg, "field": null, "value": null}),
             };
             Ok(raise_as(py, c.sim_input.bind(py), msg.clone(), fields))

@@ -185,6 +185,18 @@ fn bad_values_name_the_field_the_value_and_why() {
 fn bad_structure_is_a_parse_error_with_the_place() {
     let m = parse_error(&edited("mass = 0.5 ", "masss = 0.5 "));
     assert!(m.starts_with("bad.toml: ") && m.contains("masss") && m.contains("line"), "{m}");
+    // the place as fields: the line (1-based), the column, the line's text without its comment
+    let text = edited("mass = 0.5 ", "masss = 0.5 ");
+    let want_line = text.lines().position(|l| l.starts_with("masss")).unwrap() + 1;
+    match TaskSpec::from_toml(&text, "bad.toml") {
+        Err(SpecError::Parse { line, column, text, reason, .. }) => {
+            assert_eq!((line, column, text.as_str()), (Some(want_line), Some(1), "masss = 0.5"));
+            assert!(reason.starts_with("unknown field `masss`"), "{reason}");
+        }
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+    let m = parse_error(&edited("mass = 0.5 ", "mass = \"heavy\" "));
+    assert!(m.contains(&format!("line {want_line}, column 8 (mass = \"heavy\"): invalid type")), "{m}");
     let m = parse_error(&edited("pick = 1.0 ", "pick = \"one\" "));
     assert!(m.contains("pick") || m.contains("invalid type"), "{m}");
     let m = parse_error(&edited("[episode]", "[episode"));

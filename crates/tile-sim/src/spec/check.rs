@@ -13,18 +13,33 @@ pub enum SpecError {
     /// The spec file could not be read.
     #[error("{path}: cannot read the task spec: {reason}")]
     Io { path: String, reason: String },
-    /// The text is not TOML, or not a task spec (unknown or missing field, wrong type); the
-    /// message gives the line, the column and the field.
-    #[error("{source_name}: {message}")]
-    Parse { source_name: String, message: String },
+    /// The text is not TOML, or not a task spec (unknown or missing field, wrong type): where
+    /// (1-based line and column of the place the TOML reader names, and that line's text
+    /// without its comment) and why.
+    #[error("{source_name}: {}{reason}", place(*.line, *.column, .text))]
+    Parse { source_name: String, line: Option<usize>, column: Option<usize>, text: String, reason: String },
     /// A field's value is out of range or does not fit the task.
     #[error("{field} = {value}: {reason}")]
     Invalid { field: String, value: String, reason: String },
 }
 
 impl SpecError {
-    pub(super) fn parse(source: &str, e: &toml::de::Error) -> SpecError {
-        SpecError::Parse { source_name: source.to_string(), message: e.to_string().trim_end().to_string() }
+    pub(super) fn parse(source: &str, text: &str, e: &toml::de::Error) -> SpecError {
+        let reason = e.message().trim().to_string();
+        let source_name = source.to_string();
+        let Some(start) = e.span().map(|s| s.start.min(text.len())) else {
+            return SpecError::Parse { source_name, line: None, column: None, text: String::new(), reason };
+        };
+        let before = &text[..start];
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        let line_text = text[line_start..].lines().next().unwrap_or("");
+        SpecError::Parse {
+            source_name,
+            line: Some(before.matches('\n').count() + 1),
+            column: Some(before[line_start..].chars().count() + 1),
+            text: line_text.split('#').next().unwrap_or("").trim().to_string(),
+            reason,
+        }
     }
 
     /// The dotted path of the bad field (`Invalid` only).
@@ -33,6 +48,15 @@ impl SpecError {
             SpecError::Invalid { field, .. } => Some(field),
             _ => None,
         }
+    }
+}
+
+/// `line L, column C (text): ` of a parse error, or nothing without a place.
+fn place(line: Option<usize>, column: Option<usize>, text: &str) -> String {
+    match (line, column) {
+        (Some(l), Some(c)) if text.is_empty() => format!("line {l}, column {c}: "),
+        (Some(l), Some(c)) => format!("line {l}, column {c} ({text}): "),
+        _ => String::new(),
     }
 }
 

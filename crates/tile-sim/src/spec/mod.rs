@@ -354,7 +354,7 @@ impl TaskSpec {
     /// [`SpecError`]: the text is not TOML or not a spec (an unknown or missing field, a wrong
     /// type), or a field's value is out of range or does not fit the effector's task logic.
     pub fn from_toml(text: &str, source: &str) -> Result<TaskSpec, SpecError> {
-        let spec: TaskSpec = toml::from_str(text).map_err(|e| SpecError::parse(source, &e))?;
+        let spec: TaskSpec = toml::from_str(text).map_err(|e| SpecError::parse(source, text, &e))?;
         spec.check()?;
         Ok(spec)
     }
