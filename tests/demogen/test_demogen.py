@@ -256,12 +256,14 @@ def test_screw_demos_close_the_gripper_from_the_first_step_at_the_nut(tmp_path):
     for many steps before closing; the generated demos command "close" from the first step whose
     state is within the simulator's grasp tolerance on, so a cloned policy's command at the nut
     is "close" (before, ~24 "open" steps per demo there against ~9 "close": its argmax never
-    closed). The other tasks keep the source's commands."""
+    closed), and once it grips, it turns the nut at once (``screw_from_grasp``). The other tasks
+    keep the source's commands."""
     from mimicrete import demonstrator as synth
     from mimicrete.teleop import convert
 
-    assert dg.TASKS["Screw"].close_in_reach
-    assert not dg.TASKS["TileSuction"].close_in_reach and not dg.TASKS["BlockGrip"].close_in_reach
+    assert dg.TASKS["Screw"].close_in_reach and dg.TASKS["Screw"].screw_from_grasp
+    for other in ("TileSuction", "BlockGrip"):
+        assert not dg.TASKS[other].close_in_reach and not dg.TASKS[other].screw_from_grasp
     src_dir = tmp_path / "src"
     src_dir.mkdir()
     (log,) = synth.synth_hands("screw", 1, 0, tmp_path / "hands")
@@ -284,3 +286,5 @@ def test_screw_demos_close_the_gripper_from_the_first_step_at_the_nut(tmp_path):
         assert first < pick - 10  # the source reached the nut well before it grasped
         assert np.all(a[first : pick + 1, 6] >= 0.5), np.flatnonzero(a[first : pick + 1, 6] < 0.5)
         assert not any(g.startswith("opening") for g in (r["gesture"] for r in ep.rows[first:]))
+        # ``screw_from_grasp``: the nut turns from the step after the grip on, to the end
+        assert np.all(a[pick + 1 :, 7] >= 0.5), np.flatnonzero(a[pick + 1 :, 7] < 0.5)

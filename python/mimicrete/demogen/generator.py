@@ -259,19 +259,37 @@ def generate_episode(
                 moved[:, :3, 3] += shift * x / max(float(np.linalg.norm(x)), 1e-9)
             poses = _blended(moved, run.pose(), blend)
             relabel = spec.close_in_reach and seg.relative_to == "object"
+            early = spec.screw_from_grasp and seg.relative_to == "object"
+            commands = seg.commands
+            if spec.screw_from_grasp and seg.relative_to == "target":
+                commands = _spin_from_start(commands)
             closing = False
-            for p, c in zip(poses, seg.commands, strict=True):
+            for p, c in zip(poses, commands, strict=True):
                 if relabel and (closing or _in_grasp_reach(run)):
                     closing = True  # "close" from the first step at the nut on
                     c = c.copy()
                     c[0] = 1.0
                 run.step(p, c)
-            last = poses[-1]
+                last = p
+                if early and run.held():
+                    break  # gripped: the screwing starts here, not where the source's did
+            else:
+                last = poses[-1]
         _finish(run, spec, last, src.segments[-1].commands[-1])
         ep.why = "not installed"
     except _Abort as e:
         ep.why = str(e)
     return ep
+
+
+def _spin_from_start(commands: np.ndarray) -> np.ndarray:
+    """``commands`` (n, 2: the gripper, the spin) with the spin's first command (tighten) from
+    the segment's first step on: the source's steps that hold the nut without turning it go."""
+    out = np.array(commands, np.float64, copy=True)
+    on = np.flatnonzero(out[:, 1] != 0.0)
+    if len(on):
+        out[: on[0], 1] = out[on[0], 1]
+    return out
 
 
 def _quat_matrix(q: Any) -> np.ndarray:

@@ -62,7 +62,10 @@ class TaskFrames:
     state lies within the simulator's grasp tolerance (:data:`SCREW_GRASP_TOL`), whatever the
     source commanded there (Screw: the scripted person holds the fingers open at the nut for
     tens of steps before closing, so most states at the nut were labelled "open" and a cloned
-    policy's argmax never closed, docs/wide_starts.md)."""
+    policy's argmax never closed, docs/wide_starts.md); ``screw_from_grasp``: once the object is
+    gripped the object-relative segment ends there and the target-relative one (the screwing)
+    turns the nut from its first step on (the source held the nut still for some steps before it
+    spun it: with the grasp made earlier, a cloned policy held it, drifted 1 cm and slipped off)."""
 
     sim: str
     frame_dim: int
@@ -73,6 +76,7 @@ class TaskFrames:
     latched: bool
     finish: str
     close_in_reach: bool = False
+    screw_from_grasp: bool = False
 
     @property
     def commands(self) -> slice:
@@ -89,7 +93,7 @@ def _lay(task: str) -> dict[str, slice]:
 TASKS: dict[str, TaskFrames] = {
     "TileSuction": TaskFrames("TileSuction", 16, 7, _lay("suction"), 6, False, True, "carry"),
     "BlockGrip": TaskFrames("BlockGrip", 16, 7, _lay("grip"), 6, True, False, "none"),
-    "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold", True),
+    "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold", True, True),
 }
 
 #: Screw's grasp tolerance, tile-sim's ``nut_contact`` (crates/tile-sim/src/task/screw.rs): the
