@@ -182,39 +182,21 @@ _CURLED = (0.7, 1.0)
 #: (:meth:`HandShape.as_array` order) the built-in training hands are drawn from
 #: (:func:`sample_shape`). Wide on purpose: any pinch (index bent 40-90 % at the knuckle or
 #: evenly, thumb from any start), any open hand (flat, relaxed, spread or not), any point.
+#: the index and thumb of every pinch (closing, and the screwing gestures' grip)
+_PINCH = dict(
+    index=(0.4, 0.9),
+    thumb_curl=(0.0, 0.7),
+    thumb_opposition=(0.3, 1.0),
+    pinch=(0.85, 1.0),
+    index_flat=(0.0, 0.9),
+)
 GESTURE_RANGES: dict[str, tuple[np.ndarray, np.ndarray]] = {
-    "closing": _ranges(
-        index=(0.4, 0.9),
-        middle=_LOOSE,
-        ring=_LOOSE,
-        little=_LOOSE,
-        thumb_curl=(0.0, 0.7),
-        thumb_opposition=(0.3, 1.0),
-        spread=(0.0, 0.8),
-        pinch=(0.85, 1.0),
-        index_flat=(0.0, 0.9),
-    ),
+    "closing": _ranges(**_PINCH, middle=_LOOSE, ring=_LOOSE, little=_LOOSE, spread=(0.0, 0.8)),
     "tightening": _ranges(
-        index=(0.4, 0.9),
-        middle=_CURLED,
-        ring=_CURLED,
-        little=_CURLED,
-        thumb_curl=(0.0, 0.7),
-        thumb_opposition=(0.3, 1.0),
-        spread=(0.0, 0.5),
-        pinch=(0.85, 1.0),
-        index_flat=(0.0, 0.9),
+        **_PINCH, middle=_CURLED, ring=_CURLED, little=_CURLED, spread=(0.0, 0.5)
     ),
     "loosening": _ranges(
-        index=(0.4, 0.9),
-        middle=_CURLED,
-        ring=_CURLED,
-        little=(0.0, 0.3),
-        thumb_curl=(0.0, 0.7),
-        thumb_opposition=(0.3, 1.0),
-        spread=(0.0, 0.8),
-        pinch=(0.85, 1.0),
-        index_flat=(0.0, 0.9),
+        **_PINCH, middle=_CURLED, ring=_CURLED, little=(0.0, 0.3), spread=(0.0, 0.8)
     ),
     "opening": _ranges(
         index=(0.0, 0.35),

@@ -141,63 +141,47 @@ fn check_variation(field: &str, v: &VariationSpec) -> Result<(), SpecError> {
     Ok(())
 }
 
+/// The name of `task`'s logic in messages (the effector that selects it).
+fn logic(task: Task) -> &'static str {
+    match task {
+        Task::TileSuction => "suction",
+        Task::BlockGrip => "gripper",
+        Task::Screw => "screw",
+    }
+}
+
+/// A threshold read by the logics `readers`: required (and passing `ok`) for `task` if it is one
+/// of them, else absent.
+fn threshold<T: Copy + Debug>(
+    task: Task,
+    readers: &[Task],
+    field: &str,
+    v: Option<T>,
+    ok: impl Fn(T) -> bool,
+    range: &str,
+) -> Result<(), SpecError> {
+    match readers.contains(&task) {
+        true => need(field, v, logic(task), ok, range),
+        false => unused(field, v, logic(task)),
+    }
+}
+
 fn check_thresholds(task: Task, t: &ThresholdsSpec) -> Result<(), SpecError> {
+    use Task::{BlockGrip as G, Screw as S, TileSuction as T};
     let dist = |x: f32| x.is_finite() && x > 0.0 && x < 1.0;
     let cos = |x: f32| x.is_finite() && x > 0.0 && x < 1.0;
     let (d, c) = ("a distance in (0, 1) m", "a cosine in (0, 1)");
-    match task {
-        Task::TileSuction => {
-            let l = "suction";
-            need("thresholds.pick_dist", t.pick_dist, l, dist, d)?;
-            need("thresholds.success_dist", t.success_dist, l, dist, d)?;
-            need("thresholds.fall_z", t.fall_z, l, |x: f32| x.is_finite(), "a finite height (m)")?;
-            need(
-                "thresholds.fall_speed",
-                t.fall_speed,
-                l,
-                |x: f32| x.is_finite() && x > 0.0,
-                "a speed > 0 m/s",
-            )?;
-            need("thresholds.fall_tilt_cos", t.fall_tilt_cos, l, cos, c)?;
-            unused("thresholds.align_cos", t.align_cos, l)?;
-            unused("thresholds.slip_dist", t.slip_dist, l)?;
-            unused("thresholds.fail_turns", t.fail_turns, l)
-        }
-        Task::BlockGrip => {
-            let l = "gripper";
-            need("thresholds.success_dist", t.success_dist, l, dist, d)?;
-            need("thresholds.fall_z", t.fall_z, l, |x: f32| x.is_finite(), "a finite height (m)")?;
-            need(
-                "thresholds.fall_speed",
-                t.fall_speed,
-                l,
-                |x: f32| x.is_finite() && x > 0.0,
-                "a speed > 0 m/s",
-            )?;
-            unused("thresholds.pick_dist", t.pick_dist, l)?;
-            unused("thresholds.fall_tilt_cos", t.fall_tilt_cos, l)?;
-            unused("thresholds.align_cos", t.align_cos, l)?;
-            unused("thresholds.slip_dist", t.slip_dist, l)?;
-            unused("thresholds.fail_turns", t.fail_turns, l)
-        }
-        Task::Screw => {
-            let l = "screw";
-            need("thresholds.align_cos", t.align_cos, l, cos, c)?;
-            need("thresholds.slip_dist", t.slip_dist, l, dist, d)?;
-            need(
-                "thresholds.fail_turns",
-                t.fail_turns,
-                l,
-                |x: f64| x.is_finite() && x > 0.0,
-                "a number of turns > 0",
-            )?;
-            unused("thresholds.pick_dist", t.pick_dist, l)?;
-            unused("thresholds.success_dist", t.success_dist, l)?;
-            unused("thresholds.fall_z", t.fall_z, l)?;
-            unused("thresholds.fall_speed", t.fall_speed, l)?;
-            unused("thresholds.fall_tilt_cos", t.fall_tilt_cos, l)
-        }
-    }
+    let height = |x: f32| x.is_finite();
+    let speed = |x: f32| x.is_finite() && x > 0.0;
+    threshold(task, &[T], "thresholds.pick_dist", t.pick_dist, dist, d)?;
+    threshold(task, &[T, G], "thresholds.success_dist", t.success_dist, dist, d)?;
+    threshold(task, &[T, G], "thresholds.fall_z", t.fall_z, height, "a finite height (m)")?;
+    threshold(task, &[T, G], "thresholds.fall_speed", t.fall_speed, speed, "a speed > 0 m/s")?;
+    threshold(task, &[T], "thresholds.fall_tilt_cos", t.fall_tilt_cos, cos, c)?;
+    threshold(task, &[S], "thresholds.align_cos", t.align_cos, cos, c)?;
+    threshold(task, &[S], "thresholds.slip_dist", t.slip_dist, dist, d)?;
+    let turns = |x: f64| x.is_finite() && x > 0.0;
+    threshold(task, &[S], "thresholds.fail_turns", t.fail_turns, turns, "a number of turns > 0")
 }
 
 impl TaskSpec {

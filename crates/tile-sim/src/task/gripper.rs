@@ -123,10 +123,8 @@ impl TaskLogic for BlockGrip {
     }
 
     fn reset(&self, s: &mut State) {
-        s.suction_on = false;
-        s.width = s.gripper().2;
-        s.spin = 0;
-        s.turns = 0.0;
+        let open = s.gripper().2;
+        s.reset_effector(open);
     }
 
     fn place_attached(&self, s: &mut State, teleport: bool) {

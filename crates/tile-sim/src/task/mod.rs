@@ -139,6 +139,15 @@ pub(crate) struct State {
 }
 
 impl State {
+    /// The end effector as an episode starts: suction off, no spin, no turns, the gripper's gap
+    /// `width` (m; 0 for a suction head).
+    pub(super) fn reset_effector(&mut self, width: f32) {
+        self.suction_on = false;
+        self.width = width;
+        self.spin = 0;
+        self.turns = 0.0;
+    }
+
     /// The gripper's numbers: (finger half extents, finger z, max width, speed). Zeros for suction.
     pub(crate) fn gripper(&self) -> ([f32; 3], f32, f32, f32) {
         match &self.spec.effector {

@@ -79,10 +79,8 @@ impl TaskLogic for Screw {
     }
 
     fn reset(&self, s: &mut State) {
-        s.suction_on = false;
-        s.width = s.gripper().2;
-        s.spin = 0;
-        s.turns = 0.0;
+        let open = s.gripper().2;
+        s.reset_effector(open);
     }
 
     fn carries_object(&self) -> bool {

@@ -49,10 +49,7 @@ impl TaskLogic for Suction {
     }
 
     fn reset(&self, s: &mut State) {
-        s.suction_on = false;
-        s.width = 0.0;
-        s.spin = 0;
-        s.turns = 0.0;
+        s.reset_effector(0.0);
     }
 
     fn gripper_width(&self, _s: &State) -> f64 {
