@@ -300,11 +300,7 @@ def convert_log(
                 )
                 # the hash of the bytes parsed, not the file as it is now (it may have grown)
                 meta.update(source_keys(source_path, out_path, log.report.get("sha256") or None))
-                scene_env = None
-                if spec_file is not None:  # the demo draws the spec's object and pad
-                    scene_env = _native.SimEnv.from_spec_file(spec_file, 0)
-                    scene_env.reset(seed)
-                sink = DemoSink(out_path, meta, env=scene_env)
+                sink = DemoSink(out_path, meta, task_file=spec_file)
             session = Session(
                 spec.name,
                 log.header["layout"],

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import _native, tasks
 from mimicrete import gestures as gest
+from mimicrete import tasks
 from mimicrete.kin import Calibration, parse_calibration
 
 from .gesture_desk import GestureDesk
@@ -240,11 +240,8 @@ class Live:
                 **(spec_keys(*self.spec) if self.spec else {}),
             },
         )
-        scene_env = None
-        if self.spec is not None:  # the demo draws the spec's object and pad
-            scene_env = _native.SimEnv.from_spec_file(self.spec[0], 0)
-            scene_env.reset(seed)
-        sink = DemoSink(self.out / f"{name}.mcap", meta, env=scene_env)
+        task_file = None if self.spec is None else self.spec[0]
+        sink = DemoSink(self.out / f"{name}.mcap", meta, task_file=task_file)
         hand = self.out / f"{name}.handlog.jsonl"
         read_by = what_read(self.model, self.desk.model_source, self.calibration, hand)
         self.episode = Recording(index, seed, self._session(seed, sink), sink, read_by=read_by)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete import demos
+from mimicrete import _native, demos
 from mimicrete.gestures import GestureModel
 from mimicrete.hands import log as handlog
 
@@ -84,13 +84,17 @@ class DemoSink:
     the episode's metadata and finishes, abandons or discards it."""
 
     def __init__(
-        self, path: str | os.PathLike[str], meta: dict[str, Any], env: Any = None
+        self, path: str | os.PathLike[str], meta: dict[str, Any], task_file: str | None = None
     ) -> None:
-        """``env``: a ``SimEnv`` reset to the episode's start, whose scene the demo draws (a
-        task spec file's object and pad); None: the built-in task's at the seed's start."""
+        """``task_file``: the task spec file the episode runs in; the demo draws its scene (its
+        object and pad) at ``meta["seed"]``'s start. None: the built-in task's."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
+        env = None
+        if task_file is not None:
+            env = _native.SimEnv.from_spec_file(task_file, 0)
+            env.reset(int(meta["seed"]))
         self.w = demos.DemoWriter(str(path), meta, env=env)
 
     def close(
