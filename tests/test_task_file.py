@@ -314,7 +314,8 @@ def test_synth_hands_through_teleop_records_in_the_task_file(tmp_path: Path) -> 
     demo installs the bigger tile, names the spec and draws its tile."""
     from mimicrete import demos
 
-    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE),
+                    ('success = "installed"', 'success = "laid"'))  # fmt: skip
     out = tmp_path / "live"
     r = run_cli("synth-hands", "--through-teleop", "--task-file", str(big), "--episodes", "1",
                 "--seed", "2", "--out", str(out))  # fmt: skip

@@ -53,6 +53,7 @@ def tile_size(entities: list[dict]) -> dict:
 
 def test_a_live_episode_in_a_task_file_records_and_converts_there(tmp_path: Path) -> None:
     spec = big_tile_spec(tmp_path)
+    spec.write_text(spec.read_text().replace('success = "installed"', 'success = "laid"'))
     out = tmp_path / "out"
     live = Live("suction", out, calibration=standing_calibration(), seed=4, task_file=str(spec))
     assert tile_size(live.scene) == {"x": 0.2, "y": 0.2, "z": 0.012}  # what the page draws
@@ -61,8 +62,9 @@ def test_a_live_episode_in_a_task_file_records_and_converts_there(tmp_path: Path
     for k in range(180):  # 2 s at 90 Hz
         t = k / 90.0
         live.push(WireFrame(k, t, 0.0, True, False, hand_toward(tool0, t), np.zeros((25, 3))))
-    live.stop()
+    stopped = live.stop()
     live.close()
+    assert live.success == "laid" and stopped["result"] in ("laid", "stopped")
     demo = out / "suction_0000.mcap"
     got = demos.read(demo)
     assert got["meta"]["task_file"] == str(spec)

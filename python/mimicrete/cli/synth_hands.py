@@ -82,7 +82,10 @@ def main(args: argparse.Namespace) -> int:
             progress=True,
             task_file=args.task_file,
         )
-        ok = sum(s["result"] == tasks.get(args.task).success for s in saved)
+        success = tasks.get(args.task).success
+        if args.task_file is not None:  # what the spec calls it
+            success = tasks.load_task_file(args.task_file)[1]["about"]["success"]
+        ok = sum(s["result"] == success for s in saved)
         print(f"recorded {len(saved)} demos through mimicrete teleop to {args.out}: {ok} succeeded")
         return 0
     paths = synth_hands(

@@ -215,6 +215,11 @@ class Live:
 
     # ------------------------------------------------------------------ episodes
 
+    @property
+    def success(self) -> str:
+        """What a success is called (the spec's ``about.success``: ``installed``, ...)."""
+        return str(self.spec[1]["about"]["success"]) if self.spec else self.task.success
+
     def start(self) -> None:
         """Begin recording the next episode (a running one is stopped and saved first); not in
         the gesture mode (:class:`GestureModeError`)."""
@@ -261,7 +266,7 @@ class Live:
         ep.stages.flush()
         o = s.outcome()
         if o.installed:
-            res = self.task.success
+            res = self.success
         elif o.fell:
             res = "fell"
         elif o.truncated:
