@@ -90,6 +90,15 @@ def test_generation_from_one_demo_installs_at_new_starts(source_dir, tmp_path):
         # the demo really starts there: its first observation holds the new tile
         first = demos.load(path).obs[0, -16:]
         np.testing.assert_allclose(first[13:15], pose[:2], atol=1e-5)
+        # and its /scene draws the pad where that start moved it with the target
+        from mcap.reader import make_reader
+
+        with open(path, "rb") as f:
+            msg = next(make_reader(f).iter_messages(topics=["/scene"]))[2]
+        pad = {e["id"]: e for e in json.loads(msg.data)["entities"]}["pad"]["cubes"][0]
+        offset = json.loads(meta["target_offset"])
+        got = [pad["pose"]["position"][k] for k in ("x", "y")]
+        np.testing.assert_allclose(got, np.array([-0.22, 0.28]) + offset, atol=1e-6)
     # the new starts lie outside the source's (paper) start
     src_x = sources[0].object[0]
     assert max(abs(json.loads(m["object_pose"])[0] - src_x) for m in d.metas) > 0.03

@@ -359,9 +359,15 @@ def _finish(run: _Runner, spec: TaskFrames, last: np.ndarray, cmd: np.ndarray) -
 
 
 def write_episode(
-    ep: GeneratedEpisode, path: Path, index: int, extra: dict[str, Any] | None = None
+    ep: GeneratedEpisode,
+    path: Path,
+    index: int,
+    extra: dict[str, Any] | None = None,
+    env: Any = None,
 ) -> Path:
-    """Write a generated episode as an MCAP demo (the project's demo-log writer)."""
+    """Write a generated episode as an MCAP demo (the project's demo-log writer); ``env``: the
+    ``SimEnv`` it ran in, whose scene at the episode's start (the pad where the start moved it)
+    the demo draws (None: the task's at the seed's paper start)."""
     from mimicrete import demos
 
     info = {
@@ -383,7 +389,7 @@ def write_episode(
         "extra": info,
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    w = demos.DemoWriter(str(path), meta)
+    w = demos.DemoWriter(str(path), meta, env=env)
     try:
         for k, r in enumerate(ep.rows):
             w.write_step(
@@ -471,7 +477,8 @@ def generate(
         rep.attempts += 1
         if ep.installed:
             name = out / f"gen_{rep.kept:05d}.mcap"
-            write_episode(ep, name, rep.kept, {"attempt": rep.attempts - 1, "demogen_seed": seed})
+            extra = {"attempt": rep.attempts - 1, "demogen_seed": seed}
+            write_episode(ep, name, rep.kept, extra, env=sim)
             rep.files.append(name)
             rep.kept += 1
         else:
