@@ -374,6 +374,22 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
     assert pq.read_table(tmp_path / "lr/meta/tasks.parquet").to_pylist() == [
         {"task_index": 0, "task": sentence}
     ]
+    # demogen generates in the spec: its demos start at the spec's wide starts, name the spec,
+    # and train in it
+    gen = tmp_path / "gen"
+    r = run_cli("demogen", "--demos", str(demos_dir), "--source-count", "2", "--count", "4",
+                "--starts", "wide", "--out", str(gen), "--seed", "0", "--no-progress")  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    from mimicrete import demos as demo_files
+
+    d = demo_files.load(gen)
+    assert d.num_episodes == 4 and all(m["task_file"] == str(big) for m in d.metas)
+    assert all(m["success"] == "true" for m in d.metas)
+    first = demo_files.read(sorted(gen.glob("*.mcap"))[0])
+    assert json.loads(first["meta"]["task_spec"])["object"]["half_extents"] == [0.1, 0.1, 0.006]
+    r = run_cli("train", *SMALL_TRAIN, "--task-file", str(big), "--demos", str(gen),
+                "--run-dir", str(tmp_path / "run_gen"), cwd=REPO)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
     # the built-in task's demos for the spec run, and the spec's demos for a built-in run
     builtin = tmp_path / "builtin_demos"
     run_cli("synth-hands", "--episodes", "2", "--seed", "5", "--out", str(tmp_path / "h0"))

@@ -107,6 +107,15 @@ def load_task_file(path: str | os.PathLike[str]) -> tuple[TaskSpec, dict[str, An
     return get(env.task), env.spec()
 
 
+def task_file_meta(path: str | os.PathLike[str], spec: dict[str, Any]) -> dict[str, str]:
+    """A demo's metadata naming the task spec file its episode ran in (``task_file``) and the
+    spec as it was read (``task_spec``, JSON): what convert, the live server and demogen write,
+    and what training and export check."""
+    import json
+
+    return {"task_file": os.fspath(path), "task_spec": json.dumps(spec, sort_keys=True)}
+
+
 def task_file_error(path: str | os.PathLike[str], error: BaseException) -> str:
     """One line saying why the spec file ``path`` was refused: ``FILE: FIELD = VALUE: why`` for a
     bad value, ``FILE: line L, column C (the line's text): why`` for a TOML or structure error

@@ -52,7 +52,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _starts(arg: str, task: str):  # -> str | list[dict]
+def _starts(arg: str, task: str, task_file: str | None = None):  # -> str | list[dict]
     if arg in ("wide", "training", "robust"):
         return arg
     from mimicrete.learn import starts as st
@@ -61,7 +61,7 @@ def _starts(arg: str, task: str):  # -> str | list[dict]
     if not p.is_file():
         raise UsageError(f"--starts {arg}: neither wide, training, robust nor a file of starts")
     try:
-        return list(st.read_starts_file(p, task).starts)
+        return list(st.read_starts_file(p, task, task_file).starts)
     except (ValueError, OSError) as e:
         raise UsageError(f"--starts {e}") from None
 
@@ -103,7 +103,7 @@ def main(args: argparse.Namespace) -> int:
     task = sources[0].task
     if want is not None and task != want:
         raise UsageError(f"--task {args.task}: the demos in {args.demos} are {task} demos")
-    starts = _starts(args.starts, task)
+    starts = _starts(args.starts, task, sources[0].task_file)
     bar = tqdm(total=args.count, desc="demogen", unit="demo", disable=args.no_progress)
 
     def progress(rep: dg.Report) -> None:

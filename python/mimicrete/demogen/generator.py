@@ -61,12 +61,20 @@ def joint_action(q_ik: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.clip(wrap(q_ik - q) / MAX_JOINT_STEP, -1.0, 1.0)
 
 
+def sim_env(task: str, task_file: str | None = None) -> Any:
+    """A ``SimEnv`` of ``task``, or of the task spec file ``task_file`` if given."""
+    if task_file is not None:
+        return _native.SimEnv.from_spec_file(task_file, 0)
+    return _native.SimEnv(task_frames(task).sim, 0)
+
+
 def draw_starts(
-    n: int, seed: int, starts: str = "wide", task: str = TASK
+    n: int, seed: int, starts: str = "wide", task: str = TASK, task_file: str | None = None
 ) -> list[dict[str, list[float]]]:
     """``n`` starts of ``task``'s tile-sim ``starts`` distribution (``wide``, ``training``,
-    ``robust``), drawn by the simulator itself from episode seeds of ``seed``."""
-    sim = _native.SimEnv(task_frames(task).sim, 0)
+    ``robust``; the spec file ``task_file``'s if given), drawn by the simulator itself from
+    episode seeds of ``seed``."""
+    sim = sim_env(task, task_file)
     if starts == "robust":
         sim.set_variation(robust=True)
     else:
@@ -447,21 +455,24 @@ def generate(
     with the place corrected for them (:func:`generate_episode`)."""
     if not sources:
         raise DemoGenError("no source demo")
-    task = sources[0].task
+    task, task_file = sources[0].task, sources[0].task_file
     if any(s.task != task for s in sources):
         raise DemoGenError("the source demos mix tasks; generate from one task's at a time")
+    if any(s.meta.get("task_spec") != sources[0].meta.get("task_spec") for s in sources):
+        raise DemoGenError("the source demos mix task specs; generate from one spec's at a time")
     if count < 1:
         raise DemoGenError(f"--count must be at least 1, got {count}")
     out = Path(out)
     limit = max_attempts if max_attempts is not None else 4 * count + 20
     if isinstance(starts, str):
-        pool = draw_starts(limit, seed, starts, task)
+        pool = draw_starts(limit, seed, starts, task, task_file)
     else:
         pool = list(starts)
         if not pool:
             raise DemoGenError("no start to generate at")
     rng = np.random.default_rng([seed, 0x6E4])
-    sim = _native.SimEnv(task, 0)
+    sim = sim_env(task, task_file)
+    spec_meta = {} if task_file is None else tasks.task_file_meta(task_file, sim.spec())
     rep = Report()
     t0 = time.monotonic()
     while rep.kept < count and rep.attempts < limit:
@@ -477,7 +488,7 @@ def generate(
         rep.attempts += 1
         if ep.installed:
             name = out / f"gen_{rep.kept:05d}.mcap"
-            extra = {"attempt": rep.attempts - 1, "demogen_seed": seed}
+            extra = {"attempt": rep.attempts - 1, "demogen_seed": seed, **spec_meta}
             write_episode(ep, name, rep.kept, extra, env=sim)
             rep.files.append(name)
             rep.kept += 1

@@ -162,6 +162,12 @@ class SourceDemo:
     task: str = TASK  # tile-sim's name
 
     @property
+    def task_file(self) -> str | None:
+        """The task spec file the demo was recorded in (its ``task_file`` metadata; None: the
+        built-in task)."""
+        return self.meta.get("task_file")
+
+    @property
     def length(self) -> int:
         return sum(len(s) for s in self.segments)
 
@@ -240,6 +246,12 @@ def load_sources(path: str | Path, count: int | None = None) -> list[SourceDemo]
                 f"--demos {path}: mixes tasks ({out[0].name} is a {out[0].task} demo, "
                 f"{p.name} a {task} demo); generate from one task's demos at a time"
             )
+        if out and meta.get("task_spec") != out[0].meta.get("task_spec"):
+            raise DemoGenError(
+                f"--demos {path}: mixes task specs ({out[0].name} was recorded in "
+                f"{out[0].task_file or 'the built-in spec'}, {p.name} in "
+                f"{meta.get('task_file') or 'the built-in spec'}); generate from one spec's demos"
+            )
         if meta.get("success") == "false":
             continue
         out.append(
@@ -249,4 +261,24 @@ def load_sources(path: str | Path, count: int | None = None) -> list[SourceDemo]
         )
     if not out:
         raise DemoGenError(f"--demos {path}: no successful demo to generate from")
+    _check_spec_file(out[0])
     return out
+
+
+def _check_spec_file(src: SourceDemo) -> None:
+    """A source recorded in a task spec file: the file must still hold that spec (the demos are
+    generated in it)."""
+    import json
+
+    path = src.task_file
+    if path is None:
+        return
+    try:
+        _, spec = tasks.load_task_file(path)
+    except (OSError, ValueError) as e:
+        raise DemoGenError(f"{src.name}: task file {tasks.task_file_error(path, e)}") from None
+    if json.loads(json.dumps(spec, sort_keys=True)) != json.loads(src.meta["task_spec"]):
+        raise DemoGenError(
+            f"{src.name}: task file {path} is not the spec the demo was recorded in (it changed "
+            "since)"
+        )

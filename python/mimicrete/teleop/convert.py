@@ -32,7 +32,7 @@ from mimicrete.kin import Calibration, parse_calibration
 from mimicrete.safe_io import FileLock
 
 from .provenance import ModelFileError, driving_of, model_of
-from .record import DemoSink, episode_meta, source_keys, spec_keys
+from .record import DemoSink, episode_meta, source_keys
 from .session import Counts, Session
 
 #: Hand-log file suffixes stripped to name the demo (longest first).
@@ -193,7 +193,7 @@ def spec_file_of(
             f"{source}: task file {path} is not the spec the log was recorded with (it changed "
             "since; the log's header holds the spec as it was, extra.task_spec)"
         )
-    return path, spec_keys(path, spec)
+    return path, tasks.task_file_meta(path, spec)
 
 
 def convert_log(

@@ -43,7 +43,6 @@ from .record import (
     Recording,
     episode_meta,
     source_keys,
-    spec_keys,
     write_handlog,
 )
 from .session import Session, Step
@@ -242,7 +241,7 @@ class Live:
             extra={
                 "recorder": "mimicrete teleop",
                 "calibration": self.calibration.to_dict(),
-                **(spec_keys(*self.spec) if self.spec else {}),
+                **(tasks.task_file_meta(*self.spec) if self.spec else {}),
             },
         )
         task_file = None if self.spec is None else self.spec[0]

@@ -150,12 +150,6 @@ class Recording:
         self.stages = StageClock(self.sink.w)
 
 
-def spec_keys(task_file: str, spec: dict[str, Any]) -> dict[str, str]:
-    """A demo's metadata naming the task spec file its episode ran in (``task_file``) and the
-    spec as it was read (``task_spec``, JSON)."""
-    return {"task_file": task_file, "task_spec": json.dumps(spec, sort_keys=True)}
-
-
 def write_handlog(
     path: Path,
     rec: Recording,
