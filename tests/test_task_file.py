@@ -21,6 +21,9 @@ from _cli_run import run_cli  # noqa: E402
 
 TILE = "half_extents = [0.075, 0.075, 0.005]"
 BIG_TILE = "half_extents = [0.1, 0.1, 0.006]"
+#: a 0.2 m tile turned 30 degrees at the built-in wide box's near edge would touch the pad: the
+#: spec check refuses it, so the bigger tile's wide starts begin 3.5 cm further out
+BIG_WIDE = ("object_x = [0.035, 0.285]", "object_x = [0.07, 0.285]")
 
 
 def spec_copy(tmp_path: Path, task: str = "TileSuction", *edits: tuple[str, str]) -> Path:
@@ -81,7 +84,7 @@ def test_an_unchanged_copy_gives_the_builtin_episodes_bit_for_bit(tmp_path: Path
 
 
 def test_a_bigger_tile_gives_other_observations(tmp_path: Path) -> None:
-    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), BIG_WIDE)
     mine = gym.make("mimicrete/Task-v0", spec=big)  # a Path is accepted too
     builtin = gym.make("mimicrete/TileSuction-v0")
     assert mine.unwrapped.task_spec["object"]["half_extents"] == [0.1, 0.1, 0.006]
@@ -127,7 +130,7 @@ def test_the_vector_env_runs_the_file(tmp_path: Path) -> None:
     flags = [vec.step(np.zeros((2, 7), np.float32))[3].tolist() for _ in range(5)]
     assert flags == [[False, False]] * 4 + [[True, True]]
     # state / restore rebuilds a spec env mid-episode
-    big_tile = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    big_tile = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), BIG_WIDE)
     big = envs.make_vec("Task-v0", 2, seed=4, spec=big_tile)
     big.reset(seed=4)
     for a in actions(7, 7, seed=3, batch=2):
@@ -177,7 +180,7 @@ def frames(path: Path) -> tuple[dict, list[str]]:
 
 def test_synth_hands_plans_from_the_task_file(tmp_path: Path) -> None:
     copy = spec_copy(tmp_path, "TileSuction")
-    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE))
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), BIG_WIDE)
     outs = {}
     for name, extra in [("builtin", []), ("copy", ["--task-file", str(copy)]),
                         ("big", ["--task-file", str(big)])]:  # fmt: skip
@@ -314,7 +317,7 @@ def test_synth_hands_through_teleop_records_in_the_task_file(tmp_path: Path) -> 
     demo installs the bigger tile, names the spec and draws its tile."""
     from mimicrete import demos
 
-    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE),
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), BIG_WIDE,
                     ('success = "installed"', 'success = "laid"'))  # fmt: skip
     out = tmp_path / "live"
     r = run_cli("synth-hands", "--through-teleop", "--task-file", str(big), "--episodes", "1",
@@ -347,7 +350,7 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
     it) on demos recorded there; demos of the built-in task for a spec run, or the spec's demos
     for a built-in run, are refused naming the demo and both specs, exit 2."""
     sentence = "Install the large-format tile on the pad."
-    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), (
+    big = spec_copy(tmp_path, "TileSuction", (TILE, BIG_TILE), BIG_WIDE, (
         'instruction = "Pick up the tile with the suction head and install it on the target pad."',
         f'instruction = "{sentence}"'))  # fmt: skip
     hands, demos_dir = tmp_path / "hands", tmp_path / "demos"

@@ -32,7 +32,8 @@ def big_tile_spec(tmp_path: Path) -> Path:
     text = _native.task_spec("TileSuction", as_toml=True)
     assert text.count(TILE) == 1
     path = tmp_path / "big_tile.toml"
-    path.write_text(text.replace(TILE, BIG_TILE))
+    wide = ("object_x = [0.035, 0.285]", "object_x = [0.07, 0.285]")  # clear of the pad
+    path.write_text(text.replace(TILE, BIG_TILE).replace(*wide))
     return path
 
 

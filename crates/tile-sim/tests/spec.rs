@@ -176,6 +176,17 @@ fn bad_values_name_the_field_the_value_and_why() {
     let (f, _, _) = invalid(&edited("instruction = \"Pick", "instruction = \"\\nPick"));
     assert_eq!(f, "about.instruction");
 
+    // a bigger tile on the built-in wide starts: some of them would touch the pad
+    let (f, v, why) =
+        invalid(&edited("half_extents = [0.075, 0.075, 0.005]", "half_extents = [0.1, 0.1, 0.006]"));
+    assert_eq!(f, "starts.wide");
+    assert!(v.contains("object (") && v.contains("yaw"), "{v}");
+    assert!(why.contains("a start of this distribution is refused") && why.contains("of the pad"), "{why}");
+    // and a wide box that leaves the reach
+    let (f, _, why) = invalid(&edited("object_y = [0.26, 0.36]", "object_y = [0.26, 0.46]"));
+    assert_eq!(f, "starts.wide");
+    assert!(why.contains("out of reach"), "{why}");
+
     let e = TaskSpec::from_toml(&edited("version = 1", "version = 7"), "x.toml").unwrap_err();
     assert_eq!(e.field(), Some("version"));
     assert_eq!(e.to_string(), "version = 7: this simulator reads version 1");
@@ -241,8 +252,10 @@ fn a_specs_numbers_reach_the_episode() {
     let o = env.step(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], &mut obs).unwrap();
     assert_eq!(o.reward, 2.5);
 
-    // A bigger tile: the world and the scene read the spec.
-    let text = edited("half_extents = [0.075, 0.075, 0.005]", "half_extents = [0.08, 0.08, 0.006]");
+    // A bigger tile (its wide starts kept 2 cm further from the pad): the world and the scene
+    // read the spec.
+    let text = edited("half_extents = [0.075, 0.075, 0.005]", "half_extents = [0.08, 0.08, 0.006]")
+        .replacen("object_x = [0.035, 0.285]", "object_x = [0.055, 0.285]", 1);
     let spec = std::sync::Arc::new(TaskSpec::from_toml(&text, "big.toml").unwrap());
     let mut env = Env::from_spec(spec, 0);
     env.reset(Some(4), &mut obs).unwrap();

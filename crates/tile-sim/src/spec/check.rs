@@ -3,7 +3,7 @@
 //! field is reported as a [`SpecError::Invalid`] with its dotted path, its value and why.
 
 use super::{EffectorSpec, SPEC_VERSION, TargetSpec, TaskSpec, ThresholdsSpec, VariationSpec};
-use crate::{MAX_YAW, Task};
+use crate::{MAX_YAW, Start, Task};
 use std::fmt::Debug;
 
 /// A task spec that cannot be used.
@@ -185,6 +185,45 @@ fn check_thresholds(task: Task, t: &ThresholdsSpec) -> Result<(), SpecError> {
 }
 
 impl TaskSpec {
+    /// Every start of the distribution `v` valid as an explicit start is (on the table, 1 cm
+    /// clear of the pad, the grasp point and the target within reach with the flange down):
+    /// checked over a grid of its box (5 x, 5 y, 3 yaw, the target offset's four corners and
+    /// none), so a spec whose object, pad or ranges do not fit together is refused here, not
+    /// mid-training at a start that happens to be drawn.
+    fn check_start_box(&self, field: &str, v: &VariationSpec) -> Result<(), SpecError> {
+        let grid = |[lo, hi]: [f32; 2], n: usize| -> Vec<f32> {
+            match lo == hi {
+                true => vec![lo],
+                false => (0..n).map(|k| lo + (hi - lo) * k as f32 / (n - 1) as f32).collect(),
+            }
+        };
+        let screw = self.task() == Task::Screw;
+        let j = if screw { 0.0 } else { v.target_jitter };
+        let offsets: Vec<[f32; 2]> = match j > 0.0 {
+            true => vec![[0.0, 0.0], [-j, -j], [-j, j], [j, -j], [j, j]],
+            false => vec![[0.0, 0.0]],
+        };
+        let yaws = if screw { vec![0.0] } else { grid(v.yaw_deg, 3) };
+        for x in grid(v.object_x, 5) {
+            for y in grid(v.object_y, 5) {
+                for &yaw_deg in &yaws {
+                    for &off in &offsets {
+                        let pad = if v.pad_follows { off } else { [0.0; 2] };
+                        let st = Start::from_options([x, y, yaw_deg.to_radians()], off, Some(pad));
+                        if let Err(e) = st.check_in(self) {
+                            return invalid(
+                                field,
+                                format!("{{object ({x}, {y}), yaw {yaw_deg} deg, target moved {off:?}}}"),
+                                format!("a start of this distribution is refused: {e}"),
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     fn check_about(&self) -> Result<(), SpecError> {
         let a = &self.about;
         for (field, text) in [("about.instruction", &a.instruction), ("about.success", &a.success)] {
@@ -241,7 +280,8 @@ impl TaskSpec {
         if !(1..=100_000).contains(&self.episode.max_steps) {
             return invalid("episode.max_steps", self.episode.max_steps, "must be in [1, 100000] steps");
         }
-        Ok(())
+        self.check_start_box("starts.paper", &self.starts.paper)?;
+        self.check_start_box("starts.wide", &self.starts.wide)
     }
 
     fn check_effector(&self) -> Result<(), SpecError> {
