@@ -254,8 +254,11 @@ fn a_specs_numbers_reach_the_episode() {
 
     // A bigger tile (its wide starts kept 2 cm further from the pad): the world and the scene
     // read the spec.
-    let text = edited("half_extents = [0.075, 0.075, 0.005]", "half_extents = [0.08, 0.08, 0.006]")
-        .replacen("object_x = [0.035, 0.285]", "object_x = [0.055, 0.285]", 1);
+    let text = edited("half_extents = [0.075, 0.075, 0.005]", "half_extents = [0.08, 0.08, 0.006]").replacen(
+        "object_x = [0.035, 0.285]",
+        "object_x = [0.055, 0.285]",
+        1,
+    );
     let spec = std::sync::Arc::new(TaskSpec::from_toml(&text, "big.toml").unwrap());
     let mut env = Env::from_spec(spec, 0);
     env.reset(Some(4), &mut obs).unwrap();
