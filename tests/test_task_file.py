@@ -388,6 +388,9 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
     d = demo_files.load(gen)
     assert d.num_episodes == 4 and all(m["task_file"] == str(big) for m in d.metas)
     assert all(m["success"] == "true" for m in d.metas)
+    # at the spec's own wide starts (its box begins at x = 0.07 m, the built-in one at 0.035)
+    xs = [json.loads(m["object_pose"])[0] for m in d.metas]
+    assert all(0.07 - 1e-6 <= x <= 0.285 + 1e-6 for x in xs), xs
     first = demo_files.read(sorted(gen.glob("*.mcap"))[0])
     assert json.loads(first["meta"]["task_spec"])["object"]["half_extents"] == [0.1, 0.1, 0.006]
     r = run_cli("train", *SMALL_TRAIN, "--task-file", str(big), "--demos", str(gen),

@@ -66,7 +66,9 @@ fn start_of(
 
 /// The variation `set_variation`'s arguments name (`starts`: "training" | "robust" | "wide";
 /// `towards_wide`: that far from the paper's starts to the wide ones).
+/// Named against the env's own `spec` (its paper and wide starts).
 fn variation_of(
+    spec: &TaskSpec,
     starts: Option<&str>,
     towards_wide: Option<f32>,
     object_x: Option<[f32; 2]>,
@@ -75,11 +77,11 @@ fn variation_of(
 ) -> PyResult<Variation> {
     match (starts, towards_wide) {
         (Some(_), Some(_)) => Err(PyValueError::new_err("give starts or towards_wide, not both")),
-        (Some(name), None) => Variation::named(name).ok_or_else(|| {
+        (Some(name), None) => Variation::named_in(name, spec).ok_or_else(|| {
             PyValueError::new_err(format!("starts: expected training, robust or wide, got {name:?}"))
         }),
-        (None, Some(s)) => Ok(Variation::towards_wide(s)),
-        (None, None) => Ok(Variation::from_options(object_x, target_jitter, robust)),
+        (None, Some(s)) => Ok(Variation::towards_wide_in(s, spec)),
+        (None, None) => Ok(Variation::from_options_in(object_x, target_jitter, robust, spec)),
     }
 }
 
@@ -191,7 +193,7 @@ impl SimEnv {
         target_jitter: f32,
         robust: bool,
     ) -> PyResult<()> {
-        let v = variation_of(starts, towards_wide, object_x, target_jitter, robust)?;
+        let v = variation_of(self.env.spec(), starts, towards_wide, object_x, target_jitter, robust)?;
         self.env.set_variation(v).map_err(sim_err)
     }
 
@@ -319,7 +321,7 @@ impl SimVecEnv {
         target_jitter: f32,
         robust: bool,
     ) -> PyResult<()> {
-        let v = variation_of(starts, towards_wide, object_x, target_jitter, robust)?;
+        let v = variation_of(self.venv.spec(), starts, towards_wide, object_x, target_jitter, robust)?;
         self.venv.set_variation(v).map_err(sim_err)
     }
 

@@ -91,10 +91,17 @@ impl crate::Variation {
     /// The variation a caller names: `"training"` (the paper's, [`Variation::default`](crate::Variation::default)),
     /// `"robust"` or `"wide"`; `None` for another name.
     pub fn named(name: &str) -> Option<crate::Variation> {
+        crate::Variation::named_in(name, &crate::TaskSpec::builtin(crate::Task::TileSuction))
+    }
+
+    /// [`Variation::named`](crate::Variation::named) of the task `spec` describes: its
+    /// `starts.paper`, the robust widening of that, its `starts.wide`.
+    pub fn named_in(name: &str, spec: &crate::TaskSpec) -> Option<crate::Variation> {
+        let paper = spec.starts.paper.variation();
         match name {
-            "training" | "paper" => Some(crate::Variation::default()),
-            "robust" => Some(crate::Variation::robust()),
-            "wide" => Some(crate::Variation::wide()),
+            "training" | "paper" => Some(paper),
+            "robust" => Some(crate::Variation::robust_of(paper)),
+            "wide" => Some(spec.starts.wide.variation()),
             _ => None,
         }
     }
@@ -103,10 +110,22 @@ impl crate::Variation {
     /// when `robust`, else the object's x range `object_x` (default: the paper's) and the
     /// target's jitter (m).
     pub fn from_options(object_x: Option<[f32; 2]>, target_jitter: f32, robust: bool) -> crate::Variation {
+        let spec = crate::TaskSpec::builtin(crate::Task::TileSuction);
+        crate::Variation::from_options_in(object_x, target_jitter, robust, &spec)
+    }
+
+    /// [`Variation::from_options`](crate::Variation::from_options) about `spec`'s paper starts.
+    pub fn from_options_in(
+        object_x: Option<[f32; 2]>,
+        target_jitter: f32,
+        robust: bool,
+        spec: &crate::TaskSpec,
+    ) -> crate::Variation {
+        let paper = spec.starts.paper.variation();
         match (robust, object_x) {
-            (true, _) => crate::Variation::robust(),
-            (false, Some(x)) => crate::Variation { object_x: x, target_jitter, ..Default::default() },
-            (false, None) => crate::Variation { target_jitter, ..Default::default() },
+            (true, _) => crate::Variation::robust_of(paper),
+            (false, Some(x)) => crate::Variation { object_x: x, target_jitter, ..paper },
+            (false, None) => crate::Variation { target_jitter, ..paper },
         }
     }
 }

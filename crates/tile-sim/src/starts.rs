@@ -125,9 +125,14 @@ impl Variation {
     /// The robustness evaluation: the x range widened by half its width on each side
     /// (`[-0.075, 0.225]` m) and the target moved by up to ±2 cm in x and y (the pad stays).
     pub fn robust() -> Variation {
-        let [lo, hi] = Variation::default().object_x;
+        Variation::robust_of(Variation::default())
+    }
+
+    /// [`Variation::robust`] about the paper's starts `paper` (a spec's `starts.paper`).
+    pub fn robust_of(paper: Variation) -> Variation {
+        let [lo, hi] = paper.object_x;
         let half = 0.5 * (hi - lo);
-        Variation { object_x: [lo - half, hi + half], target_jitter: 0.02, ..Default::default() }
+        Variation { object_x: [lo - half, hi + half], target_jitter: 0.02, pad_follows: false, ..paper }
     }
 
     /// The wide starts (module docs): the object over 0.25 m of x and 0.10 m of y, turned by up
@@ -140,8 +145,13 @@ impl Variation {
     /// `s` of the way from the paper's starts (`s = 0`) to the wide ones (`s = 1`): every range
     /// grows linearly about the paper's (a forward curriculum's schedule). `s` is clamped to [0, 1].
     pub fn towards_wide(s: f32) -> Variation {
+        Variation::towards_wide_in(s, &TaskSpec::builtin(Task::TileSuction))
+    }
+
+    /// [`Variation::towards_wide`] from `spec`'s paper starts to its wide ones.
+    pub fn towards_wide_in(s: f32, spec: &TaskSpec) -> Variation {
         let s = if s.is_nan() { 0.0 } else { s.clamp(0.0, 1.0) };
-        let (a, b) = (Variation::default(), Variation::wide());
+        let (a, b) = (spec.starts.paper.variation(), spec.starts.wide.variation());
         let mix = |p: [f32; 2], q: [f32; 2]| [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])];
         Variation {
             object_x: mix(a.object_x, b.object_x),

@@ -109,3 +109,35 @@ fn the_expert_installs_under_the_wide_variation() {
     eprintln!("TileSuction expert, wide starts: installed {ok}/100");
     assert!(ok >= 95, "installed {ok}/100");
 }
+
+/// Named variations are the env's own spec's: a spec with other paper and wide boxes gets its
+/// boxes (the built-in names give the built-in TileSuction spec's, as before).
+#[test]
+fn named_variations_come_from_the_spec() {
+    use tile_sim::TaskSpec;
+    let builtin = TaskSpec::builtin(Task::TileSuction);
+    for name in ["training", "robust", "wide"] {
+        assert_eq!(Variation::named(name), Variation::named_in(name, &builtin), "{name}");
+    }
+    assert_eq!(Variation::named("training"), Some(Variation::default()));
+    assert_eq!(Variation::named("robust"), Some(Variation::robust()));
+    assert_eq!(Variation::towards_wide(0.5), Variation::towards_wide_in(0.5, &builtin));
+    let text = include_str!("../tasks/tile_suction.toml")
+        .replacen("object_x = [0.035, 0.285]", "object_x = [0.07, 0.25]", 1)
+        .replacen("object_x = [0.0, 0.15]", "object_x = [0.02, 0.12]", 1);
+    let spec = TaskSpec::from_toml(&text, "mine.toml").unwrap();
+    assert_eq!(Variation::named_in("wide", &spec).unwrap().object_x, [0.07, 0.25]);
+    assert_eq!(Variation::named_in("training", &spec).unwrap().object_x, [0.02, 0.12]);
+    let [lo, hi] = Variation::named_in("robust", &spec).unwrap().object_x;
+    assert!((lo + 0.03).abs() < 1e-6 && (hi - 0.17).abs() < 1e-6, "{lo} {hi}");
+    assert_eq!(Variation::towards_wide_in(1.0, &spec).object_x, [0.07, 0.25]);
+    assert_eq!(Variation::towards_wide_in(0.0, &spec).object_x, [0.02, 0.12]);
+    let mut env = Env::from_spec(std::sync::Arc::new(spec), 0);
+    env.set_variation(Variation::named_in("wide", env.spec()).unwrap()).unwrap();
+    let mut obs = vec![0.0; Task::TileSuction.obs_dim()];
+    for seed in 0..40 {
+        env.reset(Some(seed), &mut obs).unwrap();
+        let x = env.start().object_xy[0];
+        assert!((0.07..=0.25).contains(&x), "seed {seed}: x {x}");
+    }
+}
