@@ -42,7 +42,7 @@ def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
     assert made + "demos/suction" in r.stdout
     assert len(list((tmp_path / "demos/suction").glob("*.mcap"))) == 60
     assert len(list((tmp_path / "demos/gen5").glob("*.mcap"))) == 6
-    run = tmp_path / "runs/wide_gen-seed0"
+    run = tmp_path / "runs/wide_gen5-seed0"
     assert json.loads((run / "run.json").read_text())["demos"] == "demos/gen5"
     assert json.loads((run / "eval.json").read_text())["episodes"] == 2
     wide = json.loads((run / "eval_wide.json").read_text())
@@ -51,7 +51,7 @@ def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
         x, y, yaw = ep["object_pose"]
         assert 0.035 <= x <= 0.285 and 0.26 <= y <= 0.36 and abs(yaw) <= 0.5236
         assert ep["installed"] in (True, False) and 1 <= ep["length"] <= 1000
-    assert "wide_gen-seed0, wide starts" in r.stdout and "trained 1024 steps" in r.stdout
+    assert "wide_gen5-seed0, wide starts" in r.stdout and "trained 1024 steps" in r.stdout
     assert (run / "success_map.png").stat().st_size > 10_000
     # the hand logs are the ones `make demos` writes (synth-hands --episodes 60 --seed 0)
     from mimicrete import cli
