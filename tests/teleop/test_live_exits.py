@@ -92,6 +92,14 @@ def _check_source(rec: dict[str, str], demo: Path, hand: Path) -> None:
 # ----------------------------------------------------------------------------------------------
 
 
+def _default_signals() -> None:
+    """In the child: SIGINT, SIGTERM and SIGHUP at their defaults, as a terminal gives them. A
+    shell's background job (or nohup) starts with SIGINT / SIGHUP ignored, and a command that
+    inherits an ignored signal rightly keeps ignoring it; the test would then wait forever."""
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_DFL)
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -124,9 +132,11 @@ def test_a_signal_mid_episode_keeps_the_demo_and_the_whole_handlog(tmp_path, sig
     out, port = tmp_path / "out", _free_port()
     cmd = [sys.executable, "-m", "mimicrete", "teleop", "--task", "suction", "--out", str(out)]
     with open(tmp_path / "stdout", "wb") as so, open(tmp_path / "stderr", "wb") as se:
-        proc = subprocess.Popen([*cmd, "--port", str(port)], stdout=so, stderr=se)
+        proc = subprocess.Popen(
+            [*cmd, "--port", str(port)], stdout=so, stderr=se, preexec_fn=_default_signals
+        )
         try:
-            states = asyncio.run(_drive_then_signal(proc, port, sig))
+            states = asyncio.run(asyncio.wait_for(_drive_then_signal(proc, port, sig), 180))
             code = proc.wait(timeout=60)
         finally:
             if proc.poll() is None:
