@@ -183,7 +183,16 @@ class _InterruptingGuard:
         return self.inner.__exit__(*exc)
 
 
-def test_ctrl_c_while_a_lock_is_taken_leaves_no_lock_file(tmp_path, monkeypatch):
+@pytest.fixture()
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt in this process for the test, as at a terminal (a run from
+    a shell's background job or nohup starts with SIGINT ignored)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_while_a_lock_is_taken_leaves_no_lock_file(tmp_path, monkeypatch, ctrl_c_raises):
     """CI caught ``convert``'s Ctrl-C leaving ``demo.mcap.lock`` behind: the signal came while the
     lock was being taken or given up. It is held back until the lock's state is whole again."""
     from mimicrete import safe_io
@@ -197,7 +206,7 @@ def test_ctrl_c_while_a_lock_is_taken_leaves_no_lock_file(tmp_path, monkeypatch)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_ctrl_c_while_a_lock_is_given_up_leaves_no_lock_file(tmp_path, monkeypatch):
+def test_ctrl_c_while_a_lock_is_given_up_leaves_no_lock_file(tmp_path, monkeypatch, ctrl_c_raises):
     from mimicrete import safe_io
 
     path = tmp_path / "released.lock"
