@@ -40,6 +40,7 @@ __all__ = [
     "jacobian",
     "parse_calibration",
     "points_to_base",
+    "quat_matrix",
     "urdf",
 ]
 
@@ -63,6 +64,19 @@ def _shaped(x: Any, name: str, shape: tuple[int | None, ...], text: str) -> np.n
     ):
         raise ValueError(f"{name} must have shape {text}, got {a.shape}")
     return a
+
+
+def quat_matrix(q: Any) -> np.ndarray:
+    """The (3, 3) rotation matrix of a unit quaternion ``[x, y, z, w]`` (the order the simulator's
+    snapshots and scene items give)."""
+    x, y, z, w = (float(v) for v in q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def dh(model: str = "ur3") -> dict[str, float]:

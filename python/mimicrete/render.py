@@ -8,16 +8,7 @@ from typing import Any
 
 import numpy as np
 
-
-def _quat_mat(q: Any) -> np.ndarray:
-    x, y, z, w = (float(v) for v in q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+from mimicrete.kin import quat_matrix
 
 
 def _frame(item: dict[str, Any], snap: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
@@ -28,7 +19,7 @@ def _frame(item: dict[str, Any], snap: dict[str, Any]) -> tuple[np.ndarray, np.n
         p = snap["object"]
     else:
         p = snap["links"][int(fr[4:])]
-    return _quat_mat(p["q"]), np.asarray(p["t"], dtype=float)
+    return quat_matrix(p["q"]), np.asarray(p["t"], dtype=float)
 
 
 def _cross2(u: np.ndarray, v: np.ndarray) -> float:
@@ -79,7 +70,7 @@ def render_rgb(
         if item["name"] == "table":
             continue
         rot, org = _frame(item, snap)
-        local_r = _quat_mat(item["rotation"])
+        local_r = quat_matrix(item["rotation"])
         local_t = np.asarray(item["translation"], dtype=float)
         color = tuple(item["rgba"][:3])
         alpha = float(item["rgba"][3])

@@ -300,23 +300,11 @@ def _spin_from_start(commands: np.ndarray) -> np.ndarray:
     return out
 
 
-def _quat_matrix(q: Any) -> np.ndarray:
-    """The rotation matrix of a unit quaternion ``[x, y, z, w]``."""
-    x, y, z, w = (float(v) for v in q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def _in_grasp_reach(run: _Runner) -> bool:
     """Whether the nut lies within the simulator's grasp tolerance of the fingers now
     (:data:`.segment.SCREW_GRASP_TOL`: its centre in the TCP frame, the flange pointing down)."""
     snap = run.sim.snapshot()
-    rot = _quat_matrix(snap["tcp"]["q"])
+    rot = kin.quat_matrix(snap["tcp"]["q"])
     p = rot.T @ (np.asarray(snap["object"]["t"], np.float64) - np.asarray(snap["tcp"]["t"]))
     tol = SCREW_GRASP_TOL
     aligned = float(-rot[2, 2]) > tol["align_cos"]  # the tool's z against Base −Z
