@@ -417,6 +417,13 @@ def test_a_task_file_trains_and_evaluates_end_to_end(tmp_path: Path) -> None:
     r = run_cli("export", str(demos_dir), "--format", "lerobot", "--out", str(tmp_path / "lr2"))
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert f"task file {big} is not the spec the demo was recorded in" in r.stderr
+    # a config for another task than the spec runs: refused before anything trains
+    r = run_cli("train", "--config", "configs/wide_gen_screw.yaml", "--task-file",
+                str(big), "--demos", str(demos_dir), "--run-dir", str(tmp_path / "other"),
+                cwd=REPO)  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"--task-file {big} runs TileSuction, but the config trains Screw-v0" in r.stderr
+    assert not (tmp_path / "other").exists()
     # a bad spec is one line before anything trains
     bad = spec_copy(tmp_path, "TileSuction", ("mass = 0.5 ", "mass = -2 "))
     r = run_cli("train", *SMALL_TRAIN, "--task-file", str(bad), "--demos", str(demos_dir),

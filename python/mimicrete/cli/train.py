@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import Any
 
 from mimicrete.cli import UsageError, task_file_arg
 from mimicrete.console import show_messages
@@ -98,7 +99,8 @@ def main(args: argparse.Namespace) -> int:
             config_file = str(resolved)
     overrides = list(args.set or [])
     if args.task_file is not None:
-        task_file_arg(args.task_file, None)  # read and checked: a bad spec is one line
+        spec_task = task_file_arg(args.task_file, None)  # read and checked: one line if bad
+        _check_config_task(config, config_file, overrides, spec_task, args.task_file)
         overrides += ["env_settings.env_id=Task-v0", f"env_settings.task_file={args.task_file}"]
     try:
         cfg, cfg_path = config.resolve(
@@ -150,6 +152,26 @@ def main(args: argparse.Namespace) -> int:
         compared = _compare_dir(run_dir, compare)
         print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem, compared))
     return 0
+
+
+def _check_config_task(
+    config: Any, config_file: str | None, overrides: list[str], spec_task: str, task_file: str
+) -> None:
+    """``--task-file`` replaces the config's env: the config must be one for the task the spec
+    runs (its env_id that task's, or Task-v0), else a :class:`UsageError` naming both."""
+    from mimicrete import learn, tasks
+    from mimicrete.learn.env import sim_task_of
+
+    try:
+        env_id = config.resolve(config_file, overrides=overrides)[0].env_settings.env_id
+    except learn.ConfigError as e:
+        raise UsageError(str(e)) from None
+    ours = tasks.get(spec_task).sim
+    if env_id.split("/")[-1] != "Task-v0" and sim_task_of(env_id) != ours:
+        raise UsageError(
+            f"--task-file {task_file} runs {ours}, but the config trains {env_id}; "
+            f"give a config for {ours} (its env_id {ours}-v0)"
+        )
 
 
 def _compare_source(
