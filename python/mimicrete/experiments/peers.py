@@ -1,5 +1,6 @@
 """``python -m mimicrete.experiments.peers``: LeRobot's ACT and Diffusion Policy on our demos,
-evaluated in our env (issue 22, part 3: peers on the same demos).
+evaluated in our env (issue 22, part 3: peers on the same demos), beside our learner and the
+paper's recipe on the same demos (``--methods ours paper``, :mod:`.peers_ours`).
 
 For each demo count N (the first N demos of ``--demos``, by file name) it
 
@@ -57,6 +58,7 @@ import numpy as np
 
 from mimicrete.console import show_messages
 
+from . import peers_ours
 from .peers_report import FIGURE, STARTS, PeersError, report
 
 # named, not __name__: run as `python -m`, this module is __main__, outside the package's logger
@@ -64,7 +66,9 @@ logger = logging.getLogger("mimicrete.experiments.peers")
 
 REPO = Path(__file__).resolve().parents[3]
 DEFAULT_LEROBOT_PYTHON = REPO / ".venv-export" / "bin" / "python"
-METHODS = ("act", "diffusion")
+#: LeRobot's learners (trained in the lerobot venv) and ours (:mod:`.peers_ours`, in this one)
+LEROBOT_METHODS = ("act", "diffusion")
+METHODS = (*LEROBOT_METHODS, "ours", "paper")
 
 DEFAULT_COUNTS = (1, 5, 10, 20)
 #: LeRobot's config overrides per method (everything else is lerobot 0.4.4's default). The
@@ -354,8 +358,12 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
     python = Path(args.lerobot_python)
     written = []
     for n in args.counts:
-        dataset = make_dataset(Path(args.demos), n, out)
+        if any(m in LEROBOT_METHODS for m in args.methods):
+            dataset = make_dataset(Path(args.demos), n, out)
         for method in args.methods:
+            if method not in LEROBOT_METHODS:
+                written += _run_ours(args, method, n)
+                continue
             steps = args.steps[method]
             rec = train(
                 python, method, dataset, out, n, steps, args.batch_size, args.seed,
@@ -398,13 +406,47 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
     return written
 
 
+def _run_ours(args: argparse.Namespace, method: str, n: int) -> list[Path]:
+    """Our learner or the paper's recipe on the first ``n`` demos (:mod:`.peers_ours`)."""
+    out = Path(args.out)
+    demos = first_demos(Path(args.demos), n, out / "demos" / f"n{n}")
+    steps = args.steps[method]
+    rec = peers_ours.train(
+        _run_child, method, demos, out, n, args.seed, REPO, steps, args.gen_count, args.nice
+    )
+    logger.info(
+        f"{method} n={n}: {rec['steps']:,} env steps in {rec['train_wall_s']:.0f} s wall, "
+        f"{rec['train_cpu_s']:.0f} s CPU"
+    )
+    written = []
+    for starts in args.starts:
+        path = result_path(out, method, n, starts)
+        old = json.loads(path.read_text()) if path.exists() else {}
+        if old.get("steps") != rec["steps"] or old.get("episodes") != args.episodes:
+            res = peers_ours.evaluate(
+                _run_child, out / "train" / f"{method}-n{n}", starts, args.episodes, args.nice
+            )
+            res = {**{k: v for k, v in rec.items() if k != "command"}, **res}
+            res["train_command"] = rec["command"]
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(res, indent=1))
+            logger.info(
+                f"  {starts}: installed {res['installed_rate']:.0%}, picked "
+                f"{res['picked_rate']:.0%}, length {res['mean_episode_length']:.0f} "
+                f"({res['episodes']} episodes, {res['eval_wall_s']:.0f} s)"
+            )
+        written.append(path)
+    return written
+
+
 # ---------------------------------------------------------------------------------- the report
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m mimicrete.experiments.peers",
-        description="LeRobot's ACT and Diffusion Policy on our demos, evaluated in our env.",
+        description="LeRobot's ACT and Diffusion Policy, our learner and the paper's recipe on "
+        "the same first N demos, evaluated in our env on the same starts.",
     )
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="export, train, evaluate (what exists is reused)")
@@ -415,6 +457,23 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--act-steps", type=int, default=DEFAULT_STEPS["act"])
     r.add_argument("--diffusion-steps", type=int, default=DEFAULT_STEPS["diffusion"])
     r.add_argument("--batch-size", type=int, default=8, help="lerobot's default (8)")
+    r.add_argument(
+        "--our-steps",
+        type=int,
+        help="env steps of our learner (default: its config's, 2M for 1 demo, else 1M)",
+    )
+    r.add_argument(
+        "--paper-steps",
+        type=int,
+        default=peers_ours.DEFAULT_PAPER_STEPS,
+        help="env steps of the paper's recipe (group 4's config; 1M)",
+    )
+    r.add_argument(
+        "--gen-count",
+        type=int,
+        default=peers_ours.DEFAULT_GEN_COUNT,
+        help="demos our learner generates from the N (mimicrete demogen; 500)",
+    )
     r.add_argument("--episodes", type=int, default=100)
     r.add_argument(
         "--eval-max-steps",
@@ -459,9 +518,19 @@ def main(argv: list[str] | None = None) -> int:
             return error("--act-steps, --diffusion-steps and --threads must be positive")
         if not Path(args.demos).is_dir():
             return error(f"{args.demos}: no such directory (`make demos` makes demos/suction)")
-        if not Path(args.lerobot_python).exists():
+        for flag in ("our_steps", "paper_steps", "gen_count"):
+            v = getattr(args, flag)
+            if v is not None and v < 1:
+                return error(f"--{flag.replace('_', '-')} must be positive, got {v}")
+        lerobot = any(m in LEROBOT_METHODS for m in args.methods)
+        if lerobot and not Path(args.lerobot_python).exists():
             return error(f"{args.lerobot_python}: no lerobot venv (`make export-venv` makes it)")
-        args.steps = {"act": args.act_steps, "diffusion": args.diffusion_steps}
+        args.steps = {
+            "act": args.act_steps,
+            "diffusion": args.diffusion_steps,
+            "ours": args.our_steps,
+            "paper": args.paper_steps,
+        }
         run_grid(args)
         return 0
     except PeersError as e:

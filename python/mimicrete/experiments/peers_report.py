@@ -11,7 +11,12 @@ from typing import Any
 
 from mimicrete._native import MimicreteError
 
-LABELS = {"act": "ACT (LeRobot)", "diffusion": "Diffusion Policy (LeRobot)"}
+LABELS = {
+    "act": "ACT (LeRobot)",
+    "diffusion": "Diffusion Policy (LeRobot)",
+    "ours": "ours (demogen + wide_gen)",
+    "paper": "paper's recipe (group 4)",
+}
 STARTS = ("training", "robust", "wide")
 TABLE_BEGIN = "<!-- peers:table -->"
 TABLE_END = "<!-- /peers:table -->"
@@ -21,6 +26,8 @@ FIGURE = "peers_vs_demos.png"
 STYLE: dict[str, dict[str, Any]] = {
     "act": {"marker": "o", "markersize": 10, "markerfacecolor": "none", "lw": 2.5},
     "diffusion": {"marker": "s", "markersize": 4, "ls": "--", "lw": 1.2},
+    "ours": {"marker": "D", "markersize": 6, "lw": 2.0, "color": "tab:green"},
+    "paper": {"marker": "^", "markersize": 6, "ls": ":", "lw": 1.5, "color": "tab:red"},
 }
 
 
@@ -65,10 +72,25 @@ def _pct(x: float) -> str:
     return f"{100 * x:.0f} %"
 
 
+def _budget(r: dict[str, Any]) -> str:
+    """Steps x batch (epochs) of an offline learner; env steps of one trained on the env."""
+    if r["batch_size"] is None:
+        return f"{r['steps']:,} env steps"
+    return f"{r['steps']} × {r['batch_size']} ({r['epochs']:g})"
+
+
+def _train_clock(r: dict[str, Any]) -> str:
+    text = f"{r['train_wall_s'] / 60:.1f} min ({r['train_cpu_s'] / 60:.1f} min)"
+    if r.get("gen_wall_s"):
+        text += f" + demogen {r['gen_wall_s']:.0f} s"
+    return text
+
+
 def table(rows: list[dict[str, Any]]) -> str:
     """One row per (method, demo count): success per start set, budget and wall clock."""
     starts = [s for s in STARTS if any(r["starts"] == s for r in rows)]
-    keys = sorted({(r["method"], r["demos"]) for r in rows}, key=lambda k: (k[0], k[1]))
+    order = {m: i for i, m in enumerate(LABELS)}
+    keys = sorted({(r["method"], r["demos"]) for r in rows}, key=lambda k: (order.get(k[0], 9), k))
     by = {(r["method"], r["demos"], r["starts"]): r for r in rows}
     head = ["method", "demos"]
     for s in starts:
@@ -95,11 +117,7 @@ def table(rows: list[dict[str, Any]]) -> str:
         evals = " / ".join(
             f"{by[(m, n, s)]['eval_wall_s']:.0f} s" if (m, n, s) in by else "–" for s in starts
         )
-        cells += [
-            f"{any_r['steps']} × {any_r['batch_size']} ({any_r['epochs']:g})",
-            f"{any_r['train_wall_s'] / 60:.1f} min ({any_r['train_cpu_s'] / 60:.1f} min)",
-            evals,
-        ]
+        cells += [_budget(any_r), _train_clock(any_r), evals]
         lines.append("| " + " | ".join(cells) + " |")
     eps = sorted({r["episodes"] for r in rows})
     lines.append("")
