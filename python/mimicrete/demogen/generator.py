@@ -135,10 +135,17 @@ class _Runner:
     """Steps the simulator towards tool0 poses and records every step."""
 
     def __init__(
-        self, sim: Any, ep: GeneratedEpisode, obs: np.ndarray, spec: TaskFrames | None = None
+        self,
+        sim: Any,
+        ep: GeneratedEpisode,
+        obs: np.ndarray,
+        spec: TaskFrames | None = None,
+        action_noise: float = 0.0,
     ) -> None:
         self.sim, self.ep, self.obs = sim, ep, obs
         self.spec = spec or task_frames(ep.task)
+        self.noise = float(action_noise)
+        self.rng = np.random.default_rng([ep.seed, 0xA7])
         snap = sim.snapshot()
         self.q = np.asarray(snap["q"], np.float64)
         self.q_ik = self.q.copy()
@@ -163,6 +170,8 @@ class _Runner:
         cmd[:] = np.atleast_1d(np.asarray(command, np.float64))[: len(cmd)]
         a = np.zeros(spec.act_dim, np.float32)
         a[:6] = joint_action(self.q_ik, self.q)
+        if self.noise > 0:  # MimicGen's action noise: executed and recorded (see generate)
+            a[:6] = np.clip(a[:6] + self.noise * self.rng.standard_normal(6), -1.0, 1.0)
         a[6:] = cmd
         frame_now = self.obs[-spec.frame_dim :]
         on = bool(frame_now[spec.lay["ee"]][0] > 0.0) if spec.latched else False
@@ -227,6 +236,7 @@ def generate_episode(
     blend: float = 0.5,
     rotate: bool = False,
     grasp_jitter: float = 0.0,
+    action_noise: float | None = None,
 ) -> GeneratedEpisode:
     """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv`` of the
     source's task).
@@ -238,8 +248,17 @@ def generate_episode(
     horizontal offset from the TCP, so the object, not the TCP, arrives where the source put it.
     Without it every generated grasp is centred (BlockGrip: the block within 2 mm of the TCP at
     the place), and neither BC nor a reverse curriculum over the demos shows a place that
-    corrects for an off-centre block."""
+    corrects for an off-centre block.
+
+    ``action_noise`` (None: the task's :attr:`.segment.TaskFrames.action_noise`): the standard
+    deviation of Gaussian noise added to every joint action (units of ``MAX_JOINT_STEP``, clipped
+    to ``[-1, 1]``; from ``seed``), as MimicGen adds it to the actions it plays (its
+    ``action_noise``, 0.05 in its configs). The noisy action is the one executed and recorded (so
+    a curriculum's replay reaches the recorded states); the IK keeps tracking the clean path, so
+    the next action corrects the deviation, and the demos show the way back to the path from
+    states beside it (DART, Laskey et al. 2017), which noise-free demos never visit."""
     spec = src.spec
+    noise = spec.action_noise if action_noise is None else float(action_noise)
     ep = GeneratedEpisode(src.name, start, int(seed), task=spec.sim)
     obs = sim.reset(
         int(seed),
@@ -252,7 +271,7 @@ def generate_episode(
         "object": frame(*f[spec.lay["object"]], yaw),
         "target": frame(*f[spec.lay["target"]]),
     }
-    run = _Runner(sim, ep, np.asarray(obs, np.float32), spec)
+    run = _Runner(sim, ep, np.asarray(obs, np.float32), spec, noise)
     last = run.pose()
     shift = float(np.random.default_rng([int(seed), 0x617]).uniform(-1, 1)) * grasp_jitter
     try:
@@ -436,11 +455,13 @@ def generate(
     progress: Callable[[Report], None] | None = None,
     rotate: bool = False,
     grasp_jitter: float = 0.0,
+    action_noise: float | None = None,
 ) -> Report:
     """Generate until ``count`` installing demos are written into ``out`` (or ``max_attempts``,
     default ``4 · count + 20``, are used up). ``starts``: a named distribution (drawn with
     ``seed``) or explicit starts, used in order and cycled. ``grasp_jitter``: off-centre grasps
-    with the place corrected for them (:func:`generate_episode`)."""
+    with the place corrected for them; ``action_noise``: noise on the played joint actions (None:
+    the task's default) (:func:`generate_episode`)."""
     if not sources:
         raise DemoGenError("no source demo")
     task, task_file = sources[0].task, sources[0].task_file
@@ -459,6 +480,7 @@ def generate(
         if not pool:
             raise DemoGenError("no start to generate at")
     rng = np.random.default_rng([seed, 0x6E4])
+    noise = sources[0].spec.action_noise if action_noise is None else float(action_noise)
     sim = sim_env(task, task_file)
     spec_meta = {} if task_file is None else tasks.task_file_meta(task_file, sim.spec())
     rep = Report()
@@ -469,7 +491,13 @@ def generate(
         ep_seed = int(rng.integers(0, 2**62))
         try:
             ep = generate_episode(
-                sim, src, start, ep_seed, rotate=rotate, grasp_jitter=grasp_jitter
+                sim,
+                src,
+                start,
+                ep_seed,
+                rotate=rotate,
+                grasp_jitter=grasp_jitter,
+                action_noise=action_noise,
             )
         except ValueError as e:  # the simulator refused the start (off the table, out of reach)
             raise DemoGenError(f"start {rep.attempts}: {e}") from None
@@ -477,6 +505,8 @@ def generate(
         if ep.installed:
             name = out / f"gen_{rep.kept:05d}.mcap"
             extra = {"attempt": rep.attempts - 1, "demogen_seed": seed, **spec_meta}
+            if noise > 0:
+                extra["action_noise"] = noise
             write_episode(ep, name, rep.kept, extra, env=sim)
             rep.files.append(name)
             rep.kept += 1

@@ -65,7 +65,9 @@ class TaskFrames:
     policy's argmax never closed, docs/wide_starts.md); ``screw_from_grasp``: once the object is
     gripped the object-relative segment ends there and the target-relative one (the screwing)
     turns the nut from its first step on (the source held the nut still for some steps before it
-    spun it: with the grasp made earlier, a cloned policy held it, drifted 1 cm and slipped off)."""
+    spun it: with the grasp made earlier, a cloned policy held it, drifted 1 cm and slipped off);
+    ``action_noise``: the default standard deviation of the noise added to the played joint
+    actions (:func:`.generator.generate_episode`; 0: none)."""
 
     sim: str
     frame_dim: int
@@ -77,6 +79,7 @@ class TaskFrames:
     finish: str
     close_in_reach: bool = False
     screw_from_grasp: bool = False
+    action_noise: float = 0.0
 
     @property
     def commands(self) -> slice:
