@@ -221,14 +221,14 @@ impl SimEnv {
 
     /// The Foxglove `SceneEntity` list of the current episode (its start's pad, target, plate).
     fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
-        to_py(py, &teleop_core::scene::scene_json("ur3", &self.env.scene()).map_err(demo_err)?)
+        to_py(py, &teleop_core::scene::scene_json(self.env.arm().name, &self.env.scene()).map_err(demo_err)?)
     }
 
     /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.
     fn scene_frames(&self) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
         let s = self.env.snapshot();
         let tile = demo_log::Pose { position: s.object.t, orientation: s.object.q };
-        demo_log::frame_numbers("ur3", &s.q, &tile).map_err(demo_err)
+        demo_log::frame_numbers(self.env.arm().name, &s.q, &tile).map_err(demo_err)
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.

@@ -270,7 +270,11 @@ impl PyTeleopSession {
 
     /// The Foxglove `SceneEntity` list of the episode (its start's pad, target, plate).
     fn scene_entities<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
-        to_py(py, &teleop_core::scene::scene_json("ur3", &self.core.env().scene()).map_err(demo_err)?)
+        to_py(
+            py,
+            &teleop_core::scene::scene_json(self.core.env().arm().name, &self.core.env().scene())
+                .map_err(demo_err)?,
+        )
     }
 }
 

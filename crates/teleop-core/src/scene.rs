@@ -1,5 +1,5 @@
 //! The simulator's scene as a demo's `/scene`: tile-sim's items (table, pad, target, end
-//! effector, object and the UR3's capsules) turned into demo-log's entities. demo-log records the
+//! effector, object and the arm's capsules) turned into demo-log's entities. demo-log records the
 //! scene it is handed; this is where the two meet, so neither crate knows the other.
 
 use demo_log::serde_json::Value;
@@ -59,14 +59,14 @@ pub fn task_scene(task: Task, seed: u64) -> Vec<SceneEntity> {
     scene_entities(&tile_sim::episode_scene(task, seed))
 }
 
-/// tile-sim's arm (the UR3 as capsules: a cylinder and its two end spheres each) as entities
+/// tile-sim's arm of `model` (capsules: a cylinder and its two end spheres each) as entities
 /// `robot/<capsule name>`, each locked to the URDF link its DH frame rides on
 /// (`ur3_kin::urdf::dh_frames_in_links`), so `/tf` moves it as tile-sim moves its links.
-pub fn arm_capsule_entities() -> Vec<SceneEntity> {
-    let links = ur3_kin::urdf::dh_frames_in_links(&ur3_kin::UR3);
-    let scene = tile_sim::world::scene(Task::TileSuction, &tile_sim::Start::default());
+/// `model` is one tile-sim simulates (`tile_sim::arm::dims` is `Some`).
+pub fn arm_capsule_entities(model: &UrModel) -> Vec<SceneEntity> {
+    let links = ur3_kin::urdf::dh_frames_in_links(model);
     let mut out = Vec::new();
-    for it in &scene.items {
+    for it in &tile_sim::world::arm_items(model) {
         let (SceneFrame::Link(i @ 1..=6), tile_sim::Shape::Capsule { a, b, radius }) = (it.frame, it.shape)
         else {
             continue;
@@ -103,11 +103,11 @@ pub fn arm_capsule_entities() -> Vec<SceneEntity> {
     out
 }
 
-/// The robot `/scene` draws: [`arm_capsule_entities`] for the UR3 (the arm tile-sim simulates),
-/// demo-log's [`robot_link_entities`] for any other model.
+/// The robot `/scene` draws: [`arm_capsule_entities`] for a model tile-sim simulates (ur3,
+/// ur3e, ur5e, ur10e), demo-log's [`robot_link_entities`] for any other model.
 pub fn robot_entities(model: &UrModel) -> Vec<SceneEntity> {
-    match model.name == ur3_kin::UR3.name {
-        true => arm_capsule_entities(),
+    match tile_sim::arm::dims(model).is_some() {
+        true => arm_capsule_entities(model),
         false => robot_link_entities(model),
     }
 }

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use tile_sim::{Constants, Env, Snapshot, Task, TaskSpec};
 use ur3_kin::nalgebra::Matrix4;
-use ur3_kin::{Calibration, HandLayout, HandPoints, Handedness, IkOptions, UR3, urdf};
+use ur3_kin::{Calibration, HandLayout, HandPoints, Handedness, IkOptions, urdf};
 
 /// Where a session's episode goes: [`DemoWriter`] writes an MCAP demo.
 pub trait Recorder {
@@ -205,7 +205,7 @@ impl Session {
         };
         let obs = env.reset_owned(Some(cfg.seed))?;
         let q = frame_joints(cfg.task, &obs);
-        let links = urdf::link_transforms(&UR3, &env.snapshot().q);
+        let links = urdf::link_transforms(env.arm(), &env.snapshot().q);
         Ok(Session {
             cfg,
             dt: Constants::get().CONTROL_DT,
@@ -370,8 +370,8 @@ impl Session {
         match self.cfg.mapping {
             Mapping::Absolute => self.target = Some(h.to_homogeneous()),
             Mapping::Clutch => {
-                let q_ik = self.q_ik;
-                if let Some(t) = self.clutch.target(&h, || ur3_kin::fk(&UR3, &q_ik)) {
+                let (q_ik, arm) = (self.q_ik, self.env.arm());
+                if let Some(t) = self.clutch.target(&h, || ur3_kin::fk(arm, &q_ik)) {
                     self.target = Some(t.to_homogeneous());
                 }
             }
@@ -440,7 +440,7 @@ impl Session {
             why,
         };
         let snap = self.env.snapshot();
-        self.links = urdf::link_transforms(&UR3, &snap.q);
+        self.links = urdf::link_transforms(self.env.arm(), &snap.q);
         if let Some(r) = rec {
             r.step(&self.record(&step, &snap), &self.links)?;
         }
@@ -469,7 +469,7 @@ impl Session {
     /// The IK answer's change from the last one, wrapped; None: unreachable or another branch.
     fn solve(&self, pose: &ur3_kin::Pose) -> Option<[f64; 6]> {
         let opts = IkOptions::with_tol(None).ok()?;
-        let sol = ur3_kin::ik(&UR3, pose, Some(&self.q_ik), &opts).ok()?;
+        let sol = ur3_kin::ik(self.env.arm(), pose, Some(&self.q_ik), &opts).ok()?;
         let d: [f64; 6] = std::array::from_fn(|i| wrap_to_pi(sol[i] - self.q_ik[i]));
         let jump = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         (jump <= BRANCH_JUMP).then_some(d)
@@ -561,7 +561,7 @@ impl Session {
     /// The simulator's, for angles that are not finite or beyond ±π.
     pub fn set_joints(&mut self, q: [f64; 6]) -> Result<(), TeleopError> {
         self.env.set_joints(q)?;
-        self.links = urdf::link_transforms(&UR3, &self.env.snapshot().q);
+        self.links = urdf::link_transforms(self.env.arm(), &self.env.snapshot().q);
         Ok(())
     }
     /// Picked, installed, fell (ever this episode); terminated, truncated; total reward.

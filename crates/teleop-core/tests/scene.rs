@@ -106,7 +106,7 @@ fn given_entities_replace_those_of_the_same_id_and_add_the_rest() {
     }
     // a task tile-sim does not know: the robot, then the given entities
     let v = demo_scene(&ur3_kin::UR3, "juggling", 0, std::slice::from_ref(&marker));
-    assert_eq!(v.len(), arm_capsule_entities().len() + 1);
+    assert_eq!(v.len(), arm_capsule_entities(&ur3_kin::UR3).len() + 1);
 }
 
 #[test]
@@ -138,7 +138,7 @@ fn an_envs_scene_is_its_own_start() {
 #[test]
 fn the_ur3_is_drawn_as_capsules_other_models_as_link_cylinders() {
     let ur3 = robot_entities(&ur3_kin::UR3);
-    assert_eq!(ur3, arm_capsule_entities());
+    assert_eq!(ur3, arm_capsule_entities(&ur3_kin::UR3));
     assert!(ur3.iter().all(|e| e.extra.len() == 2 && e.extra.iter().all(|p| p.kind == Shape::Sphere)));
     let ur5 = robot_entities(&ur3_kin::UR5);
     assert_eq!(ur5, robot_link_entities(&ur3_kin::UR5));
@@ -164,7 +164,7 @@ proptest::proptest! {
         let mut env = tile_sim::Env::new(Task::TileSuction, 0);
         env.set_joints(q).unwrap();
         let frames = env.link_poses();
-        let ents = arm_capsule_entities();
+        let ents = arm_capsule_entities(&ur3_kin::UR3);
         let scene = tile_sim::episode_scene(Task::TileSuction, 0);
         let caps: Vec<_> = scene.items.iter().filter_map(|it| match (it.frame, it.shape) {
             (tile_sim::SceneFrame::Link(i), tile_sim::Shape::Capsule { a, b, radius }) => Some((it.name, i, a, b, radius)),

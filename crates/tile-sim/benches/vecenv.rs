@@ -2,15 +2,37 @@
 //! command included), auto-resets and observation stacking included, 1 and 2 threads.
 //!
 //! `cargo bench -p tile-sim --bench vecenv [-- NUM_ENVS SECONDS]` (defaults 64 envs, 3 s per
-//! configuration). Prints one line per (task, threads) and a machine-readable `RESULT` line.
+//! configuration). Prints one line per (task, threads) and a machine-readable `RESULT` line,
+//! then TileSuction per arm model (UR3, UR3e, UR5e, UR10e: the built-in spec with its model
+//! swapped for the UR3e, `tasks/tile_suction_ur5e.toml`, `..._ur10e.toml`), 2 threads, each
+//! beside the UR3 as a ratio (printed, never asserted).
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
 use std::time::Instant;
-use tile_sim::{StepBuffers, Task, VecEnv};
+use tile_sim::{StepBuffers, Task, TaskSpec, VecEnv};
 
 fn run(task: Task, n: usize, threads: usize, seconds: f64) -> (f64, u64, f64) {
-    let mut env = VecEnv::new(task, n, 0, threads).expect("vecenv");
+    run_spec(TaskSpec::builtin(task), n, threads, seconds)
+}
+
+/// TileSuction's specs per arm model: (model, spec).
+fn family() -> Vec<(&'static str, Arc<TaskSpec>)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks");
+    let file = |name: &str| Arc::new(TaskSpec::from_file(&dir.join(name)).expect("family spec"));
+    let ur3e = TaskSpec::builtin_toml(Task::TileSuction).replace("model = \"ur3\"", "model = \"ur3e\"");
+    vec![
+        ("ur3", TaskSpec::builtin(Task::TileSuction)),
+        ("ur3e", Arc::new(TaskSpec::from_toml(&ur3e, "tile_suction (ur3e)").expect("ur3e spec"))),
+        ("ur5e", file("tile_suction_ur5e.toml")),
+        ("ur10e", file("tile_suction_ur10e.toml")),
+    ]
+}
+
+fn run_spec(spec: Arc<TaskSpec>, n: usize, threads: usize, seconds: f64) -> (f64, u64, f64) {
+    let task = spec.task();
+    let mut env = VecEnv::from_spec(spec, n, 0, threads).expect("vecenv");
     let mut obs = vec![0.0; n * task.obs_dim()];
     env.reset(Some(0), &mut obs).expect("reset");
     let mut buf = StepBuffers::new(task, n);
@@ -69,4 +91,18 @@ fn main() {
         }
         println!("{line}");
     }
+    if only_task.is_some_and(|t| t != Task::TileSuction) {
+        return;
+    }
+    let threads = only_threads.unwrap_or(2);
+    println!("TileSuction per arm model, threads={threads}, env-steps/s (ratio to the UR3 in this run)");
+    let mut ur3 = None;
+    let mut line = String::from("RESULT family");
+    for (model, spec) in family() {
+        let (sps, eps, _) = run_spec(spec, n, threads, secs);
+        let base = *ur3.get_or_insert(sps);
+        println!("  {model:<6} {sps:>10.0} env-steps/s  x{:.2} of ur3  ({eps} episodes ended)", sps / base);
+        line.push_str(&format!(" {model}={sps:.0}"));
+    }
+    println!("{line}");
 }

@@ -23,7 +23,12 @@ use std::f64::consts::PI;
 /// consecutive solutions seeded with the current joints stay on one branch. `None` when the pose
 /// is unreachable. (The name is kept from the damped-least-squares solver this replaced.)
 pub fn ik_dls(target: &Isometry3<f64>, seed: &[f64; 6]) -> Option<[f64; 6]> {
-    ur3_kin::ik(&ur3_kin::UR3, target, Some(seed), &ur3_kin::IkOptions::default()).ok()
+    ik_on(&ur3_kin::UR3, target, seed)
+}
+
+/// [`ik_dls`] on the arm `model`.
+pub fn ik_on(model: &ur3_kin::UrModel, target: &Isometry3<f64>, seed: &[f64; 6]) -> Option<[f64; 6]> {
+    ur3_kin::ik(model, target, Some(seed), &ur3_kin::IkOptions::default()).ok()
 }
 
 /// Flange orientation used by the experts: tool Z straight down, tool X along Base X.
@@ -52,6 +57,8 @@ fn v3(a: [f64; 3]) -> Vector3<f64> {
 #[derive(Debug, Clone)]
 pub struct Expert {
     task: Task,
+    /// The arm the waypoints are solved for (the spec's `robot.model`).
+    arm: &'static ur3_kin::UrModel,
     /// The TCP's offset along tool0 z and the grasp point's height above the object's centre (m).
     tcp_z: f64,
     grasp_dz: f64,
@@ -72,7 +79,16 @@ impl Expert {
     pub fn for_spec(spec: &TaskSpec) -> Expert {
         let task = spec.task();
         let grasp_dz = if task == Task::TileSuction { spec.object_half_height() as f64 } else { 0.0 };
-        Expert { task, tcp_z: spec.tcp_z() as f64, grasp_dz, phase: 0, goal: None, ticks: 0, final_leg: true }
+        Expert {
+            task,
+            arm: spec.arm(),
+            tcp_z: spec.tcp_z() as f64,
+            grasp_dz,
+            phase: 0,
+            goal: None,
+            ticks: 0,
+            final_leg: true,
+        }
     }
 
     /// Forget the episode's progress.
@@ -167,10 +183,10 @@ impl Expert {
         if len > LEG {
             self.final_leg = false;
             let sub = Isometry3::from_parts(Translation3::from(cur + d * (LEG / len)), goal.rotation);
-            ik_dls(&sub, &s.q)
+            ik_on(self.arm, &sub, &s.q)
         } else {
             self.final_leg = true;
-            ik_dls(&goal, &s.q)
+            ik_on(self.arm, &goal, &s.q)
         }
     }
 
@@ -184,7 +200,7 @@ impl Expert {
             Task::TileSuction => {
                 let grasp = obj + up * self.grasp_dz;
                 match self.phase {
-                    0 => ik_dls(&tool0_for_tcp(grasp + up * 0.08, tz), &s.q),
+                    0 => ik_on(self.arm, &tool0_for_tcp(grasp + up * 0.08, tz), &s.q),
                     1 => self.linear(s, tool0_for_tcp(grasp + up * 0.012, tz)),
                     2 => Some(s.q),
                     3 => {
@@ -204,7 +220,7 @@ impl Expert {
                 }
             }
             Task::BlockGrip => match self.phase {
-                0 => ik_dls(&tool0_for_tcp(obj + up * 0.10, tz), &s.q),
+                0 => ik_on(self.arm, &tool0_for_tcp(obj + up * 0.10, tz), &s.q),
                 1 => self.linear(s, tool0_for_tcp(obj, tz)),
                 2 => Some(s.q),
                 3 => {
@@ -221,7 +237,7 @@ impl Expert {
                 _ => Some(s.q),
             },
             Task::Screw => match self.phase {
-                0 => ik_dls(&tool0_for_tcp(obj + up * 0.08, tz), &s.q),
+                0 => ik_on(self.arm, &tool0_for_tcp(obj + up * 0.08, tz), &s.q),
                 1 => self.linear(s, tool0_for_tcp(obj, tz)),
                 _ => Some(s.q),
             },

@@ -73,6 +73,7 @@
 //! The files sit in the crate, not at the repository's top, because the crate compiles them in
 //! and owns what they mean (`cargo package` only ships what is inside the crate).
 
+pub mod arm;
 mod env;
 pub mod expert;
 mod owned;
@@ -86,7 +87,9 @@ pub mod world;
 pub use env::{Env, HOME_Q, PoseRec, Snapshot, StepOutcome, episode_scene, object_start};
 pub use owned::{RecordState, StepInfo};
 pub use spec::{SPEC_VERSION, SpecError, TaskSpec};
-pub use starts::{MAX_TARGET_OFFSET, MAX_YAW, PAD_CLEARANCE, REACH_MARGIN, Start, Variation};
+pub use starts::{
+    MAX_TARGET_OFFSET, MAX_YAW, PAD_CLEARANCE, REACH_MARGIN, Start, Variation, workspace_scale,
+};
 pub use task::Task;
 pub use task::gripper::PLACE_DIST;
 pub use task::suction::{FALL_SPEED, FALL_Z, INSTALL_DIST, PICK_DIST};

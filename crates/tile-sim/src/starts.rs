@@ -22,7 +22,7 @@
 //! flange pointing down (IK at the pick height and 10 cm above it, at the point moved
 //! [`REACH_MARGIN`] outwards and inwards).
 
-use crate::expert::{ik_dls, tool0_for_tcp};
+use crate::expert::{ik_on, tool0_for_tcp};
 use crate::spec::{TargetSpec, TaskSpec};
 use crate::{SimError, Task};
 use nalgebra::Vector3;
@@ -165,10 +165,17 @@ impl Variation {
     /// Checks the ranges: finite and ordered, within the table, yaw within ±45°, jitter in
     /// `[0, 0.025]` m with the pad fixed or `[0, 0.04]` m with the pad following.
     pub fn validate(&self) -> Result<(), SimError> {
+        self.validate_for(&ur3_kin::UR3)
+    }
+
+    /// [`Variation::validate`] for the arm `arm`: the x and y bounds (|x| ≤ 0.3 m, |y| ≤ 0.5 m
+    /// on the UR3) grow with the arm ([`workspace_scale`]).
+    pub fn validate_for(&self, arm: &ur3_kin::UrModel) -> Result<(), SimError> {
         let bad = |what: String| Err(SimError::InvalidArgument(what));
+        let k = workspace_scale(arm);
         for (name, [lo, hi], lim) in [
-            ("object_x", self.object_x, 0.3f32),
-            ("object_y", self.object_y, 0.5),
+            ("object_x", self.object_x, 0.3f32 * k),
+            ("object_y", self.object_y, 0.5 * k),
             ("yaw", self.yaw, MAX_YAW),
         ] {
             if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -lim || hi > lim {
@@ -209,6 +216,15 @@ impl Variation {
     }
 }
 
+/// How much larger `arm`'s workspace is than the UR3's: its upper arm and forearm (|a2| + |a3|)
+/// over the UR3's, at least 1 (exactly 1 for the UR3 and the UR3e, whose arms are as long
+/// within 0.2 mm); what the start boxes' sanity bounds scale by.
+pub fn workspace_scale(arm: &ur3_kin::UrModel) -> f32 {
+    let len = |m: &ur3_kin::UrModel| m.a2.abs() + m.a3.abs();
+    let k = len(arm) / len(&ur3_kin::UR3);
+    if k < 1.01 { 1.0 } else { k as f32 }
+}
+
 /// Half extents (x, y) of the object's footprint on the table, unturned (the bolt's plate for Screw).
 fn footprint_half(spec: &TaskSpec) -> [f32; 2] {
     match (&spec.target, spec.object.half_extents) {
@@ -228,25 +244,26 @@ fn turned_half(half: [f32; 2], yaw: f32) -> [f32; 2] {
 }
 
 /// The tool0 pose heights and points at which a reachable place must have an IK solution.
-fn reachable(p: Vector3<f64>, tcp_z: f64, home: &[f64; 6]) -> bool {
+fn reachable(arm: &ur3_kin::UrModel, p: Vector3<f64>, tcp_z: f64, home: &[f64; 6]) -> bool {
     let radial = Vector3::new(p.x, p.y, 0.0);
     let n = radial.norm();
     let dir = if n > 1e-9 { radial / n } else { Vector3::x() };
     [REACH_MARGIN, -REACH_MARGIN].iter().all(|&m| {
         [0.0, 0.10].iter().all(|&up| {
             let q = p + dir * m + Vector3::new(0.0, 0.0, up);
-            ik_dls(&tool0_for_tcp(q, tcp_z), home).is_some()
+            ik_on(arm, &tool0_for_tcp(q, tcp_z), home).is_some()
         })
     })
 }
 
 /// How far from the base axis (m) the arm reaches a TCP at height `z` in the direction of
 /// `p` with the flange down (bisection of [`reachable`] without the margin), for messages.
-fn reach_along(p: Vector3<f64>, tcp_z: f64, home: &[f64; 6]) -> f64 {
+fn reach_along(arm: &ur3_kin::UrModel, p: Vector3<f64>, tcp_z: f64, home: &[f64; 6]) -> f64 {
     let radial = Vector3::new(p.x, p.y, 0.0);
     let dir = if radial.norm() > 1e-9 { radial / radial.norm() } else { Vector3::x() };
-    let ok = |r: f64| ik_dls(&tool0_for_tcp(dir * r + Vector3::new(0.0, 0.0, p.z), tcp_z), home).is_some();
-    let (mut lo, mut hi) = (0.2, 1.0);
+    let ok =
+        |r: f64| ik_on(arm, &tool0_for_tcp(dir * r + Vector3::new(0.0, 0.0, p.z), tcp_z), home).is_some();
+    let (mut lo, mut hi) = (0.2, (arm.reach() + 0.1).max(1.0));
     if !ok(lo) {
         return 0.0;
     }
@@ -342,25 +359,27 @@ impl Start {
         }
         let tcp_z = spec.tcp_z() as f64;
         let home = &spec.robot.home_q;
+        let arm = spec.arm();
         let v3 = |p: Vector| Vector3::new(p.x as f64, p.y as f64, p.z as f64);
         let why = |p: Vector3<f64>| {
-            let (r, limit) = (p.xy().norm(), reach_along(p, tcp_z, home));
+            let (r, limit) = (p.xy().norm(), reach_along(arm, p, tcp_z, home));
             if r + REACH_MARGIN < limit {
                 format!(
                     "{r:.3} m from the base axis is too close to the base for the flange to point down there (with {REACH_MARGIN} m to spare)"
                 )
             } else {
                 format!(
-                    "{r:.3} m from the base axis; the UR3 reaches {limit:.3} m that way with the flange down, and starts keep {REACH_MARGIN} m inside its reach"
+                    "{r:.3} m from the base axis; the {} reaches {limit:.3} m that way with the flange down, and starts keep {REACH_MARGIN} m inside its reach",
+                    crate::arm::display_name(arm)
                 )
             }
         };
         let grasp = v3(self.object_centre(spec) + Vector::new(0.0, 0.0, grasp_height(spec)));
-        if !reachable(grasp, tcp_z, home) {
+        if !reachable(arm, grasp, tcp_z, home) {
             return bad(format!("object_pose ({x}, {y}) m is out of reach: {}", why(grasp)));
         }
         let target = v3(self.target(spec));
-        if task != Task::Screw && !reachable(target, tcp_z, home) {
+        if task != Task::Screw && !reachable(arm, target, tcp_z, home) {
             return bad(format!(
                 "target_offset {:?} puts the target out of reach: {}",
                 self.target_offset,

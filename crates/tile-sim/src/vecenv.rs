@@ -193,7 +193,9 @@ impl VecEnv {
     /// How every env's episodes start from the next reset on ([`Variation`]); refused (and
     /// nothing changed) if out of range. Not part of [`VecEnv::state`] (each running episode's start is); a restore keeps it.
     pub fn set_variation(&mut self, v: crate::Variation) -> Result<(), SimError> {
-        v.validate()?;
+        for env in &self.envs {
+            v.validate_for(env.arm())?;
+        }
         for env in &mut self.envs {
             env.set_variation(v)?;
         }

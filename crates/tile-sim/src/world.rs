@@ -175,30 +175,10 @@ fn object_shape(spec: &TaskSpec) -> Shape {
     }
 }
 
-/// Arm link capsules in DH frame i (standard DH, UR3 numbers; radii from the UR3 housings).
-/// (frame index, a, b, radius).
+/// Arm link capsules of the UR3 in DH frame i (frame index, a, b, radius):
+/// [`crate::arm::capsules`] of the UR3, for tests and tools.
 pub fn arm_capsules() -> Vec<(u8, [f32; 3], [f32; 3], f32)> {
-    let m = ur3_kin::UR3;
-    let (a2, a3, d4, d5, d6) = (-m.a2 as f32, -m.a3 as f32, m.d4 as f32, m.d5 as f32, m.d6 as f32);
-    // Lateral offsets of the real links along the joint-2/3/4 axes: the upper arm sits 0.12 m
-    // out from the shoulder, the forearm 0.027 m; wrist 1 ends at d4.
-    let up = 0.12;
-    let fo = 0.027;
-    vec![
-        // frame 1 (shoulder): column down to the base (−y1 is down) and the shoulder housing along z1.
-        (1, [0.0, -0.06, 0.0], [0.0, 0.0, 0.0], 0.06),
-        (1, [0.0, 0.0, 0.0], [0.0, 0.0, up], 0.055),
-        // frame 2 (elbow at origin): upper arm from the shoulder (at +a2 along x2) to the elbow.
-        (2, [a2, 0.0, up], [0.0, 0.0, up], 0.045),
-        (2, [0.0, 0.0, up], [0.0, 0.0, fo], 0.045),
-        // frame 3 (wrist 1): forearm from the elbow, then the wrist-1 housing up to d4.
-        (3, [a3, 0.0, fo], [0.0, 0.0, fo], 0.035),
-        (3, [0.0, 0.0, fo], [0.0, 0.0, d4], 0.035),
-        // frame 4: wrist-2 housing along z4 up to d5.
-        (4, [0.0, 0.0, 0.0], [0.0, 0.0, d5], 0.035),
-        // frame 5: wrist-3 housing along z5 up to the flange (cap ends at d6).
-        (5, [0.0, 0.0, 0.0], [0.0, 0.0, d6 - 0.032], 0.032),
-    ]
+    crate::arm::capsules(&ur3_kin::UR3)
 }
 
 const G_ARM: Group = Group::GROUP_1;
@@ -257,10 +237,13 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
             .collision_groups(static_groups()),
         Some(table),
     );
-    // UR3 base housing (fixed cylinder, axis Z).
+    // The arm's base housing (fixed cylinder, axis Z).
+    let arm = spec.arm();
+    let dims = crate::arm::dims(arm).unwrap_or(&crate::arm::SIMULATED[0]);
+    let (base_r, base_hh) = (dims.base_radius, dims.base_half_height);
     w.insert_collider(
-        ColliderBuilder::cylinder(0.045, 0.064)
-            .position(Pose::from_parts(Vector::new(0.0, 0.0, 0.045), Rotation::from_rotation_x(FRAC_PI_2)))
+        ColliderBuilder::cylinder(base_hh, base_r)
+            .position(Pose::from_parts(Vector::new(0.0, 0.0, base_hh), Rotation::from_rotation_x(FRAC_PI_2)))
             .collision_groups(static_groups()),
         Some(table),
     );
@@ -302,7 +285,7 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
         *l = w.insert_body(RigidBodyBuilder::kinematic_position_based());
     }
     let mut parts: [Vec<(Pose, SharedShape)>; 6] = Default::default();
-    for (frame, a, b, r) in arm_capsules() {
+    for (frame, a, b, r) in crate::arm::capsules_of(arm, dims) {
         parts[frame as usize - 1]
             .push((Pose::IDENTITY, SharedShape::capsule(Vector::from(a), Vector::from(b), r)));
     }
@@ -398,6 +381,25 @@ pub fn pad_target_of(spec: &TaskSpec) -> Vector {
     }
 }
 
+/// The arm's scene items: its base housing (`<model>_base`, a world cylinder) and its link
+/// capsules ([`crate::arm::CAPSULE_NAMES`], each in its DH frame), for a simulated `model`.
+pub fn arm_items(model: &ur3_kin::UrModel) -> Vec<SceneItem> {
+    let dims = crate::arm::dims(model).unwrap_or(&crate::arm::SIMULATED[0]);
+    let grey = [0.6, 0.65, 0.7, 1.0];
+    let mut items = vec![item(
+        intern(&format!("{}_base", model.name)),
+        SceneFrame::World,
+        Shape::Cylinder { radius: dims.base_radius, half_height: dims.base_half_height },
+        [0.0, 0.0, dims.base_half_height],
+        grey,
+    )];
+    for (k, (frame, a, b, r)) in crate::arm::capsules_of(model, dims).into_iter().enumerate() {
+        let shape = Shape::Capsule { a, b, radius: r };
+        items.push(item(crate::arm::CAPSULE_NAMES[k], SceneFrame::Link(frame), shape, [0.0; 3], grey));
+    }
+    items
+}
+
 /// The static scene description of the built-in `task` at `start` (the pad, the target and the
 /// screw's plate where `start` puts them; the object item is relative to the object,
 /// `SceneFrame::Object`).
@@ -417,24 +419,7 @@ pub fn scene_spec(spec: &TaskSpec, start: &Start) -> Scene {
         [0.0, 0.0, top - table_half[2]],
         [0.72, 0.6, 0.45, 1.0],
     )];
-    items.push(item(
-        "ur3_base",
-        SceneFrame::World,
-        Shape::Cylinder { radius: 0.064, half_height: 0.045 },
-        [0.0, 0.0, 0.045],
-        [0.6, 0.65, 0.7, 1.0],
-    ));
-    for (k, (frame, a, b, r)) in arm_capsules().into_iter().enumerate() {
-        const NAMES: [&str; 8] =
-            ["shoulder_column", "shoulder", "upper_arm", "elbow", "forearm", "wrist1", "wrist2", "wrist3"];
-        items.push(item(
-            NAMES[k],
-            SceneFrame::Link(frame),
-            Shape::Capsule { a, b, radius: r },
-            [0.0; 3],
-            [0.6, 0.65, 0.7, 1.0],
-        ));
-    }
+    items.extend(arm_items(spec.arm()));
     let tool = SceneFrame::Link(6);
     let object =
         item(intern(&spec.object.name), SceneFrame::Object, object_shape(spec), [0.0; 3], spec.object.rgba);

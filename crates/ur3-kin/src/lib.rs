@@ -23,6 +23,7 @@ mod hand;
 mod ik;
 mod jacobian;
 mod layout;
+mod limits;
 mod model;
 pub mod urdf;
 
@@ -39,6 +40,7 @@ pub use ik::{
 };
 pub use jacobian::jacobian;
 pub use layout::{HandLayout, OPENXR_JOINTS};
+pub use limits::JointLimits;
 pub use model::{ALPHA, MODELS, UR3, UR3E, UR5, UR5E, UR10, UR10E, UrModel};
 pub use nalgebra;
 

@@ -3,6 +3,8 @@
 1. The Rust bench binary (``cargo bench -p tile-sim --bench vecenv``): VecEnv(64), uniform random
    actions, 1 and 2 threads, env-steps/s including FK, physics, observation stacking and
    auto-resets, no Python in the loop. Goal: >= 300k env-steps/s on 2 cores.
+   Then TileSuction per arm model (ur3, ur3e, ur5e, ur10e; the family specs in
+   ``crates/tile-sim/tasks/``), 2 threads, each beside the UR3 as a ratio.
 2. Through Python: ``mimicrete.envs.make_vec("TileSuction-v0", 64)`` (numpy in/out, the gymnasium
    VectorEnv wrapper, GIL released while the worlds step) beside ``Pusher-v5`` as a 16-env
    ``SyncVectorEnv`` (a 7-DoF MuJoCo arm pushing an object) in the same run, alternating rounds so

@@ -128,14 +128,17 @@ def obs_layout(task: str) -> dict[str, slice]:
     return {"q": slice(0, 6), "tcp": slice(7, 10), "target": slice(10, 13), "object": slice(13, 16)}
 
 
-def scene_from_obs(task: str, seed: int, obs: np.ndarray, frame_dim: int) -> Scene:
-    """Read a :class:`Scene` from a reset observation (newest frame last)."""
+def scene_from_obs(
+    task: str, seed: int, obs: np.ndarray, frame_dim: int, model: str = "ur3"
+) -> Scene:
+    """Read a :class:`Scene` from a reset observation (newest frame last) of an env whose arm is
+    ``model``."""
     from mimicrete import kin
 
     f = np.asarray(obs, dtype=np.float64).reshape(-1)[-frame_dim:]
     lay = obs_layout(task)
     tcp = f[lay["tcp"]]
-    tool0 = kin.fk(f[lay["q"]], model="ur3")
+    tool0 = kin.fk(f[lay["q"]], model=model)
     return Scene(
         task,
         int(seed),

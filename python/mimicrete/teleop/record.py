@@ -26,6 +26,17 @@ LAYOUT = "webxr"
 SPACE = "openxr"
 
 
+def robot_model_of(extra: dict[str, Any]) -> str:
+    """The arm a demo's episode ran on: its task spec's ``robot.model`` (``extra.task_spec``, the
+    spec as it was read), ``"ur3"`` for a built-in task."""
+    import json
+
+    spec = extra.get("task_spec")
+    if not spec:
+        return "ur3"
+    return str(json.loads(spec).get("robot", {}).get("model", "ur3"))
+
+
 def episode_meta(
     *,
     episode: int,
@@ -51,7 +62,7 @@ def episode_meta(
         "episode": int(episode),
         "task": task_sim,
         "seed": int(seed),
-        "robot_model": "ur3",
+        "robot_model": robot_model_of(extra),
         "gesture_model": gesture,
         "control_dt": float(CONTROL_DT),
         "hand": {"layout": layout, "space": space, "handedness": handedness},

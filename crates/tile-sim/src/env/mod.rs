@@ -158,6 +158,7 @@ impl Env {
             task,
             logic: task.logic(),
             s: State {
+                arm: spec.arm(),
                 spec,
                 world,
                 h,
@@ -189,6 +190,11 @@ impl Env {
     /// The task of this env.
     pub fn task(&self) -> Task {
         self.task
+    }
+
+    /// The arm this env simulates (its spec's `robot.model`).
+    pub fn arm(&self) -> &'static ur3_kin::UrModel {
+        self.s.arm
     }
 
     /// The spec this env runs.
@@ -268,7 +274,7 @@ impl Env {
 
     /// How this env's episodes start from now on (the next reset); refused if out of range.
     pub fn set_variation(&mut self, v: Variation) -> Result<(), SimError> {
-        v.validate()?;
+        v.validate_for(self.s.arm)?;
         self.variation = v;
         Ok(())
     }
@@ -323,7 +329,7 @@ impl Env {
 
     fn teleport_arm(&mut self, q: [f64; 6]) {
         self.s.q = q;
-        let frames = ur3_kin::fk_all(&ur3_kin::UR3, &q);
+        let frames = ur3_kin::fk_all(self.s.arm, &q);
         for i in 0..6 {
             let p = to_pose(&frames[i + 1]);
             if let Some(b) = self.s.world.bodies.get_mut(self.s.h.links[i]) {
@@ -367,7 +373,7 @@ impl Env {
             let a = action[i].clamp(-1.0, 1.0) as f64;
             qn[i] = (self.s.q[i] + a * MAX_JOINT_STEP).clamp(-PI, PI);
         }
-        let frames = ur3_kin::fk_all(&ur3_kin::UR3, &qn);
+        let frames = ur3_kin::fk_all(self.s.arm, &qn);
         for i in 0..6 {
             let p = to_pose(&frames[i + 1]);
             if let Some(b) = self.s.world.bodies.get_mut(self.s.h.links[i]) {

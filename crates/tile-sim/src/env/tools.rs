@@ -35,7 +35,7 @@ impl Env {
     /// Poses of the arm's DH frames 0..=6 in the Base frame (`ur3_kin::fk_all` of the current
     /// joints; 0 = Base, 6 = tool0), for drawing the `SceneFrame::Link(i)` items.
     pub fn link_poses(&self) -> [PoseRec; 7] {
-        let f = ur3_kin::fk_all(&ur3_kin::UR3, &self.s.q);
+        let f = ur3_kin::fk_all(self.s.arm, &self.s.q);
         std::array::from_fn(|i| PoseRec::from_pose(&to_pose(&f[i])))
     }
 

@@ -116,11 +116,14 @@ fn unused<T: Debug>(field: &str, v: Option<T>, logic: &str) -> Result<(), SpecEr
     }
 }
 
-fn check_variation(field: &str, v: &VariationSpec) -> Result<(), SpecError> {
+fn check_variation(field: &str, v: &VariationSpec, arm: &ur3_kin::UrModel) -> Result<(), SpecError> {
     let max_yaw_deg = MAX_YAW.to_degrees();
-    for (name, [lo, hi], lim) in
-        [("object_x", v.object_x, 0.3f32), ("object_y", v.object_y, 0.5), ("yaw_deg", v.yaw_deg, max_yaw_deg)]
-    {
+    let k = crate::starts::workspace_scale(arm);
+    for (name, [lo, hi], lim) in [
+        ("object_x", v.object_x, 0.3f32 * k),
+        ("object_y", v.object_y, 0.5 * k),
+        ("yaw_deg", v.yaw_deg, max_yaw_deg),
+    ] {
         if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -lim || hi > lim {
             return invalid(
                 &format!("{field}.{name}"),
@@ -254,8 +257,22 @@ impl TaskSpec {
             return invalid("name", &self.name, "must be a non-empty name of letters, digits and '_'");
         }
         self.check_about()?;
-        if self.robot.model != "ur3" {
-            return invalid("robot.model", &self.robot.model, "only the UR3 (\"ur3\") is simulated so far");
+        let simulated =
+            ur3_kin::UrModel::by_name(&self.robot.model).ok().filter(|m| crate::arm::dims(m).is_some());
+        let Some(arm) = simulated else {
+            let names = crate::arm::simulated_names().join(", ");
+            return invalid(
+                "robot.model",
+                &self.robot.model,
+                format!("the simulator has an arm for {names}"),
+            );
+        };
+        if self.robot.model != arm.name {
+            return invalid(
+                "robot.model",
+                &self.robot.model,
+                format!("write the model in lower case (\"{}\")", arm.name),
+            );
         }
         if !self.robot.home_q.iter().all(|q| q.is_finite() && q.abs() <= std::f64::consts::PI) {
             return invalid(
@@ -264,14 +281,21 @@ impl TaskSpec {
                 "joint angles must be finite and within [-pi, pi] rad",
             );
         }
+        if !arm.joint_limits().contains(&self.robot.home_q) {
+            return invalid(
+                "robot.home_q",
+                self.robot.home_q,
+                format!("outside the {}'s joint limits", arm.name),
+            );
+        }
         positive("table.half_extents", &self.table.half_extents)?;
         finite("table.top_z", &[self.table.top_z])?;
         friction("table.friction", self.table.friction)?;
         self.check_effector()?;
         self.check_object()?;
         self.check_target()?;
-        check_variation("starts.paper", &self.starts.paper)?;
-        check_variation("starts.wide", &self.starts.wide)?;
+        check_variation("starts.paper", &self.starts.paper, arm)?;
+        check_variation("starts.wide", &self.starts.wide, arm)?;
         check_thresholds(self.task(), &self.thresholds)?;
         let r = &self.rewards;
         finite("rewards.pick", &[r.pick])?;

@@ -74,7 +74,8 @@ pub struct AboutSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotSpec {
-    /// UR model name, as `ur3_kin` names it. Only `"ur3"` is simulated so far.
+    /// UR model name, as `ur3_kin` names it: one of the models the simulator has an arm for,
+    /// `"ur3"`, `"ur3e"`, `"ur5e"`, `"ur10e"` ([`crate::arm::SIMULATED`]).
     pub model: String,
     /// Joint angles (rad) at every episode start, base to wrist 3.
     pub home_q: [f64; 6],
@@ -402,6 +403,13 @@ impl TaskSpec {
             EffectorSpec::Suction { tcp_z, .. } => tcp_z,
             EffectorSpec::Gripper { finger_z, .. } => finger_z,
         }
+    }
+
+    /// The arm's kinematics: `robot.model` as `ur3_kin` knows it (a checked spec names one of
+    /// the models the simulator has an arm for, [`crate::arm::SIMULATED`]; an unknown name, in a
+    /// spec that was never checked, gives the UR3).
+    pub fn arm(&self) -> &'static ur3_kin::UrModel {
+        ur3_kin::UrModel::by_name(&self.robot.model).unwrap_or(&ur3_kin::UR3)
     }
 
     /// Half the object's height (m): its centre's height above the surface it rests on.

@@ -116,6 +116,8 @@ impl From<Task> for &'static str {
 pub(crate) struct State {
     /// The task's numbers.
     pub(crate) spec: Arc<TaskSpec>,
+    /// The arm's kinematics (the spec's `robot.model`).
+    pub(crate) arm: &'static ur3_kin::UrModel,
     pub(crate) world: PhysicsWorld,
     pub(crate) h: Handles,
     /// Joint angles, rad.

@@ -1,0 +1,107 @@
+//! The robot family in the simulator: the arm per model (capsules from the DH table, joint
+//! limits), TileSuction on a UR5e and a UR10e (`tasks/tile_suction_ur5e.toml`, `..._ur10e.toml`)
+//! and the scripted expert installing the tile on each.
+
+use std::sync::Arc;
+use tile_sim::expert::Expert;
+use tile_sim::{Env, StepOutcome, TaskSpec};
+
+fn spec_file(name: &str) -> Arc<TaskSpec> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks").join(name);
+    Arc::new(TaskSpec::from_file(&path).unwrap_or_else(|e| panic!("{name}: {e}")))
+}
+
+#[test]
+fn ur3_capsules_are_the_simulators_numbers_since_the_first_version() {
+    let (a2, a3, d4, d5, d6) = (0.24365f32, 0.21325f32, 0.11235f32, 0.08535f32, 0.0819f32);
+    let want: Vec<(u8, [f32; 3], [f32; 3], f32)> = vec![
+        (1, [0.0, -0.06, 0.0], [0.0, 0.0, 0.0], 0.06),
+        (1, [0.0, 0.0, 0.0], [0.0, 0.0, 0.12], 0.055),
+        (2, [a2, 0.0, 0.12], [0.0, 0.0, 0.12], 0.045),
+        (2, [0.0, 0.0, 0.12], [0.0, 0.0, 0.027], 0.045),
+        (3, [a3, 0.0, 0.027], [0.0, 0.0, 0.027], 0.035),
+        (3, [0.0, 0.0, 0.027], [0.0, 0.0, d4], 0.035),
+        (4, [0.0, 0.0, 0.0], [0.0, 0.0, d5], 0.035),
+        (5, [0.0, 0.0, 0.0], [0.0, 0.0, d6 - 0.032], 0.032),
+    ];
+    assert_eq!(tile_sim::arm::capsules(&ur3_kin::UR3), want);
+    assert_eq!(tile_sim::world::arm_capsules(), want);
+}
+
+#[test]
+fn every_simulated_model_has_capsules_from_its_own_dh_table() {
+    for d in &tile_sim::arm::SIMULATED {
+        let m = ur3_kin::UrModel::by_name(d.model).unwrap();
+        let c = tile_sim::arm::capsules(m);
+        assert_eq!(c.len(), 8);
+        assert_eq!(c[2].1[0], -m.a2 as f32, "{}: the upper arm spans a2", m.name);
+        assert_eq!(c[4].1[0], -m.a3 as f32, "{}: the forearm spans a3", m.name);
+        // the wrist-3 capsule's cap ends at the flange
+        assert!((c[7].2[2] + c[7].3 - m.d6 as f32).abs() < 1e-6, "{}", m.name);
+        assert!(c.iter().all(|(_, _, _, r)| *r > 0.0 && *r < 0.1));
+        // the expert's joint speed stays within every joint's rated speed
+        let lim = m.joint_limits();
+        let speed = tile_sim::MAX_JOINT_STEP / f64::from(tile_sim::CONTROL_DT);
+        assert!(lim.velocity.iter().all(|v| speed <= *v), "{}: {speed} rad/s", m.name);
+    }
+}
+
+#[test]
+fn the_family_specs_pass_the_check_and_name_their_arm() {
+    for (file, model) in [("tile_suction_ur5e.toml", "ur5e"), ("tile_suction_ur10e.toml", "ur10e")] {
+        let spec = spec_file(file);
+        assert_eq!(spec.arm().name, model);
+        let env = Env::from_spec(spec.clone(), 0);
+        assert_eq!(env.arm().name, model);
+        let names: Vec<&str> = env.scene().items.iter().map(|i| i.name).collect();
+        assert!(names.contains(&format!("{model}_base").as_str()), "{names:?}");
+    }
+}
+
+/// Installs of the scripted expert over `episodes` seeds of `spec`'s paper starts.
+fn expert_installs(spec: Arc<TaskSpec>, episodes: u64) -> (u64, u64) {
+    let task = spec.task();
+    let mut env = Env::from_spec(spec.clone(), 0);
+    let mut o = vec![0.0; task.obs_dim()];
+    let mut a = vec![0.0; task.act_dim()];
+    let mut ex = Expert::for_spec(&spec);
+    let (mut ok, mut picked) = (0, 0);
+    for seed in 0..episodes {
+        env.reset(Some(seed), &mut o).unwrap();
+        ex.reset();
+        loop {
+            ex.act(&env.snapshot(), &mut a);
+            let r: StepOutcome = env.step(&a, &mut o).unwrap();
+            if r.terminated || r.truncated {
+                ok += r.installed as u64;
+                picked += r.picked as u64;
+                break;
+            }
+        }
+    }
+    (ok, picked)
+}
+
+#[test]
+fn expert_installs_the_tile_on_a_ur5e() {
+    let (ok, picked) = expert_installs(spec_file("tile_suction_ur5e.toml"), 50);
+    println!("UR5e: expert installed {ok}/50, picked {picked}/50");
+    assert!(ok >= 49, "installed {ok}/50, picked {picked}/50");
+}
+
+#[test]
+fn expert_installs_the_tile_on_a_ur10e() {
+    let (ok, picked) = expert_installs(spec_file("tile_suction_ur10e.toml"), 50);
+    println!("UR10e: expert installed {ok}/50, picked {picked}/50");
+    assert!(ok >= 49, "installed {ok}/50, picked {picked}/50");
+}
+
+#[test]
+fn expert_installs_the_tile_on_a_ur3e() {
+    let text =
+        TaskSpec::builtin_toml(tile_sim::Task::TileSuction).replace("model = \"ur3\"", "model = \"ur3e\"");
+    let spec = Arc::new(TaskSpec::from_toml(&text, "tile_suction (ur3e)").unwrap());
+    let (ok, picked) = expert_installs(spec, 50);
+    println!("UR3e: expert installed {ok}/50, picked {picked}/50");
+    assert!(ok >= 49, "installed {ok}/50, picked {picked}/50");
+}
