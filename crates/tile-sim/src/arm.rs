@@ -54,26 +54,21 @@ pub struct ArmDims {
 pub const CAPSULE_NAMES: [&str; 8] =
     ["shoulder_column", "shoulder", "upper_arm", "elbow", "forearm", "wrist1", "wrist2", "wrist3"];
 
+/// The UR3's housings (the UR3e has the same, module docs).
+const UR3_DIMS: ArmDims = ArmDims {
+    model: "ur3",
+    shoulder_offset: 0.12,
+    elbow_offset: 0.027,
+    column: 0.06,
+    radii: [0.06, 0.055, 0.045, 0.045, 0.035, 0.035, 0.035, 0.032],
+    base_radius: 0.064,
+    base_half_height: 0.045,
+};
+
 /// The models the simulator has an arm for.
 pub const SIMULATED: [ArmDims; 4] = [
-    ArmDims {
-        model: "ur3",
-        shoulder_offset: 0.12,
-        elbow_offset: 0.027,
-        column: 0.06,
-        radii: [0.06, 0.055, 0.045, 0.045, 0.035, 0.035, 0.035, 0.032],
-        base_radius: 0.064,
-        base_half_height: 0.045,
-    },
-    ArmDims {
-        model: "ur3e",
-        shoulder_offset: 0.12,
-        elbow_offset: 0.027,
-        column: 0.06,
-        radii: [0.06, 0.055, 0.045, 0.045, 0.035, 0.035, 0.035, 0.032],
-        base_radius: 0.064,
-        base_half_height: 0.045,
-    },
+    UR3_DIMS,
+    ArmDims { model: "ur3e", ..UR3_DIMS },
     ArmDims {
         model: "ur5e",
         shoulder_offset: 0.138,

@@ -376,8 +376,7 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
             todo = []
             for starts in args.starts:
                 path = result_path(out, method, n, starts)
-                old = json.loads(path.read_text()) if path.exists() else {}
-                if old.get("steps") == steps and old.get("episodes") == args.episodes:
+                if _fresh(path, steps, args.episodes):
                     written.append(path)
                 else:
                     todo.append(starts)
@@ -392,18 +391,31 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
             )  # fmt: skip
             for starts, res in zip(todo, results, strict=True):
                 res["eval_seed"] = res.pop("seed")
-                res = {**{k: v for k, v in rec.items() if k != "command"}, **res}
-                res["train_command"] = rec["command"]
                 res["lerobot"] = res.pop("lerobot_version", None)
-                path = result_path(out, method, n, starts)
-                path.write_text(json.dumps(res, indent=1))
-                written.append(path)
-                logger.info(
-                    f"  {starts}: installed {res['installed_rate']:.0%}, picked "
-                    f"{res['picked_rate']:.0%}, length {res['mean_episode_length']:.0f} "
-                    f"({res['episodes']} episodes, {res['eval_wall_s']:.0f} s)"
-                )
+                written.append(_write_result(result_path(out, method, n, starts), rec, res))
     return written
+
+
+def _fresh(path: Path, steps: int, episodes: int) -> bool:
+    """Whether the result at ``path`` exists for this training budget and episode count."""
+    old = json.loads(path.read_text()) if path.exists() else {}
+    return old.get("steps") == steps and old.get("episodes") == episodes
+
+
+def _write_result(path: Path, rec: dict[str, Any], res: dict[str, Any]) -> Path:
+    """One result file (written whole): the training's record, then the evaluation's ``res``."""
+    from mimicrete.learn.run_files import atomic_write
+
+    res = {**{k: v for k, v in rec.items() if k != "command"}, **res}
+    res["train_command"] = rec["command"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, json.dumps(res, indent=1))
+    logger.info(
+        f"  {res['starts']}: installed {res['installed_rate']:.0%}, picked "
+        f"{res['picked_rate']:.0%}, length {res['mean_episode_length']:.0f} "
+        f"({res['episodes']} episodes, {res['eval_wall_s']:.0f} s)"
+    )
+    return path
 
 
 def _run_ours(args: argparse.Namespace, method: str, n: int) -> list[Path]:
@@ -421,20 +433,11 @@ def _run_ours(args: argparse.Namespace, method: str, n: int) -> list[Path]:
     written = []
     for starts in args.starts:
         path = result_path(out, method, n, starts)
-        old = json.loads(path.read_text()) if path.exists() else {}
-        if old.get("steps") != rec["steps"] or old.get("episodes") != args.episodes:
+        if not _fresh(path, rec["steps"], args.episodes):
             res = peers_ours.evaluate(
                 _run_child, out / "train" / f"{method}-n{n}", starts, args.episodes, args.nice
             )
-            res = {**{k: v for k, v in rec.items() if k != "command"}, **res}
-            res["train_command"] = rec["command"]
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps(res, indent=1))
-            logger.info(
-                f"  {starts}: installed {res['installed_rate']:.0%}, picked "
-                f"{res['picked_rate']:.0%}, length {res['mean_episode_length']:.0f} "
-                f"({res['episodes']} episodes, {res['eval_wall_s']:.0f} s)"
-            )
+            _write_result(path, rec, res)
         written.append(path)
     return written
 
