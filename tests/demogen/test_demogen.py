@@ -297,3 +297,36 @@ def test_screw_demos_close_the_gripper_from_the_first_step_at_the_nut(tmp_path):
         assert not any(g.startswith("opening") for g in (r["gesture"] for r in ep.rows[first:]))
         # ``screw_from_grasp``: the nut turns from the step after the grip on, to the end
         assert np.all(a[pick + 1 :, 7] >= 0.5), np.flatnonzero(a[pick + 1 :, 7] < 0.5)
+
+
+def test_cli_action_noise_perturbs_the_played_actions_by_sigma(source_dir, tmp_path):
+    """``--action-noise SIGMA``: every played joint action carries Gaussian noise of standard
+    deviation SIGMA (units of the joint step), recorded in the demos and the summary. Same seed,
+    same starts and episode seeds with and without: the first action of each episode (the arm at
+    the same reset, the IK at the same target) differs by the noise alone."""
+    common = ["--demos", str(source_dir), "--count", "6", "--seed", "3", "--no-progress"]
+    clean, noisy = tmp_path / "clean", tmp_path / "noisy"
+    r = run_cli("demogen", *common, "--out", str(clean))
+    assert r.returncode == 0, r.stderr
+    r = run_cli("demogen", *common, "--out", str(noisy), "--action-noise", "0.05")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((noisy / "demogen.json").read_text())["action_noise"] == 0.05
+    first, metas = {}, {}
+    for d in (clean, noisy):
+        loaded = {p.name: demos.load(p) for p in sorted(d.glob("gen_*.mcap"))}
+        first[d] = {  # keyed by the attempt (the start and episode seed it was drawn for)
+            x.metas[0]["attempt"]: x.actions[0, :6].astype(np.float64) for x in loaded.values()
+        }
+        metas[d] = [x.metas[0] for x in loaded.values()]
+    assert all(float(m["action_noise"]) == 0.05 for m in metas[noisy])
+    assert not any("action_noise" in m for m in metas[clean])
+    # the attempts that installed in both runs: first-step differences
+    both = sorted(set(first[clean]) & set(first[noisy]))
+    diffs = np.concatenate([first[noisy][n] - first[clean][n] for n in both])
+    assert len(diffs) >= 24
+    assert 0.025 < diffs.std() < 0.08, diffs
+    assert abs(diffs.mean()) < 0.03
+    bad = (("--action-noise", "-0.1"), ("--action-noise", "nan"), ("--grasp-jitter", "0.2"))
+    for flag, value in bad:
+        r = run_cli("demogen", *common, "--out", str(tmp_path / "bad"), flag, value)
+        assert r.returncode == 2 and flag in r.stderr and "Traceback" not in r.stderr, r.stderr

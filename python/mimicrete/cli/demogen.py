@@ -47,6 +47,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="give up after M episodes (default 4 x N + 20)",
     )
     parser.add_argument(
+        "--action-noise",
+        type=float,
+        default=None,
+        metavar="SIGMA",
+        help="standard deviation of Gaussian noise on every played joint action, in units of "
+        "the joint step (MimicGen's action noise, 0.05 in its configs); the noisy action is "
+        "executed and recorded (default: the task's, 0)",
+    )
+    parser.add_argument(
+        "--grasp-jitter",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="grasp up to M metres off the object's centre, the place corrected for it (default 0)",
+    )
+    parser.add_argument(
         "--overwrite", action="store_true", help="write into an --out that holds demos already"
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -79,6 +95,10 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(f"--source-count must be at least 1, got {args.source_count}")
     if args.max_attempts is not None and args.max_attempts < 1:
         raise UsageError(f"--max-attempts must be at least 1, got {args.max_attempts}")
+    if args.action_noise is not None and not 0 <= args.action_noise <= 1:
+        raise UsageError(f"--action-noise must be in [0, 1], got {args.action_noise}")
+    if not 0 <= args.grasp_jitter <= 0.05:
+        raise UsageError(f"--grasp-jitter must be in [0, 0.05] m, got {args.grasp_jitter}")
     if not 0 <= args.seed < 2**32:
         raise UsageError(f"--seed must be in [0, 2**32), got {args.seed}")
     if args.starts not in ("wide", "training", "robust") and not Path(args.starts).is_file():
@@ -119,6 +139,8 @@ def main(args: argparse.Namespace) -> int:
             seed=args.seed,
             max_attempts=args.max_attempts,
             progress=progress,
+            grasp_jitter=args.grasp_jitter,
+            action_noise=args.action_noise,
         )
     except dg.DemoGenError as e:
         raise UsageError(str(e)) from None
@@ -129,6 +151,8 @@ def main(args: argparse.Namespace) -> int:
         "sources": [s.name for s in sources],
         "starts": args.starts,
         "seed": args.seed,
+        "action_noise": args.action_noise,
+        "grasp_jitter": args.grasp_jitter,
         "attempts": rep.attempts,
         "kept": rep.kept,
         "yield": round(rep.yield_, 4),
