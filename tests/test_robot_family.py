@@ -39,3 +39,14 @@ def test_scripted_demos_install_on_the_arm_and_name_it(tmp_path: Path, model: st
                 break
             else:
                 raise AssertionError("no /scene")
+    # demogen plays the arm's own kinematics: the UR3's would put every pose of a larger arm
+    # somewhere else (or out of reach), and the new demos are of the arm they ran on
+    gen = tmp_path / "gen"
+    r = run_cli("demogen", "--demos", str(demos), "--count", "4", "--starts", "wide",
+                "--out", str(gen), "--max-attempts", "4", "--no-progress")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "yield 4/4" in r.stdout, r.stdout
+    for demo in sorted(gen.glob("*.mcap")):
+        with demo.open("rb") as f:
+            meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+            assert meta["episode_start"]["robot_model"] == model

@@ -68,6 +68,11 @@ def sim_env(task: str, task_file: str | None = None) -> Any:
     return _native.SimEnv(task_frames(task).sim, 0)
 
 
+def robot_model(sim: Any) -> str:
+    """The arm ``sim`` (a ``SimEnv``) simulates: its spec's ``robot.model`` (``ur3`` …)."""
+    return str(sim.spec()["robot"]["model"])
+
+
 def draw_starts(
     n: int, seed: int, starts: str = "wide", task: str = TASK, task_file: str | None = None
 ) -> list[dict[str, list[float]]]:
@@ -149,10 +154,11 @@ class _Runner:
         snap = sim.snapshot()
         self.q = np.asarray(snap["q"], np.float64)
         self.q_ik = self.q.copy()
+        self.model = robot_model(sim)
         self.done = False
 
     def pose(self) -> np.ndarray:
-        return kin.fk(self.q, model="ur3")
+        return kin.fk(self.q, model=self.model)
 
     def held(self) -> bool:
         return bool(self.sim.snapshot()["held"])
@@ -160,7 +166,7 @@ class _Runner:
     def step(self, target: np.ndarray, command: float | np.ndarray) -> None:
         spec = self.spec
         try:
-            sol = kin.ik(target, seed=self.q_ik, model="ur3")
+            sol = kin.ik(target, seed=self.q_ik, model=self.model)
         except IkError:
             raise _Abort("unreachable pose") from None
         if np.max(np.abs(wrap(sol - self.q_ik))) > BRANCH_JUMP:
@@ -398,7 +404,7 @@ def write_episode(
         "episode": int(index),
         "task": ep.task,
         "seed": int(ep.seed),
-        "robot_model": "ur3",
+        "robot_model": "ur3" if env is None else robot_model(env),
         "gesture_model": "",
         "control_dt": CONTROL_DT,
         "extra": info,

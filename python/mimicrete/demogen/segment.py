@@ -171,6 +171,12 @@ class SourceDemo:
         return self.meta.get("task_file")
 
     @property
+    def robot(self) -> str:
+        """The arm the demo ran on (its ``robot_model`` metadata; ``ur3`` for demos without it):
+        the kinematics its poses were computed with and the new episodes are played with."""
+        return self.meta.get("robot_model") or "ur3"
+
+    @property
     def length(self) -> int:
         return sum(len(s) for s in self.segments)
 
@@ -217,7 +223,7 @@ def segment_episode(
         )
     lay = spec.lay
     q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * tasks.CONTROL_DT])
-    poses = kin.fk_batch(q_after, model="ur3")
+    poses = kin.fk_batch(q_after, model=(meta or {}).get("robot_model") or "ur3")
     obj, target = f[0, lay["object"]], f[0, lay["target"]]
     cmds = actions[:, spec.commands].astype(np.float64)
     segs = [
