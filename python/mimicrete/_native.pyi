@@ -60,6 +60,7 @@ __all__ = [
     "scene_frames",
     "load_task_spec",
     "task_spec",
+    "hand_scale",
     "DemoWriter",
     "demo_parse_handlog",
     "demo_parse_handlog_str",
@@ -425,6 +426,11 @@ def load_task_spec(path: str) -> dict[str, Any]:
 
 def task_spec(task: str, as_toml: bool = False) -> Any:
     """The built-in spec of ``task`` as a dict (``as_toml=True``: the spec file's text, a str)."""
+
+def hand_scale(task: str = "suction", task_file: str | None = None) -> float:
+    """The hand → robot scale of live teleoperation in the spec file ``task_file`` (None:
+    ``task``'s built-in spec, 1.0): its ``robot.hand_scale``, else its arm's workspace scale
+    (|a2| + |a3| over the UR3's). Raises as :func:`load_task_spec`."""
 
 def scene_entities(task: str, seed: int = 0, model: str = "ur3") -> list[dict[str, Any]]:
     """The Foxglove ``SceneEntity`` objects (JSON-ready dicts) a demo of episode ``seed`` of

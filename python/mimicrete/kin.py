@@ -202,6 +202,15 @@ class Calibration:
         m[:3, 3] = self.translation
         return m
 
+    def scaled(self, k: float) -> Calibration:
+        """This calibration followed by scaling Base by ``k`` about its origin (the robot's base):
+        ``p_base = k · (rotation · (scale · to_flu(p)) + translation)``. A hand moving as before
+        moves the tool ``k`` times as far, over a scene laid out ``k`` times as large about the
+        base (a task spec's hand scale: :func:`mimicrete.teleop.view.task_calibration`);
+        ``k = 1`` gives the same numbers."""
+        k = float(k)
+        return Calibration(self.rotation.copy(), k * self.translation, k * self.scale, self.space)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form ``{rotation (3×3 lists), translation, scale, space}`` (the hand-log
         header's ``extra.calibration``)."""

@@ -82,6 +82,32 @@ def test_cli_records_installing_demos_through_the_server(tmp_path):
         np.testing.assert_array_equal(again.actions, d.actions)
 
 
+def test_cli_through_teleop_on_a_ur10e_maps_the_hand_at_the_specs_scale(tmp_path):
+    """``--task-file`` on the UR10e spec: the server's default calibration and the scripted
+    person's are the standing one at the spec's hand scale (the UR10e's workspace over the
+    UR3's), the hand log records it, and the demo installs."""
+    from pathlib import Path
+
+    from mimicrete import _native
+
+    spec = Path(__file__).resolve().parents[2] / "crates/tile-sim/tasks/tile_suction_ur10e.toml"
+    out = tmp_path / "live"
+    cmd = [sys.executable, "-m", "mimicrete", "synth-hands", "--through-teleop"]
+    r = subprocess.run(
+        [*cmd, "--task-file", str(spec), "--episodes", "1", "--seed", "0", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stderr
+    assert "1 succeeded" in r.stdout, r.stdout
+    k = _native.hand_scale("suction", str(spec))
+    assert k == pytest.approx(2.59, abs=0.01)
+    c = cv.load_log(out / "suction_0000.handlog.jsonl").header["extra"]["calibration"]
+    assert c["scale"] == pytest.approx(k)
+    np.testing.assert_allclose(c["translation"], k * standing_calibration().translation)
+
+
 def test_cli_through_teleop_refuses_another_layout(tmp_path):
     r = subprocess.run(
         [

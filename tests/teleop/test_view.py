@@ -4,12 +4,20 @@ table top 0.8 m under the head and the workspace 0.5 m in front of it, and the t
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from mimicrete import kin
 from mimicrete.teleop.session import Session
-from mimicrete.teleop.view import effector_state, standing_calibration, view_from_base
+from mimicrete.teleop.view import (
+    STANDING_BELOW,
+    effector_state,
+    standing_calibration,
+    task_calibration,
+    view_from_base,
+)
 
 
 def _local(calib: kin.Calibration, base_points: np.ndarray) -> np.ndarray:
@@ -49,3 +57,52 @@ def test_effector_state_of_each_task():
     ee = effector_state("screw", snap)
     assert ee == {"kind": "screw", "on": False, "spin": 0, "opening": pytest.approx(0.085)}
     assert effector_state("grip", snap)["opening"] == pytest.approx(0.085)
+
+
+TASKS = Path(__file__).resolve().parents[2] / "crates" / "tile-sim" / "tasks"
+
+
+@pytest.mark.parametrize("model", ["ur5e", "ur10e"])
+def test_a_larger_arms_spec_scales_the_standing_calibration(tmp_path, model):
+    """``mimicrete teleop --task-file`` on a UR5e / UR10e spec: Live's default calibration is the
+    standing one scaled by the spec's hand scale (the arm's workspace over the UR3's), so the
+    scaled scene's tile and pad are drawn where the UR3's are, the table as far below the head."""
+    from mimicrete import _native
+    from mimicrete.teleop.live import Live
+
+    spec = str(TASKS / f"tile_suction_{model}.toml")
+    k = _native.hand_scale("suction", spec)
+    dh = {m: _native.kin_dh(m) for m in ("ur3", model)}
+    arm = [abs(d["a2"]) + abs(d["a3"]) for d in dh.values()]
+    assert k == pytest.approx(arm[1] / arm[0], rel=1e-6) and k > 1.7
+    live = Live("suction", tmp_path / "out", task_file=spec, seed=0)
+    try:
+        calib = live.calibration
+        assert calib.scale == pytest.approx(k)
+        std = standing_calibration()
+        np.testing.assert_allclose(calib.translation, k * std.translation)
+        for seed in range(4):
+            snap = Session("suction", "webxr", "right", calib, seed, task_file=spec).snapshot()
+            local = _local(calib, np.array([snap["object"]["t"], snap["target"]["t"]]))
+            ahead, side = -local[:, 2], local[:, 0]
+            assert np.all((ahead > 0.35) & (ahead < 0.65)), local
+            assert np.all(np.abs(side) < 0.25), local
+        table_top = _local(calib, np.array([[0.0, 0.0, 0.0]]))[0]
+        assert table_top[1] == pytest.approx(-STANDING_BELOW)
+    finally:
+        live.close()
+
+
+def test_the_ur3_tasks_keep_the_standing_calibration_bit_for_bit(tmp_path):
+    from mimicrete import _native
+    from mimicrete.teleop.live import Live
+
+    spec = str(TASKS / "tile_suction.toml")
+    assert _native.hand_scale("suction") == 1.0 == _native.hand_scale("suction", spec)
+    assert "hand_scale" not in _native.load_task_spec(spec)["robot"]  # recorded specs as before
+    std = standing_calibration().to_dict()
+    for task_file in (None, spec):
+        assert task_calibration("suction", task_file).to_dict() == std
+        live = Live("suction", tmp_path / str(task_file is None), task_file=task_file)
+        assert live.calibration.to_dict() == std
+        live.close()

@@ -41,6 +41,18 @@ fn task_spec<'py>(py: Python<'py>, task: &str, as_toml: bool) -> PyResult<Any<'p
     to_py(py, &*TaskSpec::builtin(t))
 }
 
+/// The hand → robot scale of live teleoperation in the spec file `task_file` (None: `task`'s
+/// built-in spec, 1): its `robot.hand_scale`, else its arm's workspace scale
+/// (`TaskSpec::hand_scale`); raises as `load_task_spec`.
+#[pyfunction]
+#[pyo3(signature = (task = "suction", task_file = None))]
+fn hand_scale(task: &str, task_file: Option<&str>) -> PyResult<f32> {
+    Ok(match task_file {
+        Some(path) => read_spec(path)?.hand_scale(),
+        None => TaskSpec::builtin(parse_task(task)?).hand_scale(),
+    })
+}
+
 type Like<'py, T> = PyArrayLikeDyn<'py, T, AllowTypeChange>;
 type Actions<'py> = Like<'py, f32>;
 
@@ -478,6 +490,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimEnv>()?;
     m.add_class::<SimVecEnv>()?;
     m.add_class::<SimExpert>()?;
-    add_functions!(m => sim_constants, scene_entities, scene_frames, load_task_spec, task_spec);
+    add_functions!(m => sim_constants, scene_entities, scene_frames, load_task_spec, task_spec, hand_scale);
     Ok(())
 }

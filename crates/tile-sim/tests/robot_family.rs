@@ -58,6 +58,33 @@ fn the_family_specs_pass_the_check_and_name_their_arm() {
     }
 }
 
+#[test]
+fn the_hand_scale_is_the_arms_workspace_scale_unless_the_spec_sets_one() {
+    let len = |m: &ur3_kin::UrModel| (m.a2.abs() + m.a3.abs()) as f32;
+    for task in tile_sim::Task::ALL {
+        assert_eq!(task.spec().hand_scale(), 1.0, "{task:?}: the built-in UR3 tasks stay at 1");
+    }
+    for (file, model) in
+        [("tile_suction_ur5e.toml", &ur3_kin::UR5E), ("tile_suction_ur10e.toml", &ur3_kin::UR10E)]
+    {
+        let spec = spec_file(file);
+        let k = len(model) / len(&ur3_kin::UR3);
+        assert_eq!(spec.hand_scale(), tile_sim::workspace_scale(model), "{file}");
+        assert!((spec.hand_scale() - k).abs() < 1e-6, "{file}: {} vs {k}", spec.hand_scale());
+    }
+    // UR5e 0.8172 / 0.4569 m, UR10e 1.18425 / 0.4569 m
+    assert!((spec_file("tile_suction_ur5e.toml").hand_scale() - 1.789).abs() < 1e-3);
+    assert!((spec_file("tile_suction_ur10e.toml").hand_scale() - 2.592).abs() < 1e-3);
+    assert_eq!(tile_sim::workspace_scale(&ur3_kin::UR3E), 1.0);
+    // an explicit robot.hand_scale wins over the arm's
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks/tile_suction_ur10e.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let set = text.replacen("model = \"ur10e\"\n", "model = \"ur10e\"\nhand_scale = 2.2\n", 1);
+    assert_ne!(set, text);
+    let spec = TaskSpec::from_toml(&set, "ur10e_2.2.toml").unwrap();
+    assert_eq!(spec.hand_scale(), 2.2);
+}
+
 /// Installs of the scripted expert over `episodes` seeds of `spec`'s paper starts.
 fn expert_installs(spec: Arc<TaskSpec>, episodes: u64) -> (u64, u64) {
     let task = spec.task();

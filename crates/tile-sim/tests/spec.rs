@@ -135,6 +135,13 @@ fn bad_values_name_the_field_the_value_and_why() {
     assert_eq!((f.as_str(), v.as_str()), ("robot.model", "\"ur5\""));
     assert!(why.contains("ur3, ur3e, ur5e, ur10e"), "{why}");
 
+    for bad in ["0.0", "-1.5", "inf", "nan"] {
+        let (f, v, why) =
+            invalid(&edited("model = \"ur3\"\n", &format!("model = \"ur3\"\nhand_scale = {bad}\n")));
+        assert_eq!(f, "robot.hand_scale", "{bad}: {v}");
+        assert!(why.contains("> 0"), "{why}");
+    }
+
     let (f, v, why) = invalid(&edited("pick_dist = 0.04 ", "# pick_dist = 0.04 "));
     assert_eq!((f.as_str(), v.as_str()), ("thresholds.pick_dist", "(missing)"));
     assert!(why.contains("suction logic needs it"), "{why}");

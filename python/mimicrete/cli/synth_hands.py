@@ -24,7 +24,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--task-file",
         metavar="SPEC.toml",
         help="demonstrate the task this spec file describes (tile-sim task spec, version 1; "
-        "crates/tile-sim/tasks/*.toml are the built-in ones); --task, if given, must match it",
+        "crates/tile-sim/tasks/*.toml are the built-in ones); --task, if given, must match it. "
+        "The hands map to the robot at the spec's hand scale (robot.hand_scale, else the arm's "
+        "workspace over the UR3's: 1 on a UR3), so they move the UR3-size distances",
     )
     parser.add_argument("--episodes", type=int, default=60, help="hand logs to write (60)")
     parser.add_argument("--seed", type=int, default=0, help="seed: same seed, same files (0)")

@@ -42,7 +42,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar="SPEC.toml",
         help="record in the task this spec file describes (tile-sim task spec, version 1: its "
         "object, target, starts; docs/tasks.md); the page draws its scene, the demos and hand "
-        "logs name it",
+        "logs name it, and the hand moves the tool by the spec's hand scale (robot.hand_scale, "
+        "else the arm's workspace over the UR3's: 1 on a UR3, ~2.6 on a UR10e)",
     )
     parser.add_argument(
         "--out", required=True, metavar="DIR", help="where demos and hand logs are saved"
@@ -58,7 +59,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--calibration",
         metavar="FILE.json",
         help="tracking space -> Base calibration (default: DIR/calibration.json if a recentre "
-        "saved one, else the built-in default)",
+        "saved one, else a standing user's at the task spec's hand scale)",
     )
     parser.add_argument(
         "--gesture-model",
@@ -153,6 +154,9 @@ def main(args: argparse.Namespace) -> int:
     url = f"{scheme}://{shown}:{args.port}/" + ("?" + "&".join(query) if query else "")
     spec = f" ({args.task_file})" if args.task_file else ""
     print(f"mimicrete teleop: {task}{spec}, saving to {out}/ (episode {live.next_index} next)")
+    if live.calibration.scale != 1.0:
+        k = live.calibration.scale
+        print(f"  hand scale {k:.3g}: the tool moves {k:.3g} m per metre of hand")
     print(f"  {url}")
     print(model_line(live))
     if args.gestures:

@@ -32,7 +32,7 @@ person sees and the hand pose for a tool0 pose (steps 1 and 4).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -92,12 +92,18 @@ def synth_episode(
     calib = calib or Calibration()
     rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
     person = Person.draw(rng, handedness)
-    motion = plan_task(scene, rng, person)
+    # the person's speed, tremor and sway are the hand's (headset metres); the tool's are the
+    # calibration's scale times them (a task spec's hand scale: 1 on the UR3)
+    k = float(calib.scale)
+    tool = replace(
+        person, speed=k * person.speed, tremor_mm=k * person.tremor_mm, sway_mm=k * person.sway_mm
+    )
+    motion = plan_task(scene, rng, tool)
     tcp, shapes, phases, transport = motion.arrays()
     gestures, changing = motion.gestures()
     n = len(tcp)
     dt = 1.0 / HAND_RATE_HZ
-    tcp = tcp + _tremor(n, dt, rng, person)
+    tcp = tcp + _tremor(n, dt, rng, tool)
     # tool orientation: straight down with a slight slow wobble (< ~1°) and a personal yaw bias
     wob = np.radians(0.5) * _slow_noise(n, dt, rng, tau=0.6)
     yaw0 = rng.uniform(-0.05, 0.05)
@@ -182,16 +188,23 @@ def synth_hands(
 
     ``scene_fn(task, episode_seed) -> Scene`` defaults to :func:`scene_from_env`; with
     ``task_file`` (a task spec file running ``task``'s logic) the scenes are that spec's episode
-    starts and each header names the file and the spec (``task_file``, ``task_spec``).
+    starts, each header names the file and the spec (``task_file``, ``task_spec``), and the hands
+    map to Base through ur3-kin's default calibration scaled by the spec's hand scale
+    (:func:`mimicrete.teleop.view.task_calibration`; the same numbers on a UR3 spec).
     """
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}; known: {TASKS}")
     extra: dict[str, Any] | None = None
+    calib: Calibration | None = None
     if task_file is not None:
         from mimicrete import _native
+        from mimicrete.teleop.view import task_calibration
 
         spec_path = str(task_file)
         extra = {"task_file": spec_path, "task_spec": _native.load_task_spec(spec_path)}
+        # a person at human scale: ur3-kin's default calibration scaled by the spec's hand
+        # scale (1 on the UR3), so the hands move the UR3-size distances on a larger arm
+        calib = task_calibration(task, spec_path, Calibration())
         if scene_fn is None:
 
             def scene_fn(task: str, seed: int) -> Scene:
@@ -209,7 +222,12 @@ def synth_hands(
     for i, ep_seed in it:
         scene = scene_fn(task, ep_seed)
         ep = synth_episode(
-            scene, seed * 1_000_003 + i, layout=layout, handedness=handedness, extra=extra
+            scene,
+            seed * 1_000_003 + i,
+            layout=layout,
+            calib=calib,
+            handedness=handedness,
+            extra=extra,
         )
         paths.append(write_handlog(out / f"{task}_{i:04d}.handlog.jsonl", ep))
     return paths

@@ -164,12 +164,13 @@ def record_live(
     here (loopback), into ``out`` (demos and hand logs, as a live session writes them); returns
     the server's ``saved`` messages. Episode ``i`` plays on the server's seed ``seed + i``;
     ``progress``: a bar over the episodes; ``task_file``: the server records in that task spec
-    (``mimicrete teleop --task-file``) and the person plans from its scenes."""
+    (``mimicrete teleop --task-file``) and the person plans from its scenes, both at the spec's
+    hand scale (:func:`mimicrete.teleop.view.task_calibration`)."""
     from mimicrete.teleop.live import Live
     from mimicrete.teleop.server import ServerThread, TeleopServer
-    from mimicrete.teleop.view import standing_calibration
+    from mimicrete.teleop.view import task_calibration
 
-    calib = standing_calibration()
+    calib = task_calibration(task, task_file)  # the server's own default, from the spec
     live = Live(task, out, calibration=calib, seed=seed, mapping=mapping, task_file=task_file)
     rng = np.random.default_rng([seed, 0x11FE])
     takes = []

@@ -46,7 +46,7 @@ from .record import (
     write_handlog,
 )
 from .session import Session, Step
-from .view import HINTS, effector_state, follow_why, standing_calibration, view_from_base
+from .view import HINTS, effector_state, follow_why, task_calibration, view_from_base
 
 
 class Live:
@@ -56,7 +56,8 @@ class Live:
         task: ``suction`` / ``grip`` / ``screw``.
         out: folder for the demos (``TASK_NNNN.mcap``) and hand logs (``TASK_NNNN.handlog.jsonl``).
         calibration: tracking space → Base; None: ``out/calibration.json`` if saved by a
-            recentre, else ur3-kin's default.
+            recentre, else a standing user's scaled by the task spec's hand scale
+            (:func:`.view.task_calibration`; scale 1 on the UR3).
         seed: simulator seed of the first episode (the next ones count up).
         model: gesture model (default: ``out/gesture_<task>_user.joblib`` if the gesture mode
             saved one, else the shipped one for the task).
@@ -102,7 +103,8 @@ class Live:
             calibration = parse_calibration(
                 json.loads(self.calib_path.read_text()), str(self.calib_path), None, "calibration"
             )
-        self.calibration = calibration or standing_calibration()
+        #: a standing user's, scaled by the spec's hand scale (view.task_calibration)
+        self.calibration = calibration or task_calibration(task, task_file)
         self.events: list[dict[str, Any]] = []  # episode messages for the clients
         #: called from a worker thread when a save or a training has ended (the server wakes its
         #: loop to send the events and :meth:`GestureDesk.poll`); None: the next :meth:`push`

@@ -93,6 +93,20 @@ def standing_calibration(
     return Calibration(rotation, translation, 1.0, Calibration().space)
 
 
+def task_calibration(
+    task: str = "suction", task_file: str | None = None, base: Calibration | None = None
+) -> Calibration:
+    """``base`` (None: :func:`standing_calibration`) for the task spec file ``task_file`` (None:
+    ``task``'s built-in spec): Base scaled about the robot's base by the spec's hand scale
+    (``_native.hand_scale``: its ``robot.hand_scale``, else its arm's workspace scale, tile-sim's
+    ``workspace_scale``; 1 for the UR3 tasks, which get ``base`` unchanged). The workspace centre
+    and the head's height and distance scale with it, so a person standing as at the UR3, hands
+    moving the UR3-size distances, reaches across the larger arm's scene, drawn ``1/scale`` the
+    size. What ``mimicrete teleop``, the scripted live client and ``synth-hands`` map hands with."""
+    base = standing_calibration() if base is None else base
+    return base.scaled(_native.hand_scale(task, task_file))
+
+
 def view_from_base(calibration: Calibration) -> list[float]:
     """The 4×4 (column-major) from Base into the tracking space: the inverse of the calibration's
     affine map, read off ur3-kin's ``points_to_base`` (so the axis change lives in one place)."""

@@ -288,6 +288,15 @@ impl TaskSpec {
                 format!("outside the {}'s joint limits", arm.name),
             );
         }
+        if let Some(k) = self.robot.hand_scale {
+            if !(k.is_finite() && k > 0.0) {
+                return invalid(
+                    "robot.hand_scale",
+                    k,
+                    "must be a finite scale > 0 (tool metres per hand metre)",
+                );
+            }
+        }
         positive("table.half_extents", &self.table.half_extents)?;
         finite("table.top_z", &[self.table.top_z])?;
         friction("table.friction", self.table.friction)?;

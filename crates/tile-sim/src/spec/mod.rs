@@ -79,6 +79,13 @@ pub struct RobotSpec {
     pub model: String,
     /// Joint angles (rad) at every episode start, base to wrist 3.
     pub home_q: [f64; 6],
+    /// How far the tool moves per metre the teleoperator's hand moves (the calibration's
+    /// `scale`, ur3-kin's `hand::Calibration`); absent: the arm's [`workspace_scale`]
+    /// (1 for the UR3 and UR3e), [`TaskSpec::hand_scale`]. Finite and > 0.
+    ///
+    /// [`workspace_scale`]: crate::workspace_scale
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
+    pub hand_scale: Option<f32>,
 }
 
 /// The table: a fixed box whose top face is the plane `z = top_z`, centred under the base.
@@ -410,6 +417,15 @@ impl TaskSpec {
     /// spec that was never checked, gives the UR3).
     pub fn arm(&self) -> &'static ur3_kin::UrModel {
         ur3_kin::UrModel::by_name(&self.robot.model).unwrap_or(&ur3_kin::UR3)
+    }
+
+    /// The hand → robot scale of live teleoperation with this spec: `robot.hand_scale` if the
+    /// spec sets it, else the arm's [`workspace_scale`](crate::workspace_scale) (its |a2| + |a3|
+    /// over the UR3's: 1 for the UR3 and UR3e, about 1.79 for the UR5e, 2.59 for the UR10e), so
+    /// a person's hand moving the UR3-size distances moves the larger arm's tool across its
+    /// larger workspace.
+    pub fn hand_scale(&self) -> f32 {
+        self.robot.hand_scale.unwrap_or_else(|| crate::starts::workspace_scale(self.arm()))
     }
 
     /// Half the object's height (m): its centre's height above the surface it rests on.
