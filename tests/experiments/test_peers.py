@@ -173,3 +173,19 @@ def test_ours_and_paper_in_the_grid(one_demo, tmp_path, capsys):
     assert f"| {peers_report.LABELS['ours']} | 1 |" in text
     assert f"| {peers_report.LABELS['paper']} | 1 |" in text
     assert f"{ours['steps']:,} env steps" in text and "demogen" in text
+
+
+def test_the_budget_column_says_whether_a_capped_run_converged():
+    """With --stop-on-convergence the step budget is a cap: a run that stopped below it converged,
+    one whose last update crossed it did not; a fixed budget shows the steps alone."""
+    base = {"batch_size": None, "stop_on_convergence": True, "budget_asked": 2_000_000}
+    assert peers_report._budget({**base, "steps": 1_269_760}) == (
+        "1,269,760 env steps (converged; cap 2,000,000)"
+    )
+    assert peers_report._budget({**base, "steps": 2_007_040}) == (
+        "2,007,040 env steps (not converged; cap 2,000,000)"
+    )
+    fixed = {**base, "stop_on_convergence": False, "steps": 1_003_520}
+    assert peers_report._budget(fixed) == "1,003,520 env steps"
+    offline = {"batch_size": 8, "steps": 1000, "epochs": 5.05}
+    assert peers_report._budget(offline) == "1000 × 8 (5.05)"

@@ -78,7 +78,9 @@ def _budget(r: dict[str, Any]) -> str:
     if r["batch_size"] is None:
         cap = r.get("budget_asked")
         if r.get("stop_on_convergence") and cap:
-            return f"{r['steps']:,} env steps (converged; cap {cap:,})"
+            # the last update crosses the cap: a run that reached it did not converge
+            how = "converged" if r["steps"] < cap else "not converged"
+            return f"{r['steps']:,} env steps ({how}; cap {cap:,})"
         return f"{r['steps']:,} env steps"
     return f"{r['steps']} × {r['batch_size']} ({r['epochs']:g})"
 
