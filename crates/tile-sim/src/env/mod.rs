@@ -98,6 +98,11 @@ pub struct Snapshot {
     pub picked: bool,
     /// The episode has terminated or been truncated.
     pub done: bool,
+    /// TileRow: every tile of the row in row order (its pose, its target, picked and installed
+    /// this episode); `object` and `target` above are the current tile's (the held one, else the
+    /// first not installed). Empty, and not serialized, for the other tasks.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub row: Vec<crate::task::tile_row::RowTile>,
 }
 
 fn to_pose(iso: &ur3_kin::Pose) -> Pose {
@@ -173,6 +178,7 @@ impl Env {
                 picked: false,
                 start: Start::default(),
                 target: Pose::IDENTITY,
+                row: Default::default(),
             },
             rng,
             episode_seed: first,
@@ -407,7 +413,7 @@ impl Env {
             self.s.world.step();
         }
         self.step_idx += 1;
-        self.logic.evaluate(&self.s, &mut out);
+        self.logic.evaluate(&mut self.s, &mut out);
         out.picked = self.s.picked;
         out.held = self.s.held;
         if !out.terminated && self.step_idx >= self.s.spec.episode.max_steps {
@@ -419,11 +425,11 @@ impl Env {
     }
 
     /// Whether any arm/finger collider, swept from its current to its next pose, comes within
-    /// [`SKIP_MARGIN`] of the object's bounding box.
-    fn arm_near_object(&self) -> bool {
+    /// [`SKIP_MARGIN`] of the bounding box of the object `object`.
+    fn arm_near_object(&self, object: RigidBodyHandle) -> bool {
         let bodies = &self.s.world.bodies;
         let colliders = &self.s.world.colliders;
-        let Some(obj) = bodies.get(self.s.h.object) else { return true };
+        let Some(obj) = bodies.get(object) else { return true };
         let aabb_of = |pose: &Pose, c: ColliderHandle| {
             colliders.get(c).map(|col| {
                 let local = col.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
@@ -454,18 +460,33 @@ impl Env {
 
     /// Decide this step's physics: wake a sleeping object the arm is about to reach (in every
     /// mode, so contacts always act on an awake body), and return true when the step could not
-    /// move anything: the only dynamic body (the object) is kinematic (held, or the nut) or asleep
-    /// with the arm away from it.
+    /// move anything: every dynamic body (the object, or each object of a row) is kinematic
+    /// (held, or the nut) or asleep with the arm away from it.
     fn physics_idle(&mut self) -> bool {
-        let Some(obj) = self.s.world.bodies.get(self.s.h.object) else { return false };
+        if self.s.h.row.is_empty() {
+            return self.object_idle(self.s.h.object);
+        }
+        let mut idle = true;
+        for i in 0..self.s.h.row.len() {
+            // Every object is judged (not only up to the first busy one): each sleeping object
+            // the arm reaches is woken.
+            idle &= self.object_idle(self.s.h.row[i]);
+        }
+        idle
+    }
+
+    /// [`Env::physics_idle`] for one object: wake it if it sleeps and the arm is about to reach
+    /// it; true when the step cannot move it.
+    fn object_idle(&mut self, object: RigidBodyHandle) -> bool {
+        let Some(obj) = self.s.world.bodies.get(object) else { return false };
         if !obj.is_dynamic() {
             return true;
         }
         if !obj.is_sleeping() {
             return false;
         }
-        if self.arm_near_object() {
-            self.s.world.wake_up(self.s.h.object, true);
+        if self.arm_near_object(object) {
+            self.s.world.wake_up(object, true);
             return false;
         }
         true

@@ -29,6 +29,7 @@ impl Env {
             episode_seed: self.episode_seed,
             picked: s.picked,
             done: self.done,
+            row: crate::task::tile_row::snapshot_row(s),
         }
     }
 
