@@ -15,11 +15,11 @@
 //!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
 //! * The arm links are `kinematic_position_based` bodies placed by `ur3_kin::fk_all` each step, so
 //!   the arm cannot be pushed, but it pushes (and can knock over, sweep off, or crush) the object.
-//! * Idle steps skip the solver: when the only dynamic body (the object) is held/kinematic, or
-//!   asleep with every arm collider (swept over the step) more than 2 cm from it, the kinematic
-//!   bodies are placed directly and `PhysicsWorld::step` is not called (Rapier would not move
-//!   anything either; a sleeping object is woken as soon as the arm comes within 2 cm, in every
-//!   mode). `Env::set_skip_idle_physics(false)` turns this off; a test checks that expert
+//! * Idle steps skip the solver: when every dynamic body (the object, or each tile of a row) is
+//!   held/kinematic, or asleep with every arm collider (swept over the step) more than 2 cm from
+//!   it, the kinematic bodies are placed directly and `PhysicsWorld::step` is not called (Rapier
+//!   would not move anything either; a sleeping object is woken as soon as the arm comes within
+//!   2 cm, in every mode). `Env::set_skip_idle_physics(false)` turns this off; a test checks that expert
 //!   episodes end identically either way.
 //! * Measured on this 2-core VM (`cargo bench -p tile-sim --bench vecenv`, shared with other
 //!   engineers' builds at load average 3–5, so figures vary ±50 %): a TileSuction step that runs

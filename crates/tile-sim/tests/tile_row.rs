@@ -394,3 +394,20 @@ fn bad_rows_are_refused_naming_the_field() {
     let (f, _, _) = invalid(&text);
     assert_eq!(f, "row.object_pitch", "two tiles in one place");
 }
+
+/// The robustness evaluation's starts of the row (`Variation::named_in("robust", spec)`: the
+/// paper's x range widened by half its width each side, the targets moved up to 2 cm on fixed
+/// pads) are valid, and the expert installs the row from them in ≥ 45 of 50 episodes.
+#[test]
+fn the_robust_starts_of_the_row_are_valid_and_installed() {
+    let spec = TASK.spec();
+    let v = Variation::named_in("robust", &spec).unwrap();
+    assert!((v.object_x[0] - (-0.23)).abs() < 1e-6 && (v.object_x[1] - (-0.11)).abs() < 1e-6, "{v:?}");
+    for seed in 0..2000 {
+        let st = v.start(TASK, seed);
+        st.check_in(&spec).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+    }
+    let ok = (0..50).filter(|&seed| expert_episode(seed, v).2).count();
+    eprintln!("TileRow expert at the robust starts: {ok}/50");
+    assert!(ok >= 45, "robust: {ok}/50");
+}
