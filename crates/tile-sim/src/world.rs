@@ -214,6 +214,11 @@ fn object_groups() -> InteractionGroups {
     InteractionGroups::new(G_OBJECT, G_ARM.union(G_STATIC), InteractionTestMode::And)
 }
 
+/// The objects of a row also touch each other (a tile pushed into its neighbour moves it).
+fn row_object_groups() -> InteractionGroups {
+    InteractionGroups::new(G_OBJECT, G_ARM.union(G_STATIC).union(G_OBJECT), InteractionTestMode::And)
+}
+
 /// Handles of one built world.
 #[derive(Debug, Clone)]
 pub struct Handles {
@@ -381,7 +386,8 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
         TargetSpec::Bolt { .. } => RigidBodyBuilder::kinematic_position_based().translation(object_pos),
         TargetSpec::Pad { .. } => RigidBodyBuilder::dynamic().pose(object_at),
     };
-    let collider = collider.collision_groups(object_groups());
+    let groups = if spec.row.is_some() { row_object_groups() } else { object_groups() };
+    let collider = collider.collision_groups(groups);
     let object = w.insert_body(body);
     w.insert_collider(collider.clone(), Some(object));
     // The rest of a row: copies of the object at their places in the row, turned alike.

@@ -210,7 +210,7 @@ fn row_digest() -> (u64, u32) {
 fn tile_row_episodes_are_bit_identical_to_the_recorded_ones() {
     let (digest, installs) = row_digest();
     assert_eq!(installs, 2 * SEEDS.len() as u32, "the expert installs every row it is given");
-    assert_eq!(digest, 0xec34e52db20af23f, "TileRow digest now {digest:#018x}");
+    assert_eq!(digest, 0xd2713cd36d31181c, "TileRow digest now {digest:#018x}");
 }
 
 /// The constants record as it was (digest recorded at commit 22561ac), plus TileRow's sizes: the

@@ -411,3 +411,54 @@ fn the_robust_starts_of_the_row_are_valid_and_installed() {
     eprintln!("TileRow expert at the robust starts: {ok}/50");
     assert!(ok >= 45, "robust: {ok}/50");
 }
+
+/// The row's tiles touch each other: tile 2 (the last), held on the table by a point 3.5 cm from
+/// its centre away from tile 1 and slid 4 cm towards tile 1 (2 cm away), pushes tile 1 about 2 cm
+/// along instead of passing into it, with the idle-physics skip on and off alike. (Held so, the
+/// cups stay more than the skip's 2 cm margin from tile 1 and no other tile is near them: only
+/// the held tile, which the skip counts as part of the arm, comes near tile 1.)
+#[test]
+fn a_held_tile_pushes_its_neighbour() {
+    for skip in [true, false] {
+        let mut env = Env::new(TASK, 0);
+        env.set_skip_idle_physics(skip);
+        let mut obs = vec![0.0f32; TASK.obs_dim()];
+        env.reset(Some(3), &mut obs).unwrap();
+        // Let the tiles fall asleep (the skip then has steps to skip).
+        for _ in 0..100 {
+            env.step(&HOLD, &mut obs).unwrap();
+        }
+        assert_eq!(env.skipped_steps() > 0, skip);
+        let s = env.snapshot();
+        let (x1, r2) = (s.row[1].object.t[0], s.row[2].object);
+        let off_centre = tile_sim::PoseRec { t: [r2.t[0] + 0.035, r2.t[1], r2.t[2]], q: r2.q };
+        cups_over(&mut env, &off_centre, 0.005);
+        let o = env.step(&ON, &mut obs).unwrap();
+        assert!(o.held && env.snapshot().object == env.snapshot().row[2].object);
+        let tcp = Vector3::from(env.snapshot().tcp.t);
+        for k in 1..=20 {
+            let goal = tcp - Vector3::new(0.002 * k as f64, 0.0, 0.0);
+            let q_goal = ik_dls(&tool0_for_tcp(goal, 0.05), &env.snapshot().q).unwrap();
+            for _ in 0..10 {
+                let q = env.snapshot().q;
+                if q.iter().zip(&q_goal).all(|(a, b)| (a - b).abs() < 1e-6) {
+                    break;
+                }
+                let mut a = HOLD;
+                for i in 0..6 {
+                    a[i] = ((q_goal[i] - q[i]) / 0.04).clamp(-1.0, 1.0) as f32;
+                }
+                let o = env.step(&a, &mut obs).unwrap();
+                assert!(!o.terminated, "skip {skip}: {o:?}");
+            }
+        }
+        for _ in 0..10 {
+            env.step(&HOLD, &mut obs).unwrap();
+        }
+        let s = env.snapshot();
+        let (t1, t2) = (Vector3::from(s.row[1].object.t), Vector3::from(s.row[2].object.t));
+        assert!((t2.x - (r2.t[0] - 0.04)).abs() < 1e-3, "skip {skip}: tile 2 moved with the cups");
+        assert!(x1 - t1.x > 0.012, "skip {skip}: tile 1 pushed {} m", x1 - t1.x);
+        assert!((t2 - t1).norm() > 0.15 - 0.003, "skip {skip}: tiles {} m apart", (t2 - t1).norm());
+    }
+}

@@ -424,8 +424,8 @@ impl Env {
         out
     }
 
-    /// Whether any arm/finger collider, swept from its current to its next pose, comes within
-    /// [`SKIP_MARGIN`] of the bounding box of the object `object`.
+    /// Whether any arm/finger collider (or, in a row, the held object's), swept from its current
+    /// to its next pose, comes within [`SKIP_MARGIN`] of the bounding box of the object `object`.
     fn arm_near_object(&self, object: RigidBodyHandle) -> bool {
         let bodies = &self.s.world.bodies;
         let colliders = &self.s.world.colliders;
@@ -444,7 +444,10 @@ impl Env {
         }
         let Some(obj_box) = obj_box.map(|a| a.loosened(SKIP_MARGIN)) else { return true };
         let fingers = self.s.h.fingers.as_ref().map(|f| f.as_slice()).unwrap_or(&[]);
-        for h in self.s.h.links.iter().chain(fingers) {
+        // A held tile of a row moves with the arm and pushes the others.
+        let carried = self.s.held && !self.s.h.row.is_empty() && self.s.h.object != object;
+        let held = if carried { std::slice::from_ref(&self.s.h.object) } else { &[] };
+        for h in self.s.h.links.iter().chain(fingers).chain(held) {
             let Some(b) = bodies.get(*h) else { continue };
             for &c in b.colliders() {
                 let (Some(a0), Some(a1)) = (aabb_of(b.position(), c), aabb_of(b.next_position(), c)) else {
