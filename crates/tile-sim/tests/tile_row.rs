@@ -462,3 +462,29 @@ fn a_held_tile_pushes_its_neighbour() {
         assert!((t2 - t1).norm() > 0.15 - 0.003, "skip {skip}: tiles {} m apart", (t2 - t1).norm());
     }
 }
+
+/// A tile let go 2.5 cm above its target (within the 3 cm) is not installed while it falls; it
+/// is installed, +1 once, when it has come to rest on its pad.
+#[test]
+fn a_falling_tile_is_installed_once_it_rests() {
+    let mut env = Env::new(TASK, 0);
+    let mut obs = vec![0.0f32; TASK.obs_dim()];
+    env.reset(Some(11), &mut obs).unwrap();
+    let r0 = env.snapshot().row[0].object;
+    cups_over(&mut env, &r0, 0.005);
+    assert_eq!(env.step(&ON, &mut obs).unwrap().reward, 1.0);
+    let target = Vector3::from(env.snapshot().row[0].target.t);
+    hold_tile_at(&mut env, target + Vector3::new(0.0, 0.0, 0.025));
+    let o = env.step(&OFF, &mut obs).unwrap();
+    let s = env.snapshot();
+    let d = (Vector3::from(s.row[0].object.t) - target).norm();
+    assert!(d < 0.03 && s.row[0].object.t[2] > target.z + 0.005, "falling, {d} m from its target");
+    assert!(o.reward == 0.0 && !s.row[0].installed, "not installed while falling");
+    let mut paid = vec![];
+    for _ in 0..20 {
+        paid.push(env.step(&HOLD, &mut obs).unwrap().reward);
+    }
+    assert_eq!(paid.iter().sum::<f32>(), 1.0, "{paid:?}");
+    let s = env.snapshot();
+    assert!(s.row[0].installed && (Vector3::from(s.row[0].object.t) - target).norm() < 0.005);
+}

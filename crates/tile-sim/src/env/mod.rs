@@ -56,11 +56,12 @@ pub struct StepOutcome {
     /// for the built-in tasks) without terminating.
     pub truncated: bool,
     /// The object has been picked/gripped at some step of this episode (ever, including now):
-    /// the paper's "picked rate" counts episodes with `picked` at their end.
+    /// the paper's "picked rate" counts episodes with `picked` at their end. TileRow: any tile.
     pub picked: bool,
     /// The object is held by the end effector right now (after this step).
     pub held: bool,
-    /// The success event (install / place / tightened) happened in this step.
+    /// The success event (install / place / tightened; TileRow: the row complete, its last
+    /// tile installed) happened in this step.
     pub installed: bool,
     /// The failure event (tile/block fell, nut spun off) happened in this step.
     pub fell: bool,
@@ -76,11 +77,11 @@ pub struct Snapshot {
     pub tool0: PoseRec,
     /// End-effector TCP: cup centre (suction) or point between the fingers (gripper).
     pub tcp: PoseRec,
-    /// Object (tile / block / nut) centre pose.
+    /// Object (tile / block / nut; TileRow: the current tile, see `row`) centre pose.
     pub object: PoseRec,
     /// Target pose of the object centre (tile/block on the pad, nut fully tightened).
     pub target: PoseRec,
-    /// Suction state (TileSuction; false otherwise).
+    /// Suction state (TileSuction, TileRow; false otherwise).
     pub suction_on: bool,
     /// The object is held.
     pub held: bool,
@@ -94,7 +95,7 @@ pub struct Snapshot {
     pub step: u32,
     /// The seed this episode was reset with.
     pub episode_seed: u64,
-    /// Picked ever this episode.
+    /// Picked ever this episode (TileRow: any tile).
     pub picked: bool,
     /// The episode has terminated or been truncated.
     pub done: bool,
