@@ -488,3 +488,31 @@ fn a_falling_tile_is_installed_once_it_rests() {
     let s = env.snapshot();
     assert!(s.row[0].installed && (Vector3::from(s.row[0].object.t) - target).norm() < 0.005);
 }
+
+/// A spec's row of two (TileRow's file with `count = 2`): two tiles and two pads in the world
+/// and the scene, the frame's third slot zero, and the expert installs both (rewards 4).
+#[test]
+fn a_row_of_two_runs_from_its_spec() {
+    let spec =
+        std::sync::Arc::new(TaskSpec::from_toml(&edited(ROW, "count = 3", "count = 2"), "two.toml").unwrap());
+    assert_eq!(spec.task(), TASK);
+    let mut env = Env::from_spec(spec.clone(), 0);
+    let mut obs = vec![0.0f32; TASK.obs_dim()];
+    env.reset(Some(2), &mut obs).unwrap();
+    assert_eq!(env.snapshot().row.len(), 2);
+    let count = |n: &str| env.scene().items.iter().filter(|i| i.name == n).count();
+    assert_eq!((count("pad"), count("tile")), (2, 2));
+    let f = &obs[4 * 31..];
+    assert!(f[24..31].iter().all(|v| *v == 0.0) && f[17..24].iter().any(|v| *v != 0.0));
+    let mut ex = Expert::for_spec(&spec);
+    let mut sum = 0.0;
+    let last = loop {
+        let o = expert_step(&mut env, &mut ex, &mut obs);
+        sum += o.reward;
+        if o.terminated || o.truncated {
+            break o;
+        }
+    };
+    assert!(last.installed && (sum - 4.0).abs() < 1e-6, "{last:?}, rewards {sum}");
+    assert!(env.snapshot().row.iter().all(|r| r.installed));
+}
