@@ -362,6 +362,14 @@ fn bad_rows_are_refused_naming_the_field() {
     assert_eq!(f, "row.object_pitch");
     assert!(why.contains("starts.wide.yaw_deg") && why.contains("-30"), "{why}");
 
+    // A pitch turned 20° from x, 0.2 m long: the tiles are clear at both ends of a yaw range
+    // [-30°, -20°] and at 0°, and overlap inside it (deepest at -25°, 0.0086 m).
+    let text = edited(ROW, "yaw_deg = [-10.0, 10.0]", "yaw_deg = [-30.0, -20.0]");
+    let (f, _, why) =
+        invalid(&edited(&text, "object_pitch = [0.17, 0.0]", "object_pitch = [0.1879, 0.0684]"));
+    assert_eq!(f, "row.object_pitch");
+    assert!(why.contains("starts.wide.yaw_deg") && why.contains("overlap"), "{why}");
+
     // A row whose far tile leaves the reach: refused by the start box check, naming the tile.
     let (f, _, why) = invalid(&edited(ROW, "object_pitch = [0.17, 0.0]", "object_pitch = [0.3, 0.0]"));
     assert_eq!(f, "starts.paper");
