@@ -218,6 +218,30 @@ def test_ctrl_c_while_a_lock_is_given_up_leaves_no_lock_file(tmp_path, monkeypat
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
+def test_ctrl_c_as_the_release_starts_leaves_no_lock_file(tmp_path, monkeypatch, ctrl_c_raises):
+    """CI caught it again: Ctrl-C landing as ``release`` was setting up its deferral of signals
+    (before the handlers were in) raised there, and the lock file stayed."""
+    from mimicrete import safe_io
+
+    path = tmp_path / "released.lock"
+    lock = safe_io.FileLock(path, "x").acquire()
+    real = signal.getsignal
+    sent = []
+
+    def getsignal_then_ctrl_c(sig):
+        if not sent:
+            sent.append(sig)
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(sig)
+
+    monkeypatch.setattr(safe_io.signal, "getsignal", getsignal_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        lock.release()
+    monkeypatch.setattr(safe_io.signal, "getsignal", real)
+    assert sent and not path.exists() and not safe_io._held
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 # ----------------------------------------------------------------------------------------------
 # 15. a closed stdout, Ctrl-C, a relative --out
 # ----------------------------------------------------------------------------------------------

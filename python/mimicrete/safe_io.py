@@ -322,8 +322,17 @@ class FileLock:
             self._depth += 1
 
     def release(self) -> None:
-        with _signals_deferred():
-            self._release()
+        released = False
+        try:
+            with _signals_deferred():
+                self._release()
+                released = True
+        except BaseException:
+            # a signal that came as the deferral was being set up (before its handlers were in)
+            # raised there, before the lock was given up: give it up now, then let it through
+            if not released:
+                self._release()
+            raise
 
     def _release(self) -> None:
         key = self._key

@@ -135,6 +135,7 @@ def test_ours_and_paper_in_the_grid(one_demo, tmp_path, capsys):
     argv = ["run", "--demos", str(one_demo), "--counts", "1", "--methods", "ours", "paper",
             "--our-steps", "512", "--paper-steps", "512", "--gen-count", "3", "--episodes", "2",
             "--starts", "training", "wide", "--nice", "0", "--out", str(out),
+            "--stop-on-convergence",
             "--lerobot-python", str(tmp_path / "no-lerobot-needed")]  # fmt: skip
     assert peers.main(argv) == 0, capsys.readouterr().err
     files = sorted(p.name for p in (out / "results").glob("*.json"))
@@ -147,6 +148,8 @@ def test_ours_and_paper_in_the_grid(one_demo, tmp_path, capsys):
         assert r["batch_size"] is None and r["steps"] >= 512  # the last update crosses the budget
         assert 0.0 <= r["installed_rate"] <= 1.0
         assert f"--starts {r['starts']}" in r["eval_command"]
+        # the early stop reaches both trainings and is recorded (512 steps: too few to converge)
+        assert r["stop_on_convergence"] is True and "--stop-on-convergence" in r["train_command"]
     ours = json.loads((out / "results" / "ours-n1-wide.json").read_text())
     assert ours["config"] == "configs/wide_gen1.yaml" and ours["gen_count"] == 3
     assert ours["gen_wall_s"] > 0 and "demogen" in ours["train_command"]
@@ -157,6 +160,12 @@ def test_ours_and_paper_in_the_grid(one_demo, tmp_path, capsys):
     before = {f: f.stat().st_mtime_ns for f in out.rglob("*") if f.is_file()}
     assert peers.main(argv) == 0
     assert {f: f.stat().st_mtime_ns for f in out.rglob("*") if f.is_file()} == before
+    # without the early stop the trainings are of another protocol: not reused
+    plain = [a for a in argv if a != "--stop-on-convergence"]
+    assert peers.main([*plain, "--methods", "paper"]) == 0
+    paper2 = json.loads((out / "results" / "paper-n1-training.json").read_text())
+    assert paper2["stop_on_convergence"] is False
+    assert "--stop-on-convergence" not in paper2["train_command"]
     md = tmp_path / "t.md"
     assert peers.main(["report", "--out", str(out), "--md", str(md),
                        "--figure", str(tmp_path / "f.png")]) == 0  # fmt: skip

@@ -396,10 +396,12 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
     return written
 
 
-def _fresh(path: Path, steps: int, episodes: int) -> bool:
-    """Whether the result at ``path`` exists for this training budget and episode count."""
+def _fresh(path: Path, steps: int, episodes: int, command: str | None = None) -> bool:
+    """Whether the result at ``path`` exists for this training budget and episode count (and,
+    given, the training ``command``: a training retrained another way is evaluated again)."""
     old = json.loads(path.read_text()) if path.exists() else {}
-    return old.get("steps") == steps and old.get("episodes") == episodes
+    same = command is None or old.get("train_command") == command
+    return same and old.get("steps") == steps and old.get("episodes") == episodes
 
 
 def _write_result(path: Path, rec: dict[str, Any], res: dict[str, Any]) -> Path:
@@ -424,8 +426,9 @@ def _run_ours(args: argparse.Namespace, method: str, n: int) -> list[Path]:
     demos = first_demos(Path(args.demos), n, out / "demos" / f"n{n}")
     steps = args.steps[method]
     rec = peers_ours.train(
-        _run_child, method, demos, out, n, args.seed, REPO, steps, args.gen_count, args.nice
-    )
+        _run_child, method, demos, out, n, args.seed, REPO, steps, args.gen_count, args.nice,
+        args.stop_on_convergence,
+    )  # fmt: skip
     logger.info(
         f"{method} n={n}: {rec['steps']:,} env steps in {rec['train_wall_s']:.0f} s wall, "
         f"{rec['train_cpu_s']:.0f} s CPU"
@@ -433,7 +436,7 @@ def _run_ours(args: argparse.Namespace, method: str, n: int) -> list[Path]:
     written = []
     for starts in args.starts:
         path = result_path(out, method, n, starts)
-        if not _fresh(path, rec["steps"], args.episodes):
+        if not _fresh(path, rec["steps"], args.episodes, rec["command"]):
             res = peers_ours.evaluate(
                 _run_child, out / "train" / f"{method}-n{n}", starts, args.episodes, args.nice
             )
@@ -470,6 +473,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=peers_ours.DEFAULT_PAPER_STEPS,
         help="env steps of the paper's recipe (group 4's config; 1M)",
+    )
+    r.add_argument(
+        "--stop-on-convergence",
+        action="store_true",
+        help="our learner and the paper's recipe stop once training has converged (installed "
+        ">= 99 %% in 3 summaries in a row, `mimicrete train --stop-on-convergence`); their "
+        "step budgets become caps",
     )
     r.add_argument(
         "--gen-count",

@@ -49,11 +49,14 @@ def config_of(method: str, n: int, repo: Path) -> Path:
 
 def train_cmds(
     method: str, demos: Path, run_dir: Path, gen_dir: Path, n: int, seed: int, repo: Path,
-    steps: int | None, gen_count: int,
+    steps: int | None, gen_count: int, converge: bool = False,
 ) -> list[list[str]]:  # fmt: skip
-    """The commands that train ``method`` on the ``n`` demos in ``demos`` into ``run_dir``."""
+    """The commands that train ``method`` on the ``n`` demos in ``demos`` into ``run_dir``
+    (``converge``: stop once training has converged, ``mimicrete train --stop-on-convergence``)."""
     common = ["--seed", str(seed), "--run-dir", str(run_dir), "--eval-episodes", "0",
               "--no-progress", "--force"]  # fmt: skip
+    if converge:
+        common.append("--stop-on-convergence")
     budget = [] if steps is None else ["--max-steps", str(steps)]
     cfg = str(config_of(method, n, repo))
     if method == "paper":
@@ -71,7 +74,7 @@ def train_cmds(
 
 def train(
     run_child: Any, method: str, demos: Path, out: Path, n: int, seed: int, repo: Path,
-    steps: int | None, gen_count: int, nice: int,
+    steps: int | None, gen_count: int, nice: int, converge: bool = False,
 ) -> dict[str, Any]:  # fmt: skip
     """Train ``method`` on the first ``n`` demos (the folder ``demos``) into
     ``out/train/<method>-n<n>`` (once); its record. ``run_child`` is ``peers._run_child``."""
@@ -79,8 +82,10 @@ def train(
     record = run_dir.with_suffix(".json")
     if record.exists():
         rec = json.loads(record.read_text())
-        if rec.get("budget_asked") == steps and rec.get("gen_count") == (
-            gen_count if method == "ours" else None
+        if (
+            rec.get("budget_asked") == steps
+            and rec.get("gen_count") == (gen_count if method == "ours" else None)
+            and rec.get("stop_on_convergence", False) == converge
         ):
             return rec
     gen_dir = out / "gen" / f"n{n}"
@@ -88,7 +93,7 @@ def train(
         if d is not None and d.exists():  # unfinished, or of another budget
             shutil.rmtree(d)
     run_dir.parent.mkdir(parents=True, exist_ok=True)
-    cmds = train_cmds(method, demos, run_dir, gen_dir, n, seed, repo, steps, gen_count)
+    cmds = train_cmds(method, demos, run_dir, gen_dir, n, seed, repo, steps, gen_count, converge)
     gen_wall = gen_cpu = 0.0
     if len(cmds) == 2:
         gen_wall, gen_cpu = run_child(cmds[0], out / "train" / f"ours-n{n}-demogen.log", 1, nice)
@@ -105,6 +110,7 @@ def train(
         "batch_size": None,
         "epochs": None,
         "budget_asked": steps,
+        "stop_on_convergence": converge,
         "config": str(config_of(method, n, repo).relative_to(repo)),
         "gen_count": gen_count if method == "ours" else None,
         "gen_wall_s": round(gen_wall, 1),

@@ -73,8 +73,12 @@ def _pct(x: float) -> str:
 
 
 def _budget(r: dict[str, Any]) -> str:
-    """Steps x batch (epochs) of an offline learner; env steps of one trained on the env."""
+    """Steps x batch (epochs) of an offline learner; env steps of one trained on the env (with
+    its cap when it stopped on convergence)."""
     if r["batch_size"] is None:
+        cap = r.get("budget_asked")
+        if r.get("stop_on_convergence") and cap:
+            return f"{r['steps']:,} env steps (converged; cap {cap:,})"
         return f"{r['steps']:,} env steps"
     return f"{r['steps']} × {r['batch_size']} ({r['epochs']:g})"
 
