@@ -67,7 +67,7 @@ def assert_same(a: object, b: object) -> None:
         assert a == b
 
 
-@pytest.mark.parametrize("task", ["TileSuction", "BlockGrip", "Screw"])
+@pytest.mark.parametrize("task", ["TileSuction", "BlockGrip", "Screw", "TileRow"])
 def test_an_unchanged_copy_gives_the_builtin_episodes_bit_for_bit(tmp_path: Path, task) -> None:
     path = spec_copy(tmp_path, task)
     mine = gym.make("mimicrete/Task-v0", spec=str(path))
@@ -160,12 +160,15 @@ def test_the_task_table_reads_the_builtin_specs() -> None:
     for t in tasks.TABLE.values():
         spec = t.builtin_spec()
         assert spec["name"] == t.sim
-        assert t.max_steps == spec["episode"]["max_steps"] == tasks.MAX_EPISODE_STEPS
+        assert t.max_steps == spec["episode"]["max_steps"]
         assert t.effector == spec["effector"]["kind"]
         sim = _native.SimEnv(t.sim, 0)
         assert (t.obs_dim, t.act_dim) == (sim.obs_dim, sim.act_dim)
         assert t.obs_frame_dim == sim.obs_frame_dim
-    assert [t.effector for t in tasks.TABLE.values()] == ["suction", "gripper", "gripper"]
+    effectors = [t.effector for t in tasks.TABLE.values()]
+    assert effectors == ["suction", "gripper", "gripper", "suction"]
+    # the shared default, 750 steps, is the three single-object tasks'; the row's is its own
+    assert [t.max_steps for t in tasks.TABLE.values()] == [tasks.MAX_EPISODE_STEPS] * 3 + [2000]
 
 
 # ----------------------------------------------------------------------------------------------

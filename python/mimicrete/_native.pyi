@@ -12,7 +12,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Final, Literal, TypedDict, final
+from typing import Any, Final, Literal, NotRequired, TypedDict, final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -203,8 +203,8 @@ def kin_hand_layouts() -> dict[str, dict[str, Any]]:
     ``index_proximal``, ``middle_proximal`` (the joints the hand frame reads)."""
 
 # ---------------------------------------------------------------------------------------------
-# Simulator (sim.rs). Tasks: "TileSuction" | "BlockGrip" | "Screw" (or "suction" | "grip" |
-# "screw"). Observations and actions are float32.
+# Simulator (sim.rs). Tasks: "TileSuction" | "BlockGrip" | "Screw" | "TileRow" (or "suction" |
+# "grip" | "screw" | "row"). Observations and actions are float32.
 
 class _PoseRec(TypedDict):
     t: list[float]
@@ -227,6 +227,13 @@ class _Snapshot(TypedDict):
     picked: bool
     done: bool
     links: list[_PoseRec]
+    row: NotRequired[list[_RowTile]]  # TileRow only: each tile of the row, in row order
+
+class _RowTile(TypedDict):
+    object: _PoseRec
+    target: _PoseRec
+    picked: bool
+    installed: bool
 
 class _StepInfo(TypedDict):
     picked: bool

@@ -5,9 +5,11 @@ Ids (registered when this module is imported; see :func:`register_envs`):
 * ``mimicrete/TileSuction-v0``: the paper's tile installation with a four-cup suction head.
 * ``mimicrete/BlockGrip-v0``: pick and place a block with a parallel gripper.
 * ``mimicrete/Screw-v0``: grip a nut and screw it down a bolt.
+* ``mimicrete/TileRow-v0``: install a row of three tiles, one after another, on a row of three
+  pads with the suction head (issue 26 §2; ``crates/tile-sim/tasks/tile_row.toml``).
 * ``mimicrete/Task-v0``: the task a spec file describes, ``gym.make("mimicrete/Task-v0",
   spec="my_task.toml")`` (tile-sim's task spec, version 1: ``crates/tile-sim/tasks/*.toml`` are the
-  three above); its spaces are the sizes of the env the spec builds. ``make_vec("Task-v0", n,
+  four above); its spaces are the sizes of the env the spec builds. ``make_vec("Task-v0", n,
   seed, spec=PATH)`` and ``gym.make_vec("mimicrete/Task-v0", n, vectorization_mode=
   "vector_entry_point", spec=PATH)`` give the vector env. A bad spec raises
   ``mimicrete.SimInputError`` (a ``ValueError``) with its ``field``, ``value`` and ``reason``.
@@ -17,10 +19,13 @@ zero-padded at episode start (TileSuction frame: 6 joint angles [rad], suction s
 [m], target [m], tile centre [m]; Base frame, Z up). Action ``Box(-1, 1, (act_dim,))``: six joint
 motions (× ``MAX_JOINT_STEP`` rad per step, clipped) and the end-effector command (≥0.5 suction /
 close, ≤-0.5 drop / open, otherwise hold); Screw adds the spin command. Rewards are the paper's
-sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate).
+sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate). TileRow's frame
+holds, after the suction state and the cup centre, each tile's target, centre and installed flag
+(1 or 0); each tile's first pick and its install pay +1, the last install terminates, and
+``info["installed"]`` is that last install (the row complete).
 
-Time limit: the simulator itself truncates at the spec's ``episode.max_steps`` (750 for the three
-built-in tasks) (``truncated=True``); the ids are
+Time limit: the simulator itself truncates at the spec's ``episode.max_steps`` (750 for
+TileSuction, BlockGrip and Screw, 2000 for TileRow) (``truncated=True``); the ids are
 registered without ``max_episode_steps`` so no ``TimeLimit`` wrapper counts a second time.
 
 ``make_vec(env_id, num_envs, seed)`` returns a :class:`gymnasium.vector.VectorEnv` backed by the
@@ -194,7 +199,7 @@ class MimicreteEnv(gym.Env):
             self._sim = _native.SimEnv(task_of(task), 0)
         else:
             self._sim = _native.SimEnv.from_spec_file(self.task_file, 0)
-        self.task: str = self._sim.task  # the task logic (TileSuction, BlockGrip, Screw)
+        self.task: str = self._sim.task  # the task logic (TileSuction, ..., TileRow)
         self.observation_space, self.action_space = _spaces(self._sim)
         self._scene = self._sim.scene()
 
@@ -260,6 +265,11 @@ class BlockGripEnv(MimicreteEnv):
 class ScrewEnv(MimicreteEnv):
     def __init__(self, render_mode: str | None = None) -> None:
         super().__init__("Screw", render_mode)
+
+
+class TileRowEnv(MimicreteEnv):
+    def __init__(self, render_mode: str | None = None) -> None:
+        super().__init__("TileRow", render_mode)
 
 
 class TaskEnv(MimicreteEnv):
@@ -447,6 +457,7 @@ def _vector_entry(task: str):
 make_tile_suction_vec = _vector_entry("TileSuction")
 make_block_grip_vec = _vector_entry("BlockGrip")
 make_screw_vec = _vector_entry("Screw")
+make_tile_row_vec = _vector_entry("TileRow")
 
 
 def make_task_file_vec(
@@ -461,11 +472,12 @@ def make_task_file_vec(
 
 
 def register_envs() -> None:
-    """Register the three ids and ``mimicrete/Task-v0`` with gymnasium (idempotent)."""
+    """Register the four tasks' ids and ``mimicrete/Task-v0`` with gymnasium (idempotent)."""
     entries = {
         "TileSuction": ("TileSuctionEnv", "make_tile_suction_vec"),
         "BlockGrip": ("BlockGripEnv", "make_block_grip_vec"),
         "Screw": ("ScrewEnv", "make_screw_vec"),
+        "TileRow": ("TileRowEnv", "make_tile_row_vec"),
         "Task": ("TaskEnv", "make_task_file_vec"),
     }
     for task, (cls, vec) in entries.items():

@@ -17,6 +17,8 @@ def _frame(item: dict[str, Any], snap: dict[str, Any]) -> tuple[np.ndarray, np.n
         return np.eye(3), np.zeros(3)
     if fr == "object":
         p = snap["object"]
+    elif fr.startswith("object"):  # "object<i>": tile i of a row (the snapshot's row[i])
+        p = snap["row"][int(fr[6:])]["object"]
     else:
         p = snap["links"][int(fr[4:])]
     return quat_matrix(p["q"]), np.asarray(p["t"], dtype=float)

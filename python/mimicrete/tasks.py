@@ -1,13 +1,17 @@
-"""The task table: one place for the three tasks' names, ids and sizes.
+"""The task table: one place for the four tasks' names, ids and sizes.
 
 The sizes come from the simulator itself (``tile-sim`` through ``_native.sim_constants()``); the
 episode length, the effector kind, the success's name, the gesture classes and the task's sentence
 from each task's built-in spec file (``crates/tile-sim/tasks/*.toml`` through
 ``_native.task_spec``, :meth:`TaskSpec.builtin_spec`);
-the names are the user-facing ones (``suction``, ``grip``, ``screw``), the simulator's
-(``TileSuction``, ``BlockGrip``, ``Screw``) and the gymnasium ids (``mimicrete/TileSuction-v0``).
-Everything else in the package looks tasks up here. A researcher's own spec file runs one of
-these tasks' logic (:func:`load_task_file`).
+the names are the user-facing ones (``suction``, ``grip``, ``screw``, ``row``), the simulator's
+(``TileSuction``, ``BlockGrip``, ``Screw``, ``TileRow``) and the gymnasium ids
+(``mimicrete/TileSuction-v0``). Everything else in the package looks tasks up here. A
+researcher's own spec file runs one of these tasks' logic (:func:`load_task_file`).
+
+The row (``TileRow``, issue 26 §2) runs in the simulator and its gymnasium envs; parts of the
+package that are not built for it yet (the scripted demonstrator, demogen, the live page) refuse
+it with a :class:`NotBuiltError` (:func:`not_built`), which the CLI prints as one line, exit 2.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from mimicrete import _native
+from mimicrete._native import MimicreteError
 
 _CONST: dict[str, Any] = _native.sim_constants()
 #: The simulator's shared constants, read here once for the whole package.
@@ -30,7 +35,7 @@ MAX_JOINT_STEP: float = float(_CONST["MAX_JOINT_STEP"])  # rad per step per join
 class TaskSpec:
     """One task: its names and the simulator's sizes for it."""
 
-    name: str  # suction | grip | screw: the CLI's and the hand logs' name
+    name: str  # suction | grip | screw | row: the CLI's and the hand logs' name
     sim: str  # tile-sim's name
     gesture_model: str  # the spec's about.gestures: its classifier (gestures.TASK_CLASSES)
     success: str  # the spec's about.success ("installed", "placed", "screwed")
@@ -70,7 +75,12 @@ def _task(name: str, sim: str) -> TaskSpec:
 
 TABLE: dict[str, TaskSpec] = {
     t.name: t
-    for t in (_task("suction", "TileSuction"), _task("grip", "BlockGrip"), _task("screw", "Screw"))
+    for t in (
+        _task("suction", "TileSuction"),
+        _task("grip", "BlockGrip"),
+        _task("screw", "Screw"),
+        _task("row", "TileRow"),
+    )
 }
 TASKS: tuple[str, ...] = tuple(TABLE)
 SIM_TASKS: tuple[str, ...] = tuple(t.sim for t in TABLE.values())
@@ -82,6 +92,7 @@ _ALIASES: dict[str, str] = {
     "tilesuctionv0": "suction",
     "blockgripv0": "grip",
     "screwv0": "screw",
+    "tilerowv0": "row",
     "gripping": "grip",
     "screwing": "screw",
 }
@@ -96,6 +107,22 @@ def get(name: str) -> TaskSpec:
             f"unknown task {name!r}; known: {', '.join(TASKS)} (or {', '.join(ENV_IDS)})"
         )
     return TABLE[_ALIASES[key]]
+
+
+class NotBuiltError(MimicreteError, ValueError):
+    """A part of the package that is not built for a task yet (the row's scripted demonstrator,
+    demogen, the live page): the message is one line naming the part, the task and the tasks
+    the part does handle (:func:`not_built`). The CLI prints it as one line and exits 2."""
+
+
+def not_built(part: str, task: str, handled: tuple[str, ...] | list[str]) -> NotBuiltError:
+    """The error saying ``part`` (e.g. ``"the scripted demonstrator"``) is not built for
+    ``task`` (any spelling :func:`get` takes) yet; ``handled``: the tasks it is built for."""
+    t = get(task)
+    names = ", ".join(get(h).name for h in handled)
+    return NotBuiltError(
+        f"{part} is not built for the {t.name} task ({t.sim}) yet; it handles {names}"
+    )
 
 
 def load_task_file(path: str | os.PathLike[str]) -> tuple[TaskSpec, dict[str, Any]]:

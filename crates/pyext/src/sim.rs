@@ -120,7 +120,10 @@ fn scene_frames(
 /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
 type StepTuple<'py> = (F32s<'py>, f32, bool, bool, Bound<'py, PyDict>);
 
-/// One simulated environment: `SimEnv(task, seed=0)`, task "TileSuction" | "BlockGrip" | "Screw".
+/// One simulated environment: `SimEnv(task, seed=0)`, task "TileSuction" | "BlockGrip" | "Screw" |
+/// "TileRow" (any name `tile_sim::Task::from_name` accepts; `sim_constants()["tasks"]` lists them
+/// with their sizes). A TileRow snapshot has a `row` list (each tile's pose, target, picked,
+/// installed).
 #[pyclass(module = "mimicrete._native")]
 pub struct SimEnv {
     env: Env,

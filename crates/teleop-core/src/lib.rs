@@ -95,7 +95,8 @@ pub fn joint_action(q_ik: &[f64; 6], q: &[f64; 6]) -> [f64; 6] {
 /// probability of "drop" in carry states, and every such sample loses the tile). The gripper
 /// moves only while commanded, so its commands (and the screw's spin) stay as gestured.
 pub fn recorded_command(task: Task, cmd: f32, frame: &[f32]) -> f32 {
-    if task != Task::TileSuction {
+    // TileRow's suction head latches as TileSuction's, and its frame[6] is the suction state too.
+    if !matches!(task, Task::TileSuction | Task::TileRow) {
         return cmd;
     }
     let on = frame[6] > 0.0;

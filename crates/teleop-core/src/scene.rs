@@ -30,6 +30,9 @@ pub fn scene_entities(scene: &Scene) -> Vec<SceneEntity> {
             SceneFrame::Link(6) => "tool0",
             SceneFrame::Link(_) => continue,
             SceneFrame::Object => TILE_FRAME,
+            // A row's tiles (TileRow) each need a frame of their own in the demo, which
+            // demo-log does not have yet: not drawn.
+            SceneFrame::RowObject(_) => continue,
         };
         let (kind, size) = match it.shape {
             tile_sim::Shape::Box { half } => (Shape::Cube, half.map(|h| dec(2.0 * h))),

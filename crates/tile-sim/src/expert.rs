@@ -10,13 +10,20 @@
 //! lift 10 cm → carry the tile 8 cm above the target → lower it onto the target (install ends
 //! the episode). BlockGrip: above the block (open) → fingers around it → close → lift → above the
 //! pad → lower → open (place ends the episode). Screw: above the nut (open) → fingers around it →
-//! close → spin (tighten) until done.
+//! close → spin (tighten) until done. TileRow: for the current tile (a snapshot's `object`: the
+//! first not installed), as TileSuction up to 3 mm above its target → suction off, wait until the
+//! tile is installed (at most [`ROW_RELEASE_WAIT`] steps) → lift the cups to 0.14 m → the next
+//! tile; a tile that did not install is picked again where it lies.
 
 use crate::env::Snapshot;
 use crate::spec::TaskSpec;
 use crate::{MAX_JOINT_STEP, Task};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
+
+/// TileRow: steps the expert waits with the suction off for a released tile to be installed
+/// (it lands and comes to rest within a few) before it lifts the cups and goes on.
+pub const ROW_RELEASE_WAIT: u32 = 20;
 
 /// IK to a tool0 pose on the UR3 nearest `seed`: [`ur3_kin::ik`] with its default options
 /// (closed form + Gauss-Newton, residual below 1e-10 m / rad, joints wrapped to [−π, π]), so
@@ -68,6 +75,8 @@ pub struct Expert {
     ticks: u32,
     /// The current joint goal is the phase's final waypoint (not an intermediate leg).
     final_leg: bool,
+    /// TileRow: tiles installed when the current one was picked.
+    installed_at_pick: usize,
 }
 
 impl Expert {
@@ -78,7 +87,8 @@ impl Expert {
     /// The expert of the task `spec` describes (its logic's script, the spec's TCP and object).
     pub fn for_spec(spec: &TaskSpec) -> Expert {
         let task = spec.task();
-        let grasp_dz = if task == Task::TileSuction { spec.object_half_height() as f64 } else { 0.0 };
+        let suction = matches!(task, Task::TileSuction | Task::TileRow);
+        let grasp_dz = if suction { spec.object_half_height() as f64 } else { 0.0 };
         Expert {
             task,
             arm: spec.arm(),
@@ -88,6 +98,7 @@ impl Expert {
             goal: None,
             ticks: 0,
             final_leg: true,
+            installed_at_pick: 0,
         }
     }
 
@@ -96,6 +107,7 @@ impl Expert {
         self.phase = 0;
         self.goal = None;
         self.ticks = 0;
+        self.installed_at_pick = 0;
     }
 
     /// The current phase index (for diagnostics).
@@ -133,7 +145,8 @@ impl Expert {
     }
 
     fn next(&mut self) {
-        self.phase += 1;
+        // TileRow's script repeats for each tile.
+        self.phase = if self.task == Task::TileRow && self.phase >= 7 { 0 } else { self.phase + 1 };
         self.goal = None;
         self.ticks = 0;
     }
@@ -144,6 +157,7 @@ impl Expert {
             Task::TileSuction => self.phase != 2,
             Task::BlockGrip => !matches!(self.phase, 2 | 6),
             Task::Screw => !matches!(self.phase, 2 | 3),
+            Task::TileRow => !matches!(self.phase, 2 | 6),
         }
     }
 
@@ -152,6 +166,22 @@ impl Expert {
             (Task::TileSuction, 2) => {
                 out[6] = 1.0;
                 if s.held {
+                    self.next();
+                    self.goal = self.plan(s);
+                }
+            }
+            (Task::TileRow, 2) => {
+                out[6] = 1.0;
+                if s.held {
+                    self.installed_at_pick = installed(s);
+                    self.next();
+                    self.goal = self.plan(s);
+                }
+            }
+            (Task::TileRow, 6) => {
+                out[6] = -1.0;
+                let done = installed(s) > self.installed_at_pick || self.ticks > ROW_RELEASE_WAIT;
+                if !s.held && done {
                     self.next();
                     self.goal = self.plan(s);
                 }
@@ -241,8 +271,35 @@ impl Expert {
                 1 => self.linear(s, tool0_for_tcp(obj, tz)),
                 _ => Some(s.q),
             },
+            // Every move a straight line (legs of 2 cm), so the arm never swings the cups or a
+            // held tile through the other tiles.
+            Task::TileRow => {
+                let grasp = obj + up * self.grasp_dz;
+                let t = v3(s.tcp.t);
+                match self.phase {
+                    0 => self.linear(s, tool0_for_tcp(grasp + up * 0.08, tz)),
+                    1 => self.linear(s, tool0_for_tcp(grasp + up * 0.012, tz)),
+                    3 => self.linear(s, tool0_for_tcp(Vector3::new(t.x, t.y, 0.13), tz)),
+                    4 | 5 => {
+                        let lift = if self.phase == 4 { 0.08 } else { 0.003 };
+                        let tile_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
+                        let tile_goal = Isometry3::from_parts(
+                            Translation3::from(tgt + up * lift),
+                            iso(&s.object).rotation,
+                        );
+                        self.linear(s, tile_goal * tile_in_tool.inverse())
+                    }
+                    7 => self.linear(s, tool0_for_tcp(Vector3::new(t.x, t.y, 0.14), tz)),
+                    _ => Some(s.q),
+                }
+            }
         }
     }
+}
+
+/// TileRow: how many tiles of the row are installed (0 for the other tasks).
+fn installed(s: &Snapshot) -> usize {
+    s.row.iter().filter(|r| r.installed).count()
 }
 
 fn reached(goal: &[f64; 6], q: &[f64; 6]) -> bool {

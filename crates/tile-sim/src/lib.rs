@@ -15,11 +15,11 @@
 //!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
 //! * The arm links are `kinematic_position_based` bodies placed by `ur3_kin::fk_all` each step, so
 //!   the arm cannot be pushed, but it pushes (and can knock over, sweep off, or crush) the object.
-//! * Idle steps skip the solver: when the only dynamic body (the object) is held/kinematic, or
-//!   asleep with every arm collider (swept over the step) more than 2 cm from it, the kinematic
-//!   bodies are placed directly and `PhysicsWorld::step` is not called (Rapier would not move
-//!   anything either; a sleeping object is woken as soon as the arm comes within 2 cm, in every
-//!   mode). `Env::set_skip_idle_physics(false)` turns this off; a test checks that expert
+//! * Idle steps skip the solver: when every dynamic body (the object, or each tile of a row) is
+//!   held/kinematic, or asleep with every arm collider (swept over the step) more than 2 cm from
+//!   it, the kinematic bodies are placed directly and `PhysicsWorld::step` is not called (Rapier
+//!   would not move anything either; a sleeping object is woken as soon as the arm comes within
+//!   2 cm, in every mode). `Env::set_skip_idle_physics(false)` turns this off; a test checks that expert
 //!   episodes end identically either way.
 //! * Measured on this 2-core VM (`cargo bench -p tile-sim --bench vecenv`, shared with other
 //!   engineers' builds at load average 3–5, so figures vary ±50 %): a TileSuction step that runs
@@ -46,6 +46,10 @@
 //!   0.085 m; gap 0–0.085 m at a constant 0.1 m/s. Block: 4 cm wooden cube (45 g).
 //! * Screw: M12 bolt (pitch 1.75 mm) on a plate at `(x, 0.32)`, `x ~ U[0, 0.15]`; the nut rides the
 //!   thread (kinematic), spun at 1 turn/s while gripped with the flange within ~20° of vertical.
+//! * TileRow: three TileSuction tiles in a row along x at `y = 0.40` (tile 0's centre at
+//!   `x ~ U[−0.20, −0.14]`, 0.17 m between centres) and three touching pads in a row along x at
+//!   `y = 0.18` (centres at x = −0.2, 0, 0.2); tile `i` goes on pad `i`
+//!   (`tasks/tile_row.toml` explains the layout).
 //!
 //! # Action (f32, length [`Task::act_dim`])
 //! `a[0..6]` ∈ [-1, 1]: joint motion, `q_next = clamp(q + clip(a, -1, 1)·MAX_JOINT_STEP, -π, π)`
@@ -67,7 +71,7 @@
 //! # Tasks as data
 //! Each task's numbers (robot, effector geometry, object, target, start distributions,
 //! thresholds, rewards, episode length) are a [`TaskSpec`], read from a versioned TOML file: the
-//! built-in three are `crates/tile-sim/tasks/{tile_suction,block_grip,screw}.toml`, compiled in
+//! built-in four are `crates/tile-sim/tasks/{tile_suction,block_grip,screw,tile_row}.toml`, compiled in
 //! ([`TaskSpec::builtin`], [`Task::spec`]); [`Env::from_spec`] runs another. Each task's logic
 //! (effector, success and failure, frame layout) is a module behind one trait (`src/task/`).
 //! The files sit in the crate, not at the repository's top, because the crate compiles them in
@@ -93,6 +97,7 @@ pub use starts::{
 pub use task::Task;
 pub use task::gripper::PLACE_DIST;
 pub use task::suction::{FALL_SPEED, FALL_Z, INSTALL_DIST, PICK_DIST};
+pub use task::tile_row::{REST_SPEED, RowTile};
 pub use vecenv::{StepBuffers, StepOut, VecEnv, VecEnvState, episode_seed};
 pub use world::{Scene, SceneFrame, SceneItem, Shape};
 
@@ -123,7 +128,9 @@ pub enum SimError {
     #[error("the episode has ended (terminated or truncated): call reset before step")]
     EpisodeOver,
     /// An unknown task name.
-    #[error("unknown task {0:?}: expected TileSuction, BlockGrip or Screw (or suction, grip, screw)")]
+    #[error(
+        "unknown task {0:?}: expected TileSuction, BlockGrip, Screw or TileRow (or suction, grip, screw, row)"
+    )]
     UnknownTask(String),
     /// A state set through `set_*` is invalid (non-finite numbers, bad sizes).
     #[error("invalid state: {0}")]

@@ -307,8 +307,42 @@ impl Start {
         }
     }
 
+    /// Object `i` of a row's centre at this start (a spec's `[row]`): object 0's,
+    /// [`Start::object_centre`], moved by `i` object pitches (m, Base frame).
+    pub fn row_object_centre(&self, spec: &TaskSpec, i: usize) -> Vector {
+        let c = self.object_centre(spec);
+        if i == 0 {
+            return c;
+        }
+        let d = spec.object_offset(i);
+        c + Vector::new(d[0], d[1], 0.0)
+    }
+
+    /// Pad `i` of a row's centre (x, y) at this start: pad 0's, [`Start::pad_xy`], moved by `i`
+    /// pad pitches (m).
+    pub fn row_pad_xy(&self, spec: &TaskSpec, i: usize) -> [f32; 2] {
+        let p = self.pad_xy(spec);
+        if i == 0 {
+            return p;
+        }
+        let d = spec.pad_offset(i);
+        [p[0] + d[0], p[1] + d[1]]
+    }
+
+    /// Target `i` of a row (object `i`'s centre lying on pad `i`) at this start: target 0's,
+    /// [`Start::target`], moved by `i` pad pitches (m).
+    pub fn row_target(&self, spec: &TaskSpec, i: usize) -> Vector {
+        let t = self.target(spec);
+        if i == 0 {
+            return t;
+        }
+        let d = spec.pad_offset(i);
+        t + Vector::new(d[0], d[1], 0.0)
+    }
+
     /// Refuses a start that is not finite, leaves the table, touches the pad, or lies out of
-    /// reach (module docs) for the built-in `task`; the message names the field (`object_pose`
+    /// reach (module docs) for the built-in `task`; with a row, every object and pad of it is
+    /// checked, and neighbouring objects must not overlap; the message names the field (`object_pose`
     /// or `target_offset`).
     pub fn check(&self, task: Task) -> Result<(), SimError> {
         self.check_in(&TaskSpec::builtin(task))
@@ -341,19 +375,43 @@ impl Start {
         let h = turned_half(footprint_half(spec), self.yaw);
         let table = spec.table.half_extents;
         let (tx, ty) = (table[0] - h[0], table[1] - h[1]);
-        if x.abs() > tx || y.abs() > ty {
-            return bad(format!(
-                "object_pose ({x}, {y}) m puts the object off the table (|x| <= {tx:.3}, |y| <= {ty:.3})"
-            ));
-        }
-        if let TargetSpec::Pad { half_extents: pad_half, .. } = &spec.target {
-            let pad = self.pad_xy(spec);
-            let gap_x = (x - pad[0]).abs() - h[0] - pad_half[0];
-            let gap_y = (y - pad[1]).abs() - h[1] - pad_half[1];
-            if gap_x.max(gap_y) < PAD_CLEARANCE {
+        let n = spec.row_len();
+        // "the object", or which object of a row.
+        let which =
+            |i: usize| if n > 1 { format!("object {i} of the row") } else { "the object".to_string() };
+        for i in 0..n {
+            let c = self.row_object_centre(spec, i);
+            let (x, y) = (c.x, c.y);
+            if x.abs() > tx || y.abs() > ty {
+                let [x0, y0] = self.object_xy;
+                let at = if n > 1 { format!(" (at ({x}, {y}))") } else { String::new() };
                 return bad(format!(
-                    "object_pose ({x}, {y}) m, yaw {} rad: the object comes within {PAD_CLEARANCE} m of the pad at ({}, {})",
-                    self.yaw, pad[0], pad[1]
+                    "object_pose ({x0}, {y0}) m puts {}{at} off the table (|x| <= {tx:.3}, |y| <= {ty:.3})",
+                    which(i)
+                ));
+            }
+            let TargetSpec::Pad { half_extents: pad_half, .. } = &spec.target else { continue };
+            for j in 0..n {
+                let pad = self.row_pad_xy(spec, j);
+                let gap_x = (x - pad[0]).abs() - h[0] - pad_half[0];
+                let gap_y = (y - pad[1]).abs() - h[1] - pad_half[1];
+                if gap_x.max(gap_y) < PAD_CLEARANCE {
+                    let [x0, y0] = self.object_xy;
+                    return bad(format!(
+                        "object_pose ({x0}, {y0}) m, yaw {} rad: {} comes within {PAD_CLEARANCE} m of the pad at ({}, {})",
+                        self.yaw,
+                        which(i),
+                        pad[0],
+                        pad[1]
+                    ));
+                }
+            }
+        }
+        if let Some(row) = spec.row {
+            if let Some(gap) = row_gap(spec, row.object_pitch, self.yaw) {
+                return bad(format!(
+                    "object_pose yaw {} rad: neighbouring objects of the row (pitch {:?} m) overlap by {:.4} m",
+                    self.yaw, row.object_pitch, -gap
                 ));
             }
         }
@@ -374,17 +432,27 @@ impl Start {
                 )
             }
         };
-        let grasp = v3(self.object_centre(spec) + Vector::new(0.0, 0.0, grasp_height(spec)));
-        if !reachable(arm, grasp, tcp_z, home) {
-            return bad(format!("object_pose ({x}, {y}) m is out of reach: {}", why(grasp)));
+        for i in 0..n {
+            let grasp = v3(self.row_object_centre(spec, i) + Vector::new(0.0, 0.0, grasp_height(spec)));
+            if !reachable(arm, grasp, tcp_z, home) {
+                return bad(match n > 1 {
+                    true => {
+                        format!("object_pose ({x}, {y}) m puts {} out of reach: {}", which(i), why(grasp))
+                    }
+                    false => format!("object_pose ({x}, {y}) m is out of reach: {}", why(grasp)),
+                });
+            }
         }
-        let target = v3(self.target(spec));
-        if task != Task::Screw && !reachable(arm, target, tcp_z, home) {
-            return bad(format!(
-                "target_offset {:?} puts the target out of reach: {}",
-                self.target_offset,
-                why(target)
-            ));
+        for i in 0..n {
+            let target = v3(self.row_target(spec, i));
+            if task != Task::Screw && !reachable(arm, target, tcp_z, home) {
+                let whose = if n > 1 { format!("target {i} of the row") } else { "the target".to_string() };
+                return bad(format!(
+                    "target_offset {:?} puts {whose} out of reach: {}",
+                    self.target_offset,
+                    why(target)
+                ));
+            }
         }
         Ok(())
     }
@@ -394,9 +462,21 @@ impl Start {
 /// centre for the fingers.
 fn grasp_height(spec: &TaskSpec) -> f32 {
     match spec.task() {
-        Task::TileSuction => spec.object_half_height(),
+        Task::TileSuction | Task::TileRow => spec.object_half_height(),
         Task::BlockGrip | Task::Screw => 0.0,
     }
+}
+
+/// How far apart (m) two neighbouring objects of a row `pitch` apart are, each turned by `yaw`
+/// about its own centre: `None` when they are clear of each other, else `Some` of the (negative)
+/// gap. Boxes turned alike are apart when the pitch, in their own axes, is at least their size
+/// along one of them (their only separating axes).
+pub(crate) fn row_gap(spec: &TaskSpec, pitch: [f32; 2], yaw: f32) -> Option<f32> {
+    let h = footprint_half(spec);
+    let (s, c) = (yaw.sin(), yaw.cos());
+    let (u, v) = (pitch[0] * c + pitch[1] * s, -pitch[0] * s + pitch[1] * c);
+    let gap = (u.abs() - 2.0 * h[0]).max(v.abs() - 2.0 * h[1]);
+    (gap < 0.0).then_some(gap)
 }
 
 /// The nut's centre height when it has just caught the thread (turns = 0; a bolt target).

@@ -94,6 +94,9 @@ pub enum SceneFrame {
     Link(u8),
     /// Attached to the task object (tile/block/nut); pose relative to the object's centre.
     Object,
+    /// Attached to object `i` of a row (TileRow's tile `i`, a snapshot's `row[i].object`); pose
+    /// relative to its centre. Serialized as `"object<i>"`.
+    RowObject(u8),
 }
 
 /// One visual/collision item of the scene.
@@ -132,8 +135,22 @@ fn push_pad_and_target(
     marker_half_xy: [f32; 2],
     marker_dz: f32,
 ) {
+    for i in 0..spec.row_len() {
+        push_pad_and_target_i(items, spec, start, marker_half_xy, marker_dz, i);
+    }
+}
+
+/// [`push_pad_and_target`] of pad `i` of a row (the one pad of the other tasks: `i = 0`).
+fn push_pad_and_target_i(
+    items: &mut Vec<SceneItem>,
+    spec: &TaskSpec,
+    start: &Start,
+    marker_half_xy: [f32; 2],
+    marker_dz: f32,
+    i: usize,
+) {
     let TargetSpec::Pad { half_extents: pad_half, .. } = &spec.target else { return };
-    let pad = start.pad_xy(spec);
+    let pad = start.row_pad_xy(spec, i);
     items.push(item(
         "pad",
         SceneFrame::World,
@@ -141,7 +158,7 @@ fn push_pad_and_target(
         [pad[0], pad[1], spec.table.top_z + pad_half[2]],
         [0.5, 0.5, 0.5, 1.0],
     ));
-    let t = start.target(spec);
+    let t = start.row_target(spec, i);
     items.push(item(
         "target",
         SceneFrame::World,
@@ -197,15 +214,23 @@ fn object_groups() -> InteractionGroups {
     InteractionGroups::new(G_OBJECT, G_ARM.union(G_STATIC), InteractionTestMode::And)
 }
 
+/// The objects of a row also touch each other (a tile pushed into its neighbour moves it).
+fn row_object_groups() -> InteractionGroups {
+    InteractionGroups::new(G_OBJECT, G_ARM.union(G_STATIC).union(G_OBJECT), InteractionTestMode::And)
+}
+
 /// Handles of one built world.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Handles {
     /// Link bodies for DH frames 1..=6 (index 0 = frame 1, index 5 = tool0 with the EE).
     pub links: [RigidBodyHandle; 6],
     /// Gripper fingers (left +Y, right −Y), only for BlockGrip/Screw.
     pub fingers: Option<[RigidBodyHandle; 2]>,
-    /// The task object: tile, block or nut.
+    /// The task object: tile, block or nut. With a row, the current one of `row` (the task
+    /// logic moves it: TileRow's held tile, else the first one not installed), object 0 as built.
     pub object: RigidBodyHandle,
+    /// A row's objects in row order (a spec's `[row]`, TileRow); empty without a row.
+    pub row: Vec<RigidBodyHandle>,
 }
 
 /// Build a fresh world for the built-in `task` with the object and the pad where `start` puts them.
@@ -249,14 +274,16 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
     );
     match &spec.target {
         TargetSpec::Pad { half_extents: h, friction, .. } => {
-            let pad = start.pad_xy(spec);
-            w.insert_collider(
-                ColliderBuilder::cuboid(h[0], h[1], h[2])
-                    .translation(Vector::new(pad[0], pad[1], top + h[2]))
-                    .friction(*friction)
-                    .collision_groups(static_groups()),
-                Some(table),
-            );
+            for i in 0..spec.row_len() {
+                let pad = start.row_pad_xy(spec, i);
+                w.insert_collider(
+                    ColliderBuilder::cuboid(h[0], h[1], h[2])
+                        .translation(Vector::new(pad[0], pad[1], top + h[2]))
+                        .friction(*friction)
+                        .collision_groups(static_groups()),
+                    Some(table),
+                );
+            }
         }
         TargetSpec::Bolt { plate_half_extents: p, radius, top_z, .. } => {
             // Steel plate with the bolt (the nut is kinematic along the bolt, no contact needed).
@@ -359,9 +386,22 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
         TargetSpec::Bolt { .. } => RigidBodyBuilder::kinematic_position_based().translation(object_pos),
         TargetSpec::Pad { .. } => RigidBodyBuilder::dynamic().pose(object_at),
     };
+    let groups = if spec.row.is_some() { row_object_groups() } else { object_groups() };
+    let collider = collider.collision_groups(groups);
     let object = w.insert_body(body);
-    w.insert_collider(collider.collision_groups(object_groups()), Some(object));
-    (w, Handles { links, fingers, object })
+    w.insert_collider(collider.clone(), Some(object));
+    // The rest of a row: copies of the object at their places in the row, turned alike.
+    let mut row = Vec::new();
+    if spec.row.is_some() {
+        row.push(object);
+        for i in 1..spec.row_len() {
+            let at = Pose::from_parts(start.row_object_centre(spec, i), Rotation::from_rotation_z(start.yaw));
+            let h = w.insert_body(RigidBodyBuilder::dynamic().pose(at));
+            w.insert_collider(collider.clone(), Some(h));
+            row.push(h);
+        }
+    }
+    (w, Handles { links, fingers, object, row })
 }
 
 /// Target pose (centre of the object when the task is done) for TileSuction/BlockGrip.
@@ -444,7 +484,14 @@ pub fn scene_spec(spec: &TaskSpec, start: &Start) -> Scene {
                     [0.1, 0.1, 0.1, 1.0],
                 ));
             }
-            items.push(object);
+            match spec.row {
+                // A row's tiles, each in its own frame (the snapshot's `row[i].object`).
+                Some(_) => items.extend(
+                    (0..spec.row_len())
+                        .map(|i| SceneItem { frame: SceneFrame::RowObject(i as u8), ..object.clone() }),
+                ),
+                None => items.push(object),
+            }
         }
         EffectorSpec::Gripper {
             body_half_extents: body,
@@ -513,6 +560,7 @@ impl serde::Serialize for SceneItem {
             SceneFrame::World => "world".to_string(),
             SceneFrame::Link(i) => format!("link{i}"),
             SceneFrame::Object => "object".to_string(),
+            SceneFrame::RowObject(i) => format!("object{i}"),
         };
         m.serialize_entry("frame", &frame)?;
         match self.shape {

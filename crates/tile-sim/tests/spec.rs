@@ -1,4 +1,4 @@
-//! Task specs: the three built-in files parse, agree with the crate's constants and the named
+//! Task specs: the four built-in files parse, agree with the crate's constants and the named
 //! start distributions, and a spec's numbers reach the episode; bad specs are refused with the
 //! field, the value and why.
 
@@ -20,17 +20,25 @@ fn builtin_specs_parse_and_name_their_tasks() {
         assert_eq!(spec.task(), task);
         assert_eq!(spec.robot.model, "ur3");
         assert_eq!(spec.robot.home_q, HOME_Q);
-        assert_eq!(spec.episode.max_steps, MAX_EPISODE_STEPS);
         assert_eq!((spec.rewards.pick, spec.rewards.success, spec.rewards.fail), (1.0, 1.0, -0.5));
         assert_eq!(spec.table.half_extents, world::TABLE_HALF);
         assert_eq!(spec.table.top_z, world::TABLE_TOP);
         assert_eq!(spec.table.friction, world::FRICTION);
-        assert_eq!(spec.starts.paper.variation(), Variation::default(), "{task:?}");
+        // The paper's three share the paper's episode length and starts; TileRow has its own
+        // (tests/tile_row.rs) and is the only one with a row.
+        if task == Task::TileRow {
+            assert_eq!(spec.row.map(|r| r.count), Some(3));
+        } else {
+            assert_eq!(spec.row, None, "{task:?}");
+            assert_eq!(spec.episode.max_steps, MAX_EPISODE_STEPS);
+            assert_eq!(spec.starts.paper.variation(), Variation::default(), "{task:?}");
+        }
         // The file on disk is the one compiled in.
         let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tasks").join(match task {
             Task::TileSuction => "tile_suction.toml",
             Task::BlockGrip => "block_grip.toml",
             Task::Screw => "screw.toml",
+            Task::TileRow => "tile_row.toml",
         });
         assert_eq!(TaskSpec::from_file(&file).unwrap(), *spec);
         assert_eq!(std::fs::read_to_string(&file).unwrap(), TaskSpec::builtin_toml(task));

@@ -5,6 +5,9 @@
 
 use tile_sim::{Env, SimError, Start, Task, Variation, VecEnv, world};
 
+/// The tasks whose starts are the paper's and the wide box of `Variation::default` / `wide`.
+const PAPER_TASKS: [Task; 3] = [Task::TileSuction, Task::BlockGrip, Task::Screw];
+
 fn msg(r: Result<(), SimError>) -> String {
     match r {
         Err(SimError::InvalidArgument(m)) => m,
@@ -21,7 +24,8 @@ fn every_start_of_the_wide_box_is_valid() {
     assert!((v.yaw[1] - 30f32.to_radians()).abs() < 1e-6 && v.yaw[0] == -v.yaw[1]);
     assert_eq!(v.target_jitter, 0.04);
     let lerp = |r: [f32; 2], k: usize, n: usize| r[0] + (r[1] - r[0]) * k as f32 / (n - 1) as f32;
-    for task in Task::ALL {
+    // The paper's three tasks share this box; TileRow's row has a box of its own (tests/tile_row.rs).
+    for task in PAPER_TASKS {
         let mut checked = 0;
         for ix in 0..6 {
             for iy in 0..5 {
@@ -46,7 +50,7 @@ fn every_start_of_the_wide_box_is_valid() {
 
 #[test]
 fn wide_draws_fill_the_box_and_the_papers_draws_are_unchanged() {
-    for task in Task::ALL {
+    for task in PAPER_TASKS {
         let v = Variation::wide();
         let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
         let mut dmax = 0.0f32;

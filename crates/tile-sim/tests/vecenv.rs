@@ -427,7 +427,8 @@ fn state_restore_continues_bit_for_bit() {
             a.reset(Some(11), &mut o).unwrap();
             run_log(&mut a, &acts, cut);
             let st = a.state();
-            assert!(st.actions.iter().all(|r| r.len() % ad == 0 && r.len() < 750 * ad));
+            let max_steps = task.spec().episode.max_steps as usize;
+            assert!(st.actions.iter().all(|r| r.len() % ad == 0 && r.len() < max_steps * ad));
             let obs_then: Vec<f32> = (0..n).flat_map(|i| a.env(i).unwrap().observation().to_vec()).collect();
             let mut b = VecEnv::new(task, n, 999, 1).unwrap();
             let mut ob = vec![0.0; n * task.obs_dim()];

@@ -98,9 +98,9 @@ def calibration_arg(path: str | None):  # -> Calibration | None
 
 
 def task_file_arg(path: str, task: str | None) -> str:
-    """The task (``suction`` | ``grip`` | ``screw``) the spec file at ``path`` runs, the file
-    read and checked; a bad or unreadable spec, or one of another task than ``--task``, is a
-    :class:`UsageError` naming the file (and the field, the value and why)."""
+    """The task (``suction`` | ``grip`` | ``screw`` | ``row``) the spec file at ``path`` runs,
+    the file read and checked; a bad or unreadable spec, or one of another task than ``--task``,
+    is a :class:`UsageError` naming the file (and the field, the value and why)."""
     from mimicrete import tasks
     from mimicrete._native import SimInputError
 
@@ -117,10 +117,19 @@ def task_file_arg(path: str, task: str | None) -> str:
 
 
 def user_errors() -> tuple[type[BaseException], ...]:
-    """Exceptions that mean "bad input": the CLI prints them as one line and exits 2."""
+    """Exceptions that mean "bad input": the CLI prints them as one line and exits 2 (a task a
+    part of the package is not built for, :class:`mimicrete.tasks.NotBuiltError`, too)."""
     from mimicrete import LogFormatError
+    from mimicrete.tasks import NotBuiltError
 
-    return (UsageError, LogFormatError, FileNotFoundError, IsADirectoryError, NotADirectoryError)
+    return (
+        UsageError,
+        LogFormatError,
+        NotBuiltError,
+        FileNotFoundError,
+        IsADirectoryError,
+        NotADirectoryError,
+    )
 
 
 #: characters of an error message printed (a message quoting a huge value is cut)

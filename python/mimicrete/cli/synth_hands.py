@@ -3,7 +3,8 @@ with ``--through-teleop`` its demos recorded through a live ``mimicrete teleop``
 shapes captured on a Quest (`mimicrete.demonstrator.live_client`). ``--task-file SPEC.toml``: the
 person demonstrates the task a spec file describes (its starts, object and target; the task's
 logic, and so its gestures, follow from the spec's effector); a bad spec is one line naming the
-file, the field, the value and why, exit 2."""
+file, the field, the value and why, exit 2. The row (``--task row``, ``tile_row.toml``) is
+refused the same way: its scripted demonstrator is not built yet."""
 
 from __future__ import annotations
 
@@ -61,13 +62,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete synth-hands``."""
-    from mimicrete.demonstrator import synth_hands
+    from mimicrete.demonstrator import check_task, synth_hands
 
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
     if args.task_file is not None:
         args.task = task_file_arg(args.task_file, args.task)
     args.task = args.task or "suction"
+    check_task(args.task)  # the row: not built, one line, exit 2
     if args.through_teleop:
         if args.handedness != "right" or args.layout != "openxr":
             raise UsageError(

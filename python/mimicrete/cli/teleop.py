@@ -9,6 +9,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from mimicrete.cli import UsageError, calibration_arg, gesture_model_arg, task_file_arg
+from mimicrete.tasks import TASKS
 from mimicrete.teleop.gesturemode import DEFAULT_PER_CLASS, MIN_PER_CLASS
 
 if TYPE_CHECKING:
@@ -34,8 +35,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.epilog = HELP_OPEN.format(port=8012)
     parser.add_argument(
         "--task",
-        choices=["suction", "grip", "screw"],
-        help="the task to record (suction; with --task-file, the task the spec runs)",
+        choices=TASKS,
+        help="the task to record (suction; with --task-file, the task the spec runs; the row's "
+        "scene is not built yet: refused)",
     )
     parser.add_argument(
         "--task-file",

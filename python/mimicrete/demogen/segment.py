@@ -108,11 +108,15 @@ SCREW_GRASP_TOL = {"xy": 0.006, "z": 0.02, "align_cos": 0.94}
 
 
 def task_frames(task: str) -> TaskFrames:
-    """The :data:`TASKS` row of ``task`` (any spelling :func:`mimicrete.tasks.get` takes)."""
+    """The :data:`TASKS` row of ``task`` (any spelling :func:`mimicrete.tasks.get` takes); a
+    task of the table that has none (the row: demogen is not built for it yet) is a
+    :class:`mimicrete.tasks.NotBuiltError`."""
     try:
         sim = tasks.get(task).sim
     except ValueError as e:
         raise DemoGenError(str(e)) from None
+    if sim not in TASKS:
+        raise tasks.not_built("demogen", task, list(TASKS))
     return TASKS[sim]
 
 

@@ -42,11 +42,18 @@ from mimicrete.hands import layouts
 from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
-from .motion import Person, _slow_noise, _tremor, plan_task, tracked_hand
+from .motion import (  # noqa: F401  (re-exported: the demonstrator's public names)
+    TASKS,
+    Person,
+    _slow_noise,
+    _tremor,
+    check_task,
+    plan_task,
+    tracked_hand,
+)
 from .scene import (  # noqa: F401  (re-exported: the demonstrator's public names)
     HAND_RATE_HZ,
     SHAPE_OF,
-    TASKS,
     TOOL_DOWN,
     Scene,
     _rot_batch,
@@ -191,9 +198,9 @@ def synth_hands(
     starts, each header names the file and the spec (``task_file``, ``task_spec``), and the hands
     map to Base through ur3-kin's default calibration scaled by the spec's hand scale
     (:func:`mimicrete.teleop.view.task_calibration`; the same numbers on a UR3 spec).
+    A task the person does not demonstrate (the row) is refused (:func:`check_task`).
     """
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+    check_task(task)
     extra: dict[str, Any] | None = None
     calib: Calibration | None = None
     if task_file is not None:

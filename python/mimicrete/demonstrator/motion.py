@@ -8,12 +8,12 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import tasks
 from mimicrete.hands import model as hm
 
 from .scene import (
     HAND_RATE_HZ,
     SHAPE_OF,
-    TASKS,
     Scene,
 )
 
@@ -279,6 +279,10 @@ _GRASP: dict[str, dict[str, tuple[float, float]]] = {
         "grasp": (0.9, 1.3),
     },
 }
+#: The tasks the scripted person demonstrates: those it has a plan for (one grasp, then, but for
+#: the screw, one place). The row (``TileRow``: three picks and places in one episode) is not
+#: built yet; :func:`check_task` refuses it.
+TASKS: tuple[str, ...] = tuple(_GRASP)
 #: Per pick-and-place task, the ranges (m above the target, s) of :func:`_carry_and_place`.
 _PLACE: dict[str, dict[str, tuple[float, float]]] = {
     "suction": {"carry": (0.06, 0.10), "lower": (0.0, 0.006), "release": (0.3, 0.6)},
@@ -286,9 +290,21 @@ _PLACE: dict[str, dict[str, tuple[float, float]]] = {
 }
 
 
+def check_task(task: str) -> None:
+    """Refuse a task the scripted person does not demonstrate: a
+    :class:`mimicrete.tasks.NotBuiltError` for a task of the table whose plan is not built (the
+    row), a ValueError for a name that is not a task (``task``: the short name, ``suction``)."""
+    if task in TASKS:
+        return
+    if task in tasks.TASKS:
+        raise tasks.not_built("the scripted demonstrator", task, TASKS)
+    raise ValueError(f"unknown task {task!r}; known: {TASKS}")
+
+
 def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     """The TCP path and gestures of one demonstration of ``scene.task``."""
     task = scene.task
+    check_task(task)
     up = _UP
     cls_open = "opening_stopped" if task == "screw" else "opening"
     cls_close = "closing_fixed" if task == "screw" else "closing"
@@ -314,7 +330,7 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
 
         def grasp_at() -> np.ndarray:
             return obj.copy()
-    else:
+    else:  # pragma: no cover - check_task refused it
         raise ValueError(f"unknown task {task!r}; known: {TASKS}")
     _approach_and_grasp(
         m, above, grasp_at=grasp_at, close=shp[cls_close], close_label=cls_close, **_GRASP[task]

@@ -11,7 +11,6 @@ import numpy as np
 
 from mimicrete import kin, tasks
 
-TASKS = tasks.TASKS
 HAND_RATE_HZ = 90.0
 
 #: Gesture class (paper Table 1) → finger shape shown.

@@ -27,6 +27,7 @@ from typing import Any
 
 from mimicrete import tasks
 from mimicrete.console import show_messages
+from mimicrete.demonstrator import TASKS as DEMONSTRATED
 from mimicrete.learn.run_files import atomic_write
 
 from .markdown import steps
@@ -271,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Our learner (configs/fewdemo.yaml) against the number of demonstrations: "
         "make demos, train every (count, seed), evaluate, table and figure.",
     )
-    p.add_argument("--task", choices=list(tasks.TABLE), default="suction", help="task (suction)")
+    # the demos are the scripted demonstrator's: the tasks it demonstrates (not the row yet)
+    p.add_argument("--task", choices=list(DEMONSTRATED), default="suction", help="task (suction)")
     p.add_argument("--counts", type=int, nargs="+", default=list(DEFAULT_COUNTS),
                    help="demo counts (60 20 10 5)")  # fmt: skip
     p.add_argument("--seeds", type=int, nargs="+", default=list(DEFAULT_SEEDS),

@@ -56,11 +56,12 @@ pub struct StepOutcome {
     /// for the built-in tasks) without terminating.
     pub truncated: bool,
     /// The object has been picked/gripped at some step of this episode (ever, including now):
-    /// the paper's "picked rate" counts episodes with `picked` at their end.
+    /// the paper's "picked rate" counts episodes with `picked` at their end. TileRow: any tile.
     pub picked: bool,
     /// The object is held by the end effector right now (after this step).
     pub held: bool,
-    /// The success event (install / place / tightened) happened in this step.
+    /// The success event (install / place / tightened; TileRow: the row complete, its last
+    /// tile installed) happened in this step.
     pub installed: bool,
     /// The failure event (tile/block fell, nut spun off) happened in this step.
     pub fell: bool,
@@ -76,11 +77,11 @@ pub struct Snapshot {
     pub tool0: PoseRec,
     /// End-effector TCP: cup centre (suction) or point between the fingers (gripper).
     pub tcp: PoseRec,
-    /// Object (tile / block / nut) centre pose.
+    /// Object (tile / block / nut; TileRow: the current tile, see `row`) centre pose.
     pub object: PoseRec,
     /// Target pose of the object centre (tile/block on the pad, nut fully tightened).
     pub target: PoseRec,
-    /// Suction state (TileSuction; false otherwise).
+    /// Suction state (TileSuction, TileRow; false otherwise).
     pub suction_on: bool,
     /// The object is held.
     pub held: bool,
@@ -94,10 +95,15 @@ pub struct Snapshot {
     pub step: u32,
     /// The seed this episode was reset with.
     pub episode_seed: u64,
-    /// Picked ever this episode.
+    /// Picked ever this episode (TileRow: any tile).
     pub picked: bool,
     /// The episode has terminated or been truncated.
     pub done: bool,
+    /// TileRow: every tile of the row in row order (its pose, its target, picked and installed
+    /// this episode); `object` and `target` above are the current tile's (the held one, else the
+    /// first not installed). Empty, and not serialized, for the other tasks.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub row: Vec<crate::task::tile_row::RowTile>,
 }
 
 fn to_pose(iso: &ur3_kin::Pose) -> Pose {
@@ -173,6 +179,7 @@ impl Env {
                 picked: false,
                 start: Start::default(),
                 target: Pose::IDENTITY,
+                row: Default::default(),
             },
             rng,
             episode_seed: first,
@@ -407,7 +414,7 @@ impl Env {
             self.s.world.step();
         }
         self.step_idx += 1;
-        self.logic.evaluate(&self.s, &mut out);
+        self.logic.evaluate(&mut self.s, &mut out);
         out.picked = self.s.picked;
         out.held = self.s.held;
         if !out.terminated && self.step_idx >= self.s.spec.episode.max_steps {
@@ -418,12 +425,12 @@ impl Env {
         out
     }
 
-    /// Whether any arm/finger collider, swept from its current to its next pose, comes within
-    /// [`SKIP_MARGIN`] of the object's bounding box.
-    fn arm_near_object(&self) -> bool {
+    /// Whether any arm/finger collider (or, in a row, the held object's), swept from its current
+    /// to its next pose, comes within [`SKIP_MARGIN`] of the bounding box of the object `object`.
+    fn arm_near_object(&self, object: RigidBodyHandle) -> bool {
         let bodies = &self.s.world.bodies;
         let colliders = &self.s.world.colliders;
-        let Some(obj) = bodies.get(self.s.h.object) else { return true };
+        let Some(obj) = bodies.get(object) else { return true };
         let aabb_of = |pose: &Pose, c: ColliderHandle| {
             colliders.get(c).map(|col| {
                 let local = col.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
@@ -438,7 +445,10 @@ impl Env {
         }
         let Some(obj_box) = obj_box.map(|a| a.loosened(SKIP_MARGIN)) else { return true };
         let fingers = self.s.h.fingers.as_ref().map(|f| f.as_slice()).unwrap_or(&[]);
-        for h in self.s.h.links.iter().chain(fingers) {
+        // A held tile of a row moves with the arm and pushes the others.
+        let carried = self.s.held && !self.s.h.row.is_empty() && self.s.h.object != object;
+        let held = if carried { std::slice::from_ref(&self.s.h.object) } else { &[] };
+        for h in self.s.h.links.iter().chain(fingers).chain(held) {
             let Some(b) = bodies.get(*h) else { continue };
             for &c in b.colliders() {
                 let (Some(a0), Some(a1)) = (aabb_of(b.position(), c), aabb_of(b.next_position(), c)) else {
@@ -454,18 +464,33 @@ impl Env {
 
     /// Decide this step's physics: wake a sleeping object the arm is about to reach (in every
     /// mode, so contacts always act on an awake body), and return true when the step could not
-    /// move anything: the only dynamic body (the object) is kinematic (held, or the nut) or asleep
-    /// with the arm away from it.
+    /// move anything: every dynamic body (the object, or each object of a row) is kinematic
+    /// (held, or the nut) or asleep with the arm away from it.
     fn physics_idle(&mut self) -> bool {
-        let Some(obj) = self.s.world.bodies.get(self.s.h.object) else { return false };
+        if self.s.h.row.is_empty() {
+            return self.object_idle(self.s.h.object);
+        }
+        let mut idle = true;
+        for i in 0..self.s.h.row.len() {
+            // Every object is judged (not only up to the first busy one): each sleeping object
+            // the arm reaches is woken.
+            idle &= self.object_idle(self.s.h.row[i]);
+        }
+        idle
+    }
+
+    /// [`Env::physics_idle`] for one object: wake it if it sleeps and the arm is about to reach
+    /// it; true when the step cannot move it.
+    fn object_idle(&mut self, object: RigidBodyHandle) -> bool {
+        let Some(obj) = self.s.world.bodies.get(object) else { return false };
         if !obj.is_dynamic() {
             return true;
         }
         if !obj.is_sleeping() {
             return false;
         }
-        if self.arm_near_object() {
-            self.s.world.wake_up(self.s.h.object, true);
+        if self.arm_near_object(object) {
+            self.s.world.wake_up(object, true);
             return false;
         }
         true

@@ -29,6 +29,7 @@ impl Env {
             episode_seed: self.episode_seed,
             picked: s.picked,
             done: self.done,
+            row: crate::task::tile_row::snapshot_row(s),
         }
     }
 
@@ -63,8 +64,9 @@ impl Env {
         Ok(())
     }
 
-    /// Test/tool API: teleport the object (tile/block) to translation `t` (m) and rotation
-    /// `q = [x, y, z, w]` with zero velocity; any hold is released (suction/grip state unchanged).
+    /// Test/tool API: teleport the object (tile/block; TileRow: the current tile, the snapshot's
+    /// `object`) to translation `t` (m) and rotation `q = [x, y, z, w]` with zero velocity; any
+    /// hold is released (suction/grip state unchanged).
     /// For Screw, sets the nut's turn count instead (`t` ignored, rotation ignored): use
     /// [`Env::set_turns`].
     pub fn set_object_pose(&mut self, t: [f64; 3], q: [f64; 4]) -> Result<(), SimError> {

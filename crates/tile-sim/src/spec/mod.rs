@@ -12,8 +12,8 @@
 //! What a spec does not hold: the arm's link shapes (from the robot's DH table), the control rate,
 //! joint step and physics substeps (crate constants), and the observation layout (the task
 //! logic's, [`crate::Task::obs_frame_dim`]). The task logic that judges an episode follows from
-//! the effector: `suction` → TileSuction's, `gripper` → BlockGrip's, `gripper` with `spin_rate` →
-//! Screw's.
+//! the effector: `suction` → TileSuction's (TileRow's with a `[row]`), `gripper` → BlockGrip's,
+//! `gripper` with `spin_rate` → Screw's.
 
 mod check;
 
@@ -54,6 +54,10 @@ pub struct TaskSpec {
     pub rewards: RewardsSpec,
     /// Episode length.
     pub episode: EpisodeSpec,
+    /// A row of objects and pads (optional; absent: one object, one pad, as every task before
+    /// TileRow). With a suction effector it selects the TileRow logic ([`TaskSpec::task`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub row: Option<RowSpec>,
 }
 
 /// What people read about a task (the simulator itself reads none of it).
@@ -305,6 +309,32 @@ pub struct EpisodeSpec {
     pub max_steps: u32,
 }
 
+/// A row: `count` copies of the object and of the pad, object `i` belonging on pad `i` (TileRow,
+/// `crate::Task::TileRow`). A start places the row as it places the one object: object `i`'s
+/// centre is the start's object centre plus `i · object_pitch`, with the start's yaw (each object
+/// turned about its own centre, the row's line not turned); pad `i` and its target are the pad's
+/// and the target's (with the start's offsets) plus `i · pad_pitch`. Pitches are in the Base
+/// frame's (x, y), m. Object 0 and pad 0 are where `starts` and `target.xy` put the one object
+/// and the one pad of the other tasks, so a row of one is TileSuction's scene.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RowSpec {
+    /// How many objects and pads: 2 to [`MAX_ROW`].
+    pub count: usize,
+    /// From one object's start centre to the next one's (m, Base x and y). Consecutive objects
+    /// must not overlap at any yaw of the starts (checked with every start).
+    #[serde(serialize_with = "decimal")]
+    pub object_pitch: [f32; 2],
+    /// From one pad's centre (and target) to the next one's (m, Base x and y). Consecutive pads
+    /// may touch, not overlap.
+    #[serde(serialize_with = "decimal")]
+    pub pad_pitch: [f32; 2],
+}
+
+/// The longest row a spec may have (objects and pads): TileRow's observation frame has a slot
+/// for each of this many tiles (a task's frame length is fixed, [`crate::Task::obs_frame_dim`]).
+pub const MAX_ROW: usize = 3;
+
 /// Numbers that serialize as the decimals they were written as (an `f32` 0.04 as 0.04, not
 /// 0.03999999910593033), so a spec read back (a Python dict) shows the file's values.
 trait Decimal {
@@ -349,10 +379,11 @@ fn decimal<T: Decimal, S: serde::Serializer>(v: &T, s: S) -> Result<S::Ok, S::Er
 }
 
 /// The built-in spec files, in [`Task::ALL`] order.
-const BUILTIN_TOML: [(&str, &str); 3] = [
+const BUILTIN_TOML: [(&str, &str); 4] = [
     ("tile_suction.toml", include_str!("../../tasks/tile_suction.toml")),
     ("block_grip.toml", include_str!("../../tasks/block_grip.toml")),
     ("screw.toml", include_str!("../../tasks/screw.toml")),
+    ("tile_row.toml", include_str!("../../tasks/tile_row.toml")),
 ];
 
 impl TaskSpec {
@@ -379,7 +410,7 @@ impl TaskSpec {
 
     /// The built-in spec of `task` (parsed once, shared).
     pub fn builtin(task: Task) -> Arc<TaskSpec> {
-        static SPECS: OnceLock<[Arc<TaskSpec>; 3]> = OnceLock::new();
+        static SPECS: OnceLock<[Arc<TaskSpec>; 4]> = OnceLock::new();
         let specs = SPECS.get_or_init(|| {
             BUILTIN_TOML.map(|(name, text)| {
                 Arc::new(TaskSpec::from_toml(text, name).expect("invariant: the built-in specs are valid"))
@@ -398,6 +429,7 @@ impl TaskSpec {
     /// The task logic this spec's effector selects.
     pub fn task(&self) -> Task {
         match self.effector {
+            EffectorSpec::Suction { .. } if self.row.is_some() => Task::TileRow,
             EffectorSpec::Suction { .. } => Task::TileSuction,
             EffectorSpec::Gripper { spin_rate: None, .. } => Task::BlockGrip,
             EffectorSpec::Gripper { spin_rate: Some(_), .. } => Task::Screw,
@@ -426,6 +458,23 @@ impl TaskSpec {
     /// larger workspace.
     pub fn hand_scale(&self) -> f32 {
         self.robot.hand_scale.unwrap_or_else(|| crate::starts::workspace_scale(self.arm()))
+    }
+
+    /// Objects (and pads) in the task: the row's `count`, else 1.
+    pub fn row_len(&self) -> usize {
+        self.row.map_or(1, |r| r.count)
+    }
+
+    /// Object `i`'s offset in a row from object 0 (m, Base x and y; zero for `i = 0` and without
+    /// a row).
+    pub fn object_offset(&self, i: usize) -> [f32; 2] {
+        self.row.map_or([0.0; 2], |r| [i as f32 * r.object_pitch[0], i as f32 * r.object_pitch[1]])
+    }
+
+    /// Pad `i`'s (and target `i`'s) offset in a row from pad 0 (m; zero for `i = 0` and without a
+    /// row).
+    pub fn pad_offset(&self, i: usize) -> [f32; 2] {
+        self.row.map_or([0.0; 2], |r| [i as f32 * r.pad_pitch[0], i as f32 * r.pad_pitch[1]])
     }
 
     /// Half the object's height (m): its centre's height above the surface it rests on.

@@ -135,7 +135,7 @@ impl TaskLogic for BlockGrip {
         fingers(s, action[6], out, block_contact, true);
     }
 
-    fn evaluate(&self, s: &State, out: &mut StepOutcome) {
+    fn evaluate(&self, s: &mut State, out: &mut StepOutcome) {
         let (p, v) = s.object_state();
         let t = &s.spec.thresholds;
         if !s.held && (p.translation - s.target.translation).length() < req(t.success_dist) {

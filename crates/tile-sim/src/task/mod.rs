@@ -4,11 +4,13 @@
 //! world, the arm, the effector's state); the arm's motion, the physics step and the frame
 //! stacking are the [`Env`](crate::Env)'s, the same for every task. Base frame, metres, radians.
 //!
-//! One module per task: [`suction`] (TileSuction), [`gripper`] (BlockGrip), [`screw`] (Screw).
+//! One module per task: [`suction`] (TileSuction), [`gripper`] (BlockGrip), [`screw`] (Screw),
+//! [`tile_row`] (TileRow).
 
 pub(crate) mod gripper;
 pub(crate) mod screw;
 pub(crate) mod suction;
+pub(crate) mod tile_row;
 
 use crate::env::StepOutcome;
 use crate::spec::{EffectorSpec, TaskSpec};
@@ -18,7 +20,7 @@ use crate::{CONTROL_DT, FRAME_STACK, SimError};
 use rapier3d::prelude::*;
 use std::sync::Arc;
 
-/// The three tasks of the paper's three end effectors.
+/// The three tasks of the paper's three end effectors, and a row of tiles.
 ///
 /// * `TileSuction` (paper §5.1, exact): UR3 with a four-cup suction head. Pick: the cup centre is
 ///   within 0.04 m of the tile's grasp point (centre of its top face) while the suction state is on
@@ -35,34 +37,48 @@ use std::sync::Arc;
 /// * `Screw`: grip the nut threaded on a fixed M12 bolt and spin it down [`SCREW_TURNS`](crate::SCREW_TURNS)
 ///   turns. Grip the nut → +1 once; turns ≥ `SCREW_TURNS` → +1, terminated; loosened more than
 ///   one turn (the nut leaves the bolt and drops) → −0.5, terminated.
+/// * `TileRow` (issue 26 §2): TileSuction's arm, suction head, tile and thresholds, with three
+///   tiles installed one after another on three pads in one episode, tile `i` on pad `i`. Each
+///   tile's first pick +1 (a tile is picked as in TileSuction: the nearest grasp point within
+///   0.04 m of the cup centre while the suction is on); each tile's install +1: the tile released
+///   (not held) and resting (slower than 0.05 m/s) with its centre within 0.03 m of its pad's
+///   target; an install is latched (paid once; the tile counts as installed even if it is
+///   knocked off later). All three installed → terminated (the third install's +1 is paid in
+///   that step, so a success sums to 6). Any tile falling (TileSuction's rules) → −0.5,
+///   terminated. `StepOutcome::installed` marks the step the row is complete, not each tile's
+///   install (each is a +1 and an observation flag). The module `task/tile_row.rs` says why.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(into = "&'static str")]
 pub enum Task {
     TileSuction,
     BlockGrip,
     Screw,
+    TileRow,
 }
 
 impl Task {
-    /// All tasks, in a fixed order.
-    pub const ALL: [Task; 3] = [Task::TileSuction, Task::BlockGrip, Task::Screw];
+    /// All tasks, in a fixed order (the paper's three first).
+    pub const ALL: [Task; 4] = [Task::TileSuction, Task::BlockGrip, Task::Screw, Task::TileRow];
 
-    /// Parse "TileSuction"/"BlockGrip"/"Screw" or "suction"/"grip"/"screw" (case-insensitive).
+    /// Parse "TileSuction"/"BlockGrip"/"Screw"/"TileRow" or "suction"/"grip"/"screw"/"row"
+    /// (case-insensitive).
     pub fn from_name(name: &str) -> Result<Task, SimError> {
         match name.to_ascii_lowercase().as_str() {
             "tilesuction" | "suction" | "tile_suction" => Ok(Task::TileSuction),
             "blockgrip" | "grip" | "gripping" | "block_grip" => Ok(Task::BlockGrip),
             "screw" | "screwing" => Ok(Task::Screw),
+            "tilerow" | "row" | "tile_row" => Ok(Task::TileRow),
             _ => Err(SimError::UnknownTask(name.to_string())),
         }
     }
 
-    /// Canonical name ("TileSuction", "BlockGrip", "Screw").
+    /// Canonical name ("TileSuction", "BlockGrip", "Screw", "TileRow").
     pub fn name(self) -> &'static str {
         match self {
             Task::TileSuction => "TileSuction",
             Task::BlockGrip => "BlockGrip",
             Task::Screw => "Screw",
+            Task::TileRow => "TileRow",
         }
     }
 
@@ -77,6 +93,7 @@ impl Task {
             Task::TileSuction => &suction::Suction,
             Task::BlockGrip => &gripper::BlockGrip,
             Task::Screw => &screw::Screw,
+            Task::TileRow => &tile_row::TileRow,
         }
     }
 
@@ -89,6 +106,10 @@ impl Task {
     /// * Screw (18): `q[6]`, `gripper_width` (m), `spin` (+1 tighten / 0 stopped / −1 loosen),
     ///   `tcp[3]`, `target[3]` (the nut's fully tightened centre), `nut_centre[3]`, `turns`
     ///   (turns screwed so far, ≥ 0 down the bolt).
+    /// * TileRow (31): `q[6]`, `suction` (+1 on / −1 off), `cup_centre[3]` m, then for each of
+    ///   the three tiles `i` in row order: `target_i[3]` m (tile `i`'s centre installed on pad
+    ///   `i`), `tile_centre_i[3]` m, `installed_i` (1 installed / 0 not). A spec's row of two
+    ///   leaves the third tile's seven floats zero.
     ///
     /// All positions in the Base frame.
     pub fn obs_frame_dim(self) -> usize {
@@ -100,7 +121,7 @@ impl Task {
         FRAME_STACK * self.obs_frame_dim()
     }
 
-    /// 7 (6 joints + EE command) or 8 for Screw (+ spin).
+    /// 7 (6 joints + EE command; TileRow too) or 8 for Screw (+ spin).
     pub fn act_dim(self) -> usize {
         self.logic().act_dim()
     }
@@ -137,7 +158,10 @@ pub(crate) struct State {
     /// Picked ever this episode.
     pub(crate) picked: bool,
     pub(crate) start: Start,
+    /// The target of the object `h.object` names (TileRow: the current tile's).
     pub(crate) target: Pose,
+    /// TileRow's per-tile episode state (default for the other tasks).
+    pub(crate) row: tile_row::RowState,
 }
 
 impl State {
@@ -258,8 +282,9 @@ pub(crate) trait TaskLogic: Sync {
     fn place_attached(&self, _s: &mut State, _teleport: bool) {}
     /// Apply the end-effector commands `action[6..]` (already validated) before the physics step.
     fn effector(&self, s: &mut State, action: &[f32], out: &mut StepOutcome);
-    /// Judge success and failure after the physics step: rewards, `installed`, `fell`, `terminated`.
-    fn evaluate(&self, s: &State, out: &mut StepOutcome);
+    /// Judge success and failure after the physics step: rewards, `installed`, `fell`,
+    /// `terminated` (and whatever episode state the judging latches, TileRow's installs).
+    fn evaluate(&self, s: &mut State, out: &mut StepOutcome);
     /// Write the newest observation frame (`obs_frame_dim` floats).
     fn write_frame(&self, s: &State, f: &mut [f32]);
 }

@@ -121,7 +121,7 @@ impl TaskLogic for Screw {
         place_nut(s, false);
     }
 
-    fn evaluate(&self, s: &State, out: &mut StepOutcome) {
+    fn evaluate(&self, s: &mut State, out: &mut StepOutcome) {
         if s.turns >= bolt(s).1 - 1e-9 {
             out.reward += s.spec.rewards.success;
             out.installed = true;

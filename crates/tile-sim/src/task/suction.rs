@@ -28,7 +28,8 @@ pub(crate) fn req<T>(v: Option<T>) -> T {
 #[derive(Debug)]
 pub(crate) struct Suction;
 
-fn fell(spec: &TaskSpec, p: &Pose, v: Vector, held: bool) -> bool {
+/// TileSuction's fall rules for an object at `p` moving at `v` (held or not).
+pub(crate) fn fell(spec: &TaskSpec, p: &Pose, v: Vector, held: bool) -> bool {
     let t = &spec.thresholds;
     if !p.is_finite() || p.translation.z < req(t.fall_z) {
         return true;
@@ -81,7 +82,7 @@ impl TaskLogic for Suction {
         }
     }
 
-    fn evaluate(&self, s: &State, out: &mut StepOutcome) {
+    fn evaluate(&self, s: &mut State, out: &mut StepOutcome) {
         let (p, v) = s.object_state();
         if (p.translation - s.target.translation).length() < req(s.spec.thresholds.success_dist) {
             out.reward += s.spec.rewards.success;

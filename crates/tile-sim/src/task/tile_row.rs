@@ -1,0 +1,213 @@
+//! TileRow (issue 26 §2): TileSuction's suction head installs a row of tiles, one after another,
+//! in one episode. The spec's `[row]` ([`RowSpec`](crate::spec::RowSpec)) lays out `count` tiles
+//! and `count` pads; tile `i` belongs on pad `i`. Frame (31 floats): `q[6]`, suction (+1 on / −1
+//! off), cup centre, then per tile `i` of [`MAX_ROW`]: target `i`, tile `i`'s centre, installed
+//! flag (1 / 0); a row shorter than [`MAX_ROW`] leaves the last slots zero. Base frame, metres.
+//!
+//! # Rules (what and why)
+//! * **Pick**: the suction on with the cup centre within `thresholds.pick_dist` of a tile's
+//!   grasp point (the centre of its upper face, as TileSuction) holds that tile (the nearest one
+//!   if two qualify). Each tile's first pick pays `rewards.pick` (+1), so a success picks up
+//!   three rewards for picks, and re-picking a tile (to correct it) pays nothing.
+//! * **Install** of tile `i`: released (not held), resting (linear speed below [`REST_SPEED`])
+//!   and its centre within `thresholds.success_dist` of target `i` (the centre of a tile lying
+//!   on pad `i`'s centre). TileSuction counts an install while the tile is still held (the
+//!   paper's rule for a one-tile episode, which ends there); a row goes on after an install, so
+//!   a tile counts only once it has been let go and stays on its pad. It is latched: paid
+//!   (`rewards.success`, +1) once, and the tile stays installed if it is later knocked off its
+//!   pad (that is judged by the fall rules, which end the episode), so the reward sum of an
+//!   episode is at most `count · (pick + success)`.
+//! * **Tile `i` on pad `i`**, not any free pad: each tile's target is then fixed for the whole
+//!   episode, so the observation's target `i` beside tile `i` is the goal a policy reads (with
+//!   any free pad, the goal of a tile would depend on which pads the others took, which the frame
+//!   would have to spell out); and the order of the row is the demonstration's, which a human
+//!   shows the same way every time. The tiles may still be installed in any order.
+//! * **Fall**: any tile falling by TileSuction's rules (centre below `fall_z`; not held and
+//!   tilted beyond `fall_tilt_cos` or falling faster than `fall_speed`) pays `rewards.fail`
+//!   (−0.5) and ends the episode. Installs are judged first, so the step that completes the
+//!   row is a success.
+//! * **Success**: every tile installed ends the episode (terminated) with
+//!   `StepOutcome::installed`; that flag marks the row complete (the task's success, as the
+//!   other tasks' success flag), not each tile's install.
+//!
+//! # The current tile
+//! The one [`State::h`]`.object` names, what the [`Env`](crate::Env)'s carrying, a snapshot's
+//! `object` / `target` and [`Env::set_object_pose`](crate::Env::set_object_pose) act on: the held
+//! tile while one is held, otherwise the first tile (in row order) not installed yet (the last
+//! one once all are).
+
+use super::suction::{fell, req};
+use super::{State, TaskLogic};
+use crate::env::{PoseRec, StepOutcome};
+use crate::spec::MAX_ROW;
+use rapier3d::prelude::*;
+
+/// A released tile is resting when its centre moves slower than this (m/s): a tile let go a few
+/// millimetres above its pad lands within a step or two and is then far slower; a tile sliding
+/// or bouncing across the target is not installed on the way.
+pub const REST_SPEED: f32 = 0.05;
+
+/// The TileRow logic.
+#[derive(Debug)]
+pub(crate) struct TileRow;
+
+/// TileRow's per-tile episode state: which tiles have been picked and installed, and where each
+/// belongs (the Base-frame centre of tile `i` lying on pad `i`, with the start's offsets).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RowState {
+    pub(crate) picked: [bool; MAX_ROW],
+    pub(crate) installed: [bool; MAX_ROW],
+    pub(crate) targets: [Vector; MAX_ROW],
+}
+
+impl Default for RowState {
+    fn default() -> RowState {
+        RowState { picked: [false; MAX_ROW], installed: [false; MAX_ROW], targets: [Vector::ZERO; MAX_ROW] }
+    }
+}
+
+/// One tile of a row in a [`Snapshot`](crate::Snapshot): its centre pose, its target (pad `i`'s),
+/// and whether it has been picked and installed this episode.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RowTile {
+    pub object: PoseRec,
+    pub target: PoseRec,
+    pub picked: bool,
+    pub installed: bool,
+}
+
+fn body_state(s: &State, h: RigidBodyHandle) -> (Pose, Vector) {
+    s.world.bodies.get(h).map(|b| (*b.position(), b.linvel())).unwrap_or((Pose::IDENTITY, Vector::ZERO))
+}
+
+/// The tile `i` is the one held right now.
+fn held(s: &State, i: usize) -> bool {
+    s.held && s.h.object == s.h.row[i]
+}
+
+/// Make tile `i` the current one (its body and its target).
+fn make_current(s: &mut State, i: usize) {
+    s.h.object = s.h.row[i];
+    s.target = Pose::from_translation(s.row.targets[i]);
+}
+
+/// The row's tiles as a snapshot lists them (empty for the other tasks).
+pub(crate) fn snapshot_row(s: &State) -> Vec<RowTile> {
+    (0..s.h.row.len())
+        .map(|i| RowTile {
+            object: PoseRec::from_pose(&body_state(s, s.h.row[i]).0),
+            target: PoseRec::from_pose(&Pose::from_translation(s.row.targets[i])),
+            picked: s.row.picked[i],
+            installed: s.row.installed[i],
+        })
+        .collect()
+}
+
+impl TaskLogic for TileRow {
+    fn obs_frame_dim(&self) -> usize {
+        10 + 7 * MAX_ROW
+    }
+
+    fn act_dim(&self) -> usize {
+        7
+    }
+
+    fn reset(&self, s: &mut State) {
+        s.reset_effector(0.0);
+        s.row = RowState::default();
+        for i in 0..s.h.row.len() {
+            s.row.targets[i] = s.start.row_target(&s.spec, i);
+        }
+        make_current(s, 0);
+    }
+
+    fn gripper_width(&self, _s: &State) -> f64 {
+        0.0
+    }
+
+    fn effector(&self, s: &mut State, action: &[f32], out: &mut StepOutcome) {
+        let cmd = action[6];
+        if cmd >= 0.5 {
+            s.suction_on = true;
+        } else if cmd <= -0.5 {
+            s.suction_on = false;
+        }
+        if s.held && !s.suction_on {
+            s.held = false;
+            s.release_object();
+        }
+        if !s.held && s.suction_on {
+            let tcp = s.tcp().translation;
+            let pick_dist = req(s.spec.thresholds.pick_dist);
+            let half = s.spec.object_half_height();
+            let mut best: Option<(usize, f32)> = None;
+            for i in 0..s.h.row.len() {
+                let tile = body_state(s, s.h.row[i]).0;
+                let up = tile.rotation * Vector::Z;
+                // The face turned up is the one the cups reach.
+                let sign = if up.z >= 0.0 { 1.0 } else { -1.0 };
+                let d = (tcp - (tile.translation + up * (sign * half))).length();
+                if d < pick_dist && best.is_none_or(|(_, bd)| d < bd) {
+                    best = Some((i, d));
+                }
+            }
+            if let Some((i, _)) = best {
+                make_current(s, i);
+                let offset = s.tool0.inverse() * body_state(s, s.h.row[i]).0;
+                s.grasp(offset, out, 0.0);
+                if !s.row.picked[i] {
+                    s.row.picked[i] = true;
+                    out.reward += s.spec.rewards.pick;
+                }
+            }
+        }
+    }
+
+    fn evaluate(&self, s: &mut State, out: &mut StepOutcome) {
+        let n = s.h.row.len();
+        let success_dist = req(s.spec.thresholds.success_dist);
+        for i in 0..n {
+            let (p, v) = body_state(s, s.h.row[i]);
+            let near = (p.translation - s.row.targets[i]).length() < success_dist;
+            if !s.row.installed[i] && !held(s, i) && near && v.length() < REST_SPEED {
+                s.row.installed[i] = true;
+                out.reward += s.spec.rewards.success;
+            }
+        }
+        if s.row.installed[..n].iter().all(|&b| b) {
+            out.installed = true;
+            out.terminated = true;
+        } else if (0..n).any(|i| {
+            let (p, v) = body_state(s, s.h.row[i]);
+            fell(&s.spec, &p, v, held(s, i))
+        }) {
+            out.reward += s.spec.rewards.fail;
+            out.fell = true;
+            out.terminated = true;
+        }
+        if !s.held {
+            let next = (0..n).find(|&i| !s.row.installed[i]).unwrap_or(n - 1);
+            make_current(s, next);
+        }
+    }
+
+    fn write_frame(&self, s: &State, f: &mut [f32]) {
+        for (fi, qi) in f.iter_mut().zip(s.q) {
+            *fi = qi as f32;
+        }
+        f[6] = if s.suction_on { 1.0 } else { -1.0 };
+        let put = |f: &mut [f32], k: usize, v: Vector| f[k..k + 3].copy_from_slice(&[v.x, v.y, v.z]);
+        put(f, 7, s.tcp().translation);
+        for i in 0..MAX_ROW {
+            let k = 10 + 7 * i;
+            match s.h.row.get(i) {
+                Some(&h) => {
+                    put(f, k, s.row.targets[i]);
+                    put(f, k + 3, body_state(s, h).0.translation);
+                    f[k + 6] = if s.row.installed[i] { 1.0 } else { 0.0 };
+                }
+                None => f[k..k + 7].iter_mut().for_each(|v| *v = 0.0),
+            }
+        }
+    }
+}
