@@ -102,7 +102,8 @@ test: ## the lint, then all tests (what CI runs: .ci/run)
 FIGURE_TESTS := tests/teleop/test_live_page.py::test_suction_episode_recorded_live_in_the_browser \
 	tests/teleop/test_gesture_mode_page.py::test_page_records_iwer_poses_trains_and_shows_held_out_accuracy
 
-# docs/figures/scene.png: the TileSuction env's own render (top and side views) after reset(seed=0).
+# docs/figures/scene.png: the TileSuction env's own render (top and side views) after reset(seed=0);
+# docs/figures/tile_row.png: the same for TileRow-v0 (docs/tasks.md, "A row of tiles").
 # docs/figures/group3_episode.gif: the deterministic evaluation episode (seed 10000) of the group-3
 # policy the tests keep, tests/learn/data/group3_policy.pt (how it was trained: its README), as
 # `mimicrete eval --video 1 --video-format gif` records it, in a temporary run dir (no training).
@@ -110,6 +111,7 @@ FIGURE_TESTS := tests/teleop/test_live_page.py::test_suction_episode_recorded_li
 # mimicrete.experiments.report` (fig7*.png, gail_loss.png), `... demos_needed` and `... peers report`.
 figures: $(NATIVE_STAMP) $(WEB_STAMP) $(CHROMIUM) ## the README's scene picture, episode GIF and page screenshots into docs/figures
 	$(PY) -c "import gymnasium as gym, matplotlib.pyplot as plt, mimicrete; e = gym.make('mimicrete/TileSuction-v0', render_mode='rgb_array'); e.reset(seed=0); plt.imsave('docs/figures/scene.png', e.render())"
+	$(PY) -c "import gymnasium as gym, matplotlib.pyplot as plt, mimicrete; e = gym.make('mimicrete/TileRow-v0', render_mode='rgb_array'); e.reset(seed=0); plt.imsave('docs/figures/tile_row.png', e.render())"
 	$(PY) -c "import shutil, tempfile; from pathlib import Path; from mimicrete.learn import video; d = Path(tempfile.mkdtemp()); shutil.copy('tests/learn/data/group3_policy.pt', d / 'policy.pt'); ep = video.record_run_videos(d, 1, None, 'gif')[0]; shutil.copy(d / 'videos' / ep.file, 'docs/figures/group3_episode.gif'); shutil.rmtree(d); print('docs/figures/group3_episode.gif:', ep)"
 	$(PY) -m pytest $(FIGURE_TESTS) -q --runslow --figures docs/figures
 
