@@ -122,7 +122,9 @@ def train(
         "train_cpu_s": round(cpu, 1),
         "command": " && ".join(" ".join(["mimicrete", *c[3:]]) for c in cmds),
     }
-    record.write_text(json.dumps(rec, indent=1))
+    from mimicrete.learn.run_files import atomic_write
+
+    atomic_write(record, json.dumps(rec, indent=1))  # whole or absent: Ctrl-C leaves no half record
     return rec
 
 

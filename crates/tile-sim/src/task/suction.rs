@@ -28,6 +28,29 @@ pub(crate) fn req<T>(v: Option<T>) -> T {
 #[derive(Debug)]
 pub(crate) struct Suction;
 
+/// The suction command `action[6]`: ≥ 0.5 turns the suction on, ≤ −0.5 off, between keeps it;
+/// a held object is let go once the suction is off (TileSuction and TileRow).
+pub(super) fn switch_suction(s: &mut State, action: &[f32]) {
+    let cmd = action[6];
+    if cmd >= 0.5 {
+        s.suction_on = true;
+    } else if cmd <= -0.5 {
+        s.suction_on = false;
+    }
+    if s.held && !s.suction_on {
+        s.held = false;
+        s.release_object();
+    }
+}
+
+/// Where the cups take a tile: the centre of its face turned up (the one the cups reach),
+/// `half` (the object's half height) from its centre along its z axis.
+pub(super) fn grasp_point(tile: &Pose, half: f32) -> Vector {
+    let up = tile.rotation * Vector::Z;
+    let sign = if up.z >= 0.0 { 1.0 } else { -1.0 };
+    tile.translation + up * (sign * half)
+}
+
 /// TileSuction's fall rules for an object at `p` moving at `v` (held or not).
 pub(crate) fn fell(spec: &TaskSpec, p: &Pose, v: Vector, held: bool) -> bool {
     let t = &spec.thresholds;
@@ -58,22 +81,10 @@ impl TaskLogic for Suction {
     }
 
     fn effector(&self, s: &mut State, action: &[f32], out: &mut StepOutcome) {
-        let cmd = action[6];
-        if cmd >= 0.5 {
-            s.suction_on = true;
-        } else if cmd <= -0.5 {
-            s.suction_on = false;
-        }
-        if s.held && !s.suction_on {
-            s.held = false;
-            s.release_object();
-        }
+        switch_suction(s, action);
         if !s.held && s.suction_on {
             let tile = s.object_pose();
-            let up = tile.rotation * Vector::Z;
-            // The face turned up is the one the cups reach.
-            let sign = if up.z >= 0.0 { 1.0 } else { -1.0 };
-            let grasp = tile.translation + up * (sign * s.spec.object_half_height());
+            let grasp = grasp_point(&tile, s.spec.object_half_height());
             if (s.tcp().translation - grasp).length() < req(s.spec.thresholds.pick_dist) {
                 let offset = s.tool0.inverse() * tile;
                 let reward = s.spec.rewards.pick;

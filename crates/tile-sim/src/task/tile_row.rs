@@ -36,7 +36,7 @@
 //! tile while one is held, otherwise the first tile (in row order) not installed yet (the last
 //! one once all are).
 
-use super::suction::{fell, req};
+use super::suction::{fell, grasp_point, req, switch_suction};
 use super::{State, TaskLogic};
 use crate::env::{PoseRec, StepOutcome};
 use crate::spec::MAX_ROW;
@@ -126,27 +126,14 @@ impl TaskLogic for TileRow {
     }
 
     fn effector(&self, s: &mut State, action: &[f32], out: &mut StepOutcome) {
-        let cmd = action[6];
-        if cmd >= 0.5 {
-            s.suction_on = true;
-        } else if cmd <= -0.5 {
-            s.suction_on = false;
-        }
-        if s.held && !s.suction_on {
-            s.held = false;
-            s.release_object();
-        }
+        switch_suction(s, action);
         if !s.held && s.suction_on {
             let tcp = s.tcp().translation;
             let pick_dist = req(s.spec.thresholds.pick_dist);
             let half = s.spec.object_half_height();
             let mut best: Option<(usize, f32)> = None;
             for i in 0..s.h.row.len() {
-                let tile = body_state(s, s.h.row[i]).0;
-                let up = tile.rotation * Vector::Z;
-                // The face turned up is the one the cups reach.
-                let sign = if up.z >= 0.0 { 1.0 } else { -1.0 };
-                let d = (tcp - (tile.translation + up * (sign * half))).length();
+                let d = (tcp - grasp_point(&body_state(s, s.h.row[i]).0, half)).length();
                 if d < pick_dist && best.is_none_or(|(_, bd)| d < bd) {
                     best = Some((i, d));
                 }
