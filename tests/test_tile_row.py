@@ -1,10 +1,11 @@
 """TileRow (issue 26 §2) from Python: the task table's ``row``, its gymnasium ids and spec file,
-an episode of the Rust expert through the gym env, and the parts not built for a row yet (the
-scripted demonstrator, demogen, the live page) refusing it in one line, exit 2, through the real
-command line."""
+an episode of the Rust expert through the gym env, the scripted person's row through the real
+teleop path (synth-hands, convert), and the parts not built for a row yet (demogen, the live
+page) refusing it in one line, exit 2, through the real command line."""
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -158,30 +159,68 @@ def one_line(r, command: str, *parts: str) -> str:
     return lines[0]
 
 
-NOT_BUILT_DEMONSTRATOR = (
-    "the scripted demonstrator is not built for the row task (TileRow) yet; "
-    "it handles suction, grip, screw"
-)
+# ----------------------------------------------------------------------------------------------
+# The scripted person demonstrates the row; its hand logs convert to demos that install it
+# ----------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    "how",
-    [["--task", "row"], ["--task-file", str(ROW_SPEC)], ["--task", "row", "--through-teleop"]],
-    ids=["task", "task-file", "through-teleop"],
-)
-def test_synth_hands_refuses_the_row(tmp_path: Path, how: list[str]) -> None:
-    out = tmp_path / "out"
-    r = run_cli("synth-hands", *how, "--episodes", "1", "--out", str(out))
-    one_line(r, "synth-hands", NOT_BUILT_DEMONSTRATOR)
-    assert not out.exists()
+def test_the_demonstrator_plans_three_picks_and_places_in_row_order() -> None:
+    from mimicrete.demonstrator import TASKS, Person, plan_task, scene_from_env
+
+    assert "row" in TASKS and set(TASKS) == set(tasks.TASKS)
+    sc = scene_from_env("row", 7)
+    env = _native.SimEnv("TileRow")
+    env.reset(7)
+    snap = env.snapshot()
+    assert sc.objects is not None and sc.targets is not None and len(sc.objects) == TILES
+    for i, r in enumerate(snap["row"]):
+        np.testing.assert_allclose(sc.objects[i], r["object"]["t"], atol=1e-6)
+        np.testing.assert_allclose(sc.targets[i], r["target"]["t"], atol=1e-6)
+    assert [list(map(list, p)) for p in sc.picks()] == [
+        [list(o), list(t)] for o, t in zip(sc.objects, sc.targets, strict=True)
+    ]
+    rng = np.random.default_rng(0)
+    m = plan_task(sc, rng, Person.draw(rng, "right"))
+    pos, _, phases, _ = m.arrays()
+    labels, _ = m.gestures()
+    # three closes, each over its tile's grasp point; three releases, each over its pad's target
+    closes = [k for k in range(1, len(phases)) if phases[k] == "close" and phases[k - 1] != "close"]
+    releases = [
+        k for k in range(1, len(phases)) if phases[k] == "release" and phases[k - 1] != "release"
+    ]
+    assert len(closes) == len(releases) == TILES
+    for i in range(TILES):
+        assert closes[i] < releases[i] and (i == 0 or releases[i - 1] < closes[i])
+        np.testing.assert_allclose(pos[closes[i]][:2], sc.objects[i][:2], atol=0.02)
+        np.testing.assert_allclose(pos[releases[i]][:2], sc.targets[i][:2], atol=0.02)
+    assert labels.count("closing") > 0 and labels[-1] == "opening"
 
 
-def test_the_demonstrator_refuses_the_row_from_python(tmp_path: Path) -> None:
-    from mimicrete.demonstrator import TASKS, synth_hands
+@pytest.mark.parametrize("how", [["--task", "row"], ["--task-file", str(ROW_SPEC)]],
+                         ids=["task", "task-file"])  # fmt: skip
+def test_synth_hands_then_convert_installs_the_row(tmp_path: Path, how: list[str]) -> None:
+    from mcap.reader import make_reader
 
-    assert "row" not in TASKS and set(TASKS) < set(tasks.TASKS)
-    with pytest.raises(tasks.NotBuiltError, match="scripted demonstrator is not built"):
-        synth_hands("row", 1, 0, tmp_path / "out")
+    hands, demos = tmp_path / "hands", tmp_path / "demos"
+    r = run_cli("synth-hands", *how, "--episodes", "2", "--seed", "3", "--out", str(hands))
+    assert r.returncode == 0, r.stderr
+    logs = sorted(hands.glob("*.handlog.jsonl"))
+    assert [p.name for p in logs] == ["row_0000.handlog.jsonl", "row_0001.handlog.jsonl"]
+    r = run_cli("convert", str(hands), "--task", "row", "--out", str(demos), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    assert "2 demos in" in r.stdout and "2 installed (100.0 %), 0 logs failed" in r.stdout
+    for mcap in sorted(demos.glob("*.mcap")):
+        with open(mcap, "rb") as f:
+            steps = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(["/demo/step"])]
+        rewards = [s["reward"] for s in steps]
+        # three picks and three installs pay +1 each; the last step installs the third tile
+        assert sum(rewards) == pytest.approx(6.0) and steps[-1]["terminated"]
+        assert len(steps) <= tasks.get("row").max_steps
+
+
+def test_the_demonstrator_refuses_an_unknown_task(tmp_path: Path) -> None:
+    from mimicrete.demonstrator import synth_hands
+
     with pytest.raises(ValueError, match="unknown task"):
         synth_hands("bricks", 1, 0, tmp_path / "out")
     assert not (tmp_path / "out").exists()
@@ -210,10 +249,10 @@ def test_the_live_page_refuses_the_row(tmp_path: Path, how: list[str]) -> None:
     assert not out.exists()
 
 
-def test_the_demos_needed_experiment_offers_the_demonstrated_tasks_only() -> None:
+def test_the_demos_needed_experiment_offers_the_row() -> None:
     from mimicrete.experiments.demos_needed import build_parser
 
-    assert build_parser().parse_args(["--task", "screw"]).task == "screw"
+    assert build_parser().parse_args(["--task", "row"]).task == "row"
     with pytest.raises(SystemExit) as e:
-        build_parser().parse_args(["--task", "row"])
+        build_parser().parse_args(["--task", "bricks"])
     assert e.value.code == 2

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mimicrete.cli import UsageError, calibration_arg, gesture_model_arg
+from mimicrete.tasks import TASKS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -18,7 +19,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--task",
         required=True,
-        choices=["suction", "grip", "screw"],
+        choices=TASKS,
         help="the task the hand logs demonstrate",
     )
     parser.add_argument("--out", required=True, metavar="DIR", help="where the MCAP demos go")

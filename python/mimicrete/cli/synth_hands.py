@@ -3,8 +3,8 @@ with ``--through-teleop`` its demos recorded through a live ``mimicrete teleop``
 shapes captured on a Quest (`mimicrete.demonstrator.live_client`). ``--task-file SPEC.toml``: the
 person demonstrates the task a spec file describes (its starts, object and target; the task's
 logic, and so its gestures, follow from the spec's effector); a bad spec is one line naming the
-file, the field, the value and why, exit 2. The row (``--task row``, ``tile_row.toml``) is
-refused the same way: its scripted demonstrator is not built yet."""
+file, the field, the value and why, exit 2. The row (``--task row``, ``tile_row.toml``): the person
+installs its tiles one after another, tile ``i`` onto pad ``i``."""
 
 from __future__ import annotations
 
@@ -69,7 +69,7 @@ def main(args: argparse.Namespace) -> int:
     if args.task_file is not None:
         args.task = task_file_arg(args.task_file, args.task)
     args.task = args.task or "suction"
-    check_task(args.task)  # the row: not built, one line, exit 2
+    check_task(args.task)
     if args.through_teleop:
         if args.handedness != "right" or args.layout != "openxr":
             raise UsageError(

@@ -198,7 +198,8 @@ def synth_hands(
     starts, each header names the file and the spec (``task_file``, ``task_spec``), and the hands
     map to Base through ur3-kin's default calibration scaled by the spec's hand scale
     (:func:`mimicrete.teleop.view.task_calibration`; the same numbers on a UR3 spec).
-    A task the person does not demonstrate (the row) is refused (:func:`check_task`).
+    A task the person does not demonstrate is refused (:func:`check_task`); the row's person
+    installs its tiles one after another.
     """
     check_task(task)
     extra: dict[str, Any] | None = None

@@ -279,21 +279,23 @@ _GRASP: dict[str, dict[str, tuple[float, float]]] = {
         "grasp": (0.9, 1.3),
     },
 }
-#: The tasks the scripted person demonstrates: those it has a plan for (one grasp, then, but for
-#: the screw, one place). The row (``TileRow``: three picks and places in one episode) is not
-#: built yet; :func:`check_task` refuses it.
+# the row's person handles each tile as TileSuction's (the same suction head and tile)
+_GRASP["row"] = _GRASP["suction"]
+#: The tasks the scripted person demonstrates: one grasp, then (but for the screw) one place;
+#: the row (``TileRow``) three of them in one episode, tile ``i`` onto pad ``i``.
 TASKS: tuple[str, ...] = tuple(_GRASP)
 #: Per pick-and-place task, the ranges (m above the target, s) of :func:`_carry_and_place`.
 _PLACE: dict[str, dict[str, tuple[float, float]]] = {
     "suction": {"carry": (0.06, 0.10), "lower": (0.0, 0.006), "release": (0.3, 0.6)},
     "grip": {"carry": (0.07, 0.10), "lower": (0.002, 0.006), "release": (0.6, 1.0)},
 }
+_PLACE["row"] = _PLACE["suction"]
 
 
 def check_task(task: str) -> None:
     """Refuse a task the scripted person does not demonstrate: a
-    :class:`mimicrete.tasks.NotBuiltError` for a task of the table whose plan is not built (the
-    row), a ValueError for a name that is not a task (``task``: the short name, ``suction``)."""
+    :class:`mimicrete.tasks.NotBuiltError` for a task of the table whose plan is not built (none
+    today), a ValueError for a name that is not a task (``task``: the short name, ``suction``)."""
     if task in TASKS:
         return
     if task in tasks.TASKS:
@@ -305,7 +307,6 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     """The TCP path and gestures of one demonstration of ``scene.task``."""
     task = scene.task
     check_task(task)
-    up = _UP
     cls_open = "opening_stopped" if task == "screw" else "opening"
     cls_close = "closing_fixed" if task == "screw" else "closing"
     shp = {c: hm.GESTURE_SHAPES[SHAPE_OF[c]] for c in SHAPE_OF}
@@ -313,9 +314,27 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
         scene.tcp, hm.jitter_shape(shp[cls_open], rng, 0.03).as_array(), rng, person, cls_open
     )
     m.hold(rng.uniform(0.3, 0.8), "start")
-    obj, tgt = scene.object, scene.target
+    for k, (obj, tgt) in enumerate(scene.picks()):
+        if k:  # between a row's tiles: a look at the next one
+            m.hold(rng.uniform(0.2, 0.5), "next")
+        _pick_and_place(m, task, obj, tgt, shp, cls_open, cls_close)
+    m.hold(rng.uniform(0.3, 0.6), "end")
+    return m
+
+
+def _pick_and_place(
+    m: Motion,
+    task: str,
+    obj: np.ndarray,
+    tgt: np.ndarray,
+    shp: dict[str, hm.HandShape],
+    cls_open: str,
+    cls_close: str,
+) -> None:
+    """One object of ``task`` from ``obj`` to ``tgt`` (the screw: tightened down to ``tgt``)."""
+    rng, up = m.rng, _UP
     above, held_below = obj, 0.0  # where the grasp is; how far the object hangs below the TCP
-    if task == "suction":
+    if task in ("suction", "row"):
         above = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
         clearance = rng.uniform(0.008, 0.016)
         held_below = clearance + obj[2]  # tile centre to cup centre while held
@@ -359,5 +378,3 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
         m.gesture(shp["opening_stopped"], rng.uniform(0.2, 0.5), "release", "opening_stopped")
         m.hold(rng.uniform(0.4, 0.8), "release")
         m.reach(m.here + up * 0.08, "retreat")
-    m.hold(rng.uniform(0.3, 0.6), "end")
-    return m

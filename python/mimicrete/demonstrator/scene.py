@@ -89,12 +89,14 @@ class Scene:
     """What the demonstrator sees at the start of an episode (Base frame, metres).
 
     Attributes:
-        task: ``suction``, ``grip`` or ``screw``.
+        task: ``suction``, ``grip``, ``screw`` or ``row``.
         episode_seed: the simulator seed of the episode.
         tcp: the end effector's TCP (cup centre / between the fingertips).
         tcp_z: distance from tool0 (flange) to the TCP along the tool axis.
-        object: centre of the tile / block / nut.
+        object: centre of the tile / block / nut (the row: its first tile).
         target: where the object's centre must end up.
+        objects: the row's tiles' centres ``(n, 3)``, in row order (``None`` for one object).
+        targets: where each of the row's tiles must end up ``(n, 3)`` (tile ``i`` on pad ``i``).
     """
 
     task: str
@@ -103,9 +105,18 @@ class Scene:
     tcp_z: float
     object: np.ndarray
     target: np.ndarray
+    objects: np.ndarray | None = None
+    targets: np.ndarray | None = None
+
+    def picks(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The (object, target) pairs to carry, in the order a person does them: the row's
+        tiles one after another, else the one object."""
+        if self.objects is None or self.targets is None:
+            return [(self.object, self.target)]
+        return list(zip(self.objects, self.targets, strict=True))
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d = {
             "task": self.task,
             "episode_seed": self.episode_seed,
             "tcp": np.round(self.tcp, 6).tolist(),
@@ -113,6 +124,10 @@ class Scene:
             "object": np.round(self.object, 6).tolist(),
             "target": np.round(self.target, 6).tolist(),
         }
+        if self.objects is not None and self.targets is not None:
+            d["objects"] = np.round(self.objects, 6).tolist()
+            d["targets"] = np.round(self.targets, 6).tolist()
+        return d
 
 
 def obs_layout(task: str) -> dict[str, slice]:
@@ -175,6 +190,7 @@ def scene_from_env(task: str, seed: int, task_file: str | None = None) -> Scene:
     snap = env.snapshot()
     tcp = np.array(snap["tcp"]["t"], dtype=np.float64)
     tool0 = np.array(snap["tool0"]["t"], dtype=np.float64)
+    row = snap.get("row") or []
     return Scene(
         task,
         int(seed),
@@ -182,4 +198,6 @@ def scene_from_env(task: str, seed: int, task_file: str | None = None) -> Scene:
         float(np.linalg.norm(tool0 - tcp)),
         np.array(snap["object"]["t"], dtype=np.float64),
         np.array(snap["target"]["t"], dtype=np.float64),
+        np.array([r["object"]["t"] for r in row], dtype=np.float64) if row else None,
+        np.array([r["target"]["t"] for r in row], dtype=np.float64) if row else None,
     )
