@@ -1,7 +1,8 @@
 """TileRow (issue 26 §2) from Python: the task table's ``row``, its gymnasium ids and spec file,
 an episode of the Rust expert through the gym env, the scripted person's row through the real
-teleop path (synth-hands, convert), and the parts not built for a row yet (demogen, the live
-page) refusing it in one line, exit 2, through the real command line."""
+teleop path (synth-hands, convert, and live through a teleop server), its demos' scene and
+export, and demogen, not built for a row yet, refusing it in one line, exit 2, through the real
+command line."""
 
 from __future__ import annotations
 
@@ -20,13 +21,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _cli_run import run_cli  # noqa: E402
 
 ROW_SPEC = Path(__file__).resolve().parents[1] / "crates" / "tile-sim" / "tasks" / "tile_row.toml"
-FRAME = 31  # q[6], suction, cup centre[3], then per tile: target[3], centre[3], installed flag
+# q[6], suction, cup centre[3], the current tile's target[3] and centre[3], then per tile: its
+# target[3], centre[3], installed flag
+FRAME = 37
 TILES = 3
 
 
 def tile(frame: np.ndarray, i: int) -> dict[str, np.ndarray]:
     """Tile ``i``'s fields of one observation frame."""
-    base = 10 + 7 * i
+    base = 16 + 7 * i
     return {
         "target": frame[base : base + 3],
         "centre": frame[base + 3 : base + 6],
@@ -61,15 +64,18 @@ def test_the_gym_id_resets_and_steps_with_the_row_frame() -> None:
     env = gym.make("mimicrete/TileRow-v0")
     assert isinstance(env.unwrapped, envs.TileRowEnv) and env.unwrapped.task == "TileRow"
     assert env.spec is not None and env.spec.max_episode_steps is None  # the sim truncates
-    assert env.observation_space.shape == (155,) and env.action_space.shape == (7,)
+    assert env.observation_space.shape == (5 * FRAME,) and env.action_space.shape == (7,)
     obs, info = env.reset(seed=4)
-    assert obs.shape == (155,) and obs.dtype == np.float32
+    assert obs.shape == (5 * FRAME,) and obs.dtype == np.float32
     assert np.all(obs[: 4 * FRAME] == 0.0)  # zero-padded at the start
     frame = obs[4 * FRAME :]
     snap = env.unwrapped.sim.snapshot()
     np.testing.assert_allclose(frame[:6], _native.sim_constants()["HOME_Q"], atol=1e-6)
     assert frame[6] == -1.0  # suction off
     np.testing.assert_allclose(frame[7:10], snap["tcp"]["t"], atol=1e-5)
+    # the current tile (tile 0 at the start) where TileSuction's frame has its tile
+    np.testing.assert_allclose(frame[10:13], snap["row"][0]["target"]["t"], atol=1e-5)
+    np.testing.assert_allclose(frame[13:16], snap["row"][0]["object"]["t"], atol=1e-5)
     assert len(snap["row"]) == TILES
     for i, rec in enumerate(snap["row"]):
         t = tile(frame, i)
@@ -81,7 +87,7 @@ def test_the_gym_id_resets_and_steps_with_the_row_frame() -> None:
     assert -0.2 - 1e-6 <= xs[0] <= -0.14 + 1e-6
     np.testing.assert_allclose(np.diff(xs), 0.17, atol=1e-5)
     obs2, r, term, trunc, info = env.step(np.zeros(7, np.float32))
-    assert obs2.shape == (155,) and np.array_equal(obs2[3 * FRAME : 4 * FRAME], frame)
+    assert obs2.shape == (5 * FRAME,) and np.array_equal(obs2[3 * FRAME : 4 * FRAME], frame)
     assert r == 0.0 and not term and not trunc
     assert set(info) >= {"picked", "installed", "fell", "held"}
     img = gym.make("mimicrete/TileRow-v0", render_mode="rgb_array")
@@ -93,12 +99,12 @@ def test_the_gym_id_resets_and_steps_with_the_row_frame() -> None:
 def test_the_vector_entry_gives_the_row() -> None:
     vec = gym.make_vec("mimicrete/TileRow-v0", num_envs=2, vectorization_mode="vector_entry_point")
     assert isinstance(vec, envs.MimicreteVecEnv) and vec.task == "TileRow"
-    assert vec.observation_space.shape == (2, 155) and vec.action_space.shape == (2, 7)
+    assert vec.observation_space.shape == (2, 5 * FRAME) and vec.action_space.shape == (2, 7)
     obs, _ = vec.reset(seed=9)
     single = _native.SimEnv("TileRow", 0)
     np.testing.assert_array_equal(single.reset(10), obs[1])  # env i: episode seed + i
     obs, rew, term, trunc, _ = vec.step(np.zeros((2, 7), np.float32))
-    assert obs.shape == (2, 155) and not term.any() and not trunc.any()
+    assert obs.shape == (2, 5 * FRAME) and not term.any() and not trunc.any()
 
 
 def run_expert(env: gym.Env, seed: int) -> tuple[list[float], np.ndarray, bool, bool, int]:
@@ -135,12 +141,12 @@ def test_the_row_spec_file_runs_as_the_builtin_row() -> None:
     task, spec = tasks.load_task_file(ROW_SPEC)
     assert task is tasks.get("row") and spec == _native.task_spec("TileRow")
     mine = gym.make("mimicrete/Task-v0", spec=str(ROW_SPEC))
-    assert mine.unwrapped.task == "TileRow" and mine.observation_space.shape == (155,)
+    assert mine.unwrapped.task == "TileRow" and mine.observation_space.shape == (5 * FRAME,)
     builtin = gym.make("mimicrete/TileRow-v0")
     a, b = run_expert(mine, 5), run_expert(builtin, 5)
     assert a[0] == b[0] and np.array_equal(a[1], b[1]) and a[2:] == b[2:]
     vec = envs.make_vec("Task-v0", 2, seed=0, spec=ROW_SPEC)
-    assert vec.task == "TileRow" and vec.observation_space.shape == (2, 155)
+    assert vec.task == "TileRow" and vec.observation_space.shape == (2, 5 * FRAME)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -196,12 +202,10 @@ def test_the_demonstrator_plans_three_picks_and_places_in_row_order() -> None:
     assert labels.count("closing") > 0 and labels[-1] == "opening"
 
 
-@pytest.mark.parametrize("how", [["--task", "row"], ["--task-file", str(ROW_SPEC)]],
-                         ids=["task", "task-file"])  # fmt: skip
-def test_synth_hands_then_convert_installs_the_row(tmp_path: Path, how: list[str]) -> None:
-    from mcap.reader import make_reader
-
-    hands, demos = tmp_path / "hands", tmp_path / "demos"
+def synth_and_convert(out: Path, *how: str) -> Path:
+    """Two scripted rows through the real command line (synth-hands, then convert) into
+    ``out/demos``; asserts both install."""
+    hands, demos = out / "hands", out / "demos"
     r = run_cli("synth-hands", *how, "--episodes", "2", "--seed", "3", "--out", str(hands))
     assert r.returncode == 0, r.stderr
     logs = sorted(hands.glob("*.handlog.jsonl"))
@@ -209,13 +213,81 @@ def test_synth_hands_then_convert_installs_the_row(tmp_path: Path, how: list[str
     r = run_cli("convert", str(hands), "--task", "row", "--out", str(demos), "--no-progress")
     assert r.returncode == 0, r.stderr
     assert "2 demos in" in r.stdout and "2 installed (100.0 %), 0 logs failed" in r.stdout
-    for mcap in sorted(demos.glob("*.mcap")):
-        with open(mcap, "rb") as f:
-            steps = [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(["/demo/step"])]
+    return demos
+
+
+@pytest.fixture(scope="module")
+def row_demos(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return synth_and_convert(tmp_path_factory.mktemp("row"), "--task", "row")
+
+
+def messages(mcap: Path, topic: str) -> list[dict]:
+    from mcap.reader import make_reader
+
+    with open(mcap, "rb") as f:
+        return [json.loads(m.data) for _, _, m in make_reader(f).iter_messages([topic])]
+
+
+def test_synth_hands_then_convert_installs_the_row(row_demos: Path) -> None:
+    for mcap in sorted(row_demos.glob("*.mcap")):
+        steps = messages(mcap, "/demo/step")
         rewards = [s["reward"] for s in steps]
         # three picks and three installs pay +1 each; the last step installs the third tile
         assert sum(rewards) == pytest.approx(6.0) and steps[-1]["terminated"]
         assert len(steps) <= tasks.get("row").max_steps
+
+
+def test_the_row_from_its_spec_file_installs_too(tmp_path: Path) -> None:
+    synth_and_convert(tmp_path, "--task-file", str(ROW_SPEC))
+
+
+def test_a_row_demo_draws_and_moves_every_tile(row_demos: Path) -> None:
+    mcap = sorted(row_demos.glob("*.mcap"))[0]
+    (scene,) = messages(mcap, "/scene")[:1]
+    ents = {e["id"]: e for e in scene["entities"]}
+    for i in range(TILES):
+        assert ents[f"tile_{i}"]["frame_id"] == f"tile_{i}"
+        assert ents[f"pad_{i}"]["frame_id"] == "base"
+    steps, tfs = messages(mcap, "/demo/step"), messages(mcap, "/tf")
+    assert len(tfs) == len(steps)
+    for k in (0, len(steps) // 2, len(steps) - 1):
+        frames = {t["child_frame_id"]: t["translation"] for t in tfs[k]["transforms"]}
+        # each tile's frame is where the observation of the step after has that tile
+        after = np.array(steps[k + 1]["obs"][-FRAME:]) if k + 1 < len(steps) else None
+        for i in range(TILES):
+            xyz = [frames[f"tile_{i}"][a] for a in "xyz"]
+            if after is not None:
+                np.testing.assert_allclose(xyz, tile(after, i)["centre"], atol=1e-5)
+    # at the end every tile lies on its pad's target
+    last = {t["child_frame_id"]: t["translation"] for t in tfs[-1]["transforms"]}
+    final = np.array(steps[-1]["obs"][-FRAME:])
+    for i in range(TILES):
+        xyz = np.array([last[f"tile_{i}"][a] for a in "xyz"])
+        assert np.linalg.norm(xyz - tile(final, i)["target"]) < 0.03
+
+
+def test_a_row_exports_to_lerobot_with_each_tiles_fields(row_demos: Path, tmp_path: Path) -> None:
+    import pyarrow.parquet as pq
+
+    from mimicrete import demos
+
+    out = tmp_path / "lr"
+    r = run_cli("export", str(row_demos), "--format", "lerobot", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    info = json.loads((out / "meta/info.json").read_text())
+    names = info["features"]["observation.state"]["names"]
+    assert len(names) == 5 * FRAME and names[-FRAME:][16:23] == [
+        "t.target0_x", "t.target0_y", "t.target0_z", "t.tile0_x", "t.tile0_y", "t.tile0_z",
+        "t.installed0",
+    ]  # fmt: skip
+    assert names[-1] == "t.installed2"
+    assert info["features"]["action"]["names"][-1] == "suction_command"
+    d = demos.load(row_demos)
+    state = np.stack(pq.read_table(out / "data/chunk-000/file-000.parquet")
+                     .column("observation.state").to_pylist())  # fmt: skip
+    np.testing.assert_array_equal(state.astype(np.float32), d.obs)
+    eps = pq.read_table(out / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    assert eps[0]["tasks"] == [tasks.get("row").instruction]
 
 
 def test_the_demonstrator_refuses_an_unknown_task(tmp_path: Path) -> None:
@@ -239,14 +311,21 @@ def test_demogen_refuses_the_row(tmp_path: Path) -> None:
     assert not out.exists()
 
 
-@pytest.mark.parametrize("how", [["--task", "row"], ["--task-file", str(ROW_SPEC)]],
-                         ids=["task", "task-file"])  # fmt: skip
-def test_the_live_page_refuses_the_row(tmp_path: Path, how: list[str]) -> None:
-    out = tmp_path / "out"
-    r = run_cli("teleop", *how, "--out", str(out), "--port", "1", timeout=120)
-    one_line(r, "teleop", "the live page's scene is not built for the row task (TileRow) yet; "
-             "it handles suction, grip, screw")  # fmt: skip
-    assert not out.exists()
+@pytest.mark.slow
+def test_a_row_is_recorded_live_through_a_teleop_server(tmp_path: Path) -> None:
+    """``synth-hands --through-teleop``: IWER's Quest-captured hand shapes over the page's
+    protocol into a real ``mimicrete teleop --task row`` server; the demo installs the row and
+    its scene draws every tile in its own frame."""
+    out = tmp_path / "live"
+    r = run_cli("synth-hands", "--task", "row", "--through-teleop", "--episodes", "1",
+                "--seed", "0", "--out", str(out), timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "1 succeeded" in r.stdout, r.stdout
+    demo = out / "row_0000.mcap"
+    steps = messages(demo, "/demo/step")
+    assert sum(s["reward"] for s in steps) == pytest.approx(6.0) and steps[-1]["terminated"]
+    ents = {e["id"]: e for e in messages(demo, "/scene")[0]["entities"]}
+    assert [ents[f"tile_{i}"]["frame_id"] for i in range(TILES)] == ["tile_0", "tile_1", "tile_2"]
 
 
 def test_the_demos_needed_experiment_offers_the_row() -> None:

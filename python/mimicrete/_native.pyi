@@ -312,7 +312,8 @@ class SimEnv:
     def scene_entities(self) -> list[dict[str, Any]]:
         """The Foxglove scene entities of the current episode (its pad, target and plate)."""
     def scene_frames(self) -> dict[str, list[float]]:
-        """``scene_frames`` of the current state (links at the joints, ``tile`` at the object)."""
+        """``scene_frames`` of the current state (links at the joints, ``tile`` at the object, a
+        row's ``tile_0`` … at its tiles)."""
     def set_joints(self, q: _F64) -> None:
         """Test/tool API: teleport the arm to joint angles q (6,) rad."""
     def set_object_pose(
@@ -446,11 +447,15 @@ def scene_entities(task: str, seed: int = 0, model: str = "ur3") -> list[dict[st
     effector (locked to ``tool0``) and object (locked to ``tile``)."""
 
 def scene_frames(
-    joints: list[float] | tuple[float, ...], tile_pose: list[float], model: str = "ur3"
+    joints: list[float] | tuple[float, ...],
+    tile_pose: list[float],
+    model: str = "ur3",
+    row: list[list[float]] | None = None,
 ) -> dict[str, list[float]]:
     """``{frame_id: [x, y, z, qx, qy, qz, qw]}`` in Base of the frames the scene entities are
-    locked to: the URDF links (``shoulder_link`` … ``tool0``) at ``joints`` and ``tile`` at
-    ``tile_pose`` [x, y, z, qx, qy, qz, qw]."""
+    locked to: the URDF links (``shoulder_link`` … ``tool0``) at ``joints``, ``tile`` at
+    ``tile_pose`` [x, y, z, qx, qy, qz, qw] and a row's ``tile_0`` … at ``row`` (in row
+    order)."""
 
 # ---------------------------------------------------------------------------------------------
 # Demonstrations and hand logs (demo.rs)
@@ -603,8 +608,10 @@ class DemoWriter:
         tile_pose: list[float] | _F64,
         events: list[str] | None = None,
         scene: list[dict[str, Any]] | None = None,
+        row_poses: list[list[float] | _F64] | None = None,
     ) -> None:
-        """Record one step; poses are [x, y, z, qx, qy, qz, qw] or (4, 4)."""
+        """Record one step; poses are [x, y, z, qx, qy, qz, qw] or (4, 4); ``row_poses``: a
+        row's objects' poses (frames ``tile_0`` …), in row order."""
     def write_hand_frame(
         self,
         t: float,

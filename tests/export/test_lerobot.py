@@ -127,3 +127,13 @@ def test_lerobot_loads_60_demos(demos60, tmp_path):
         got["stats_action_mean"], d.actions.astype(np.float64).mean(0), rtol=1e-9, atol=1e-12
     )
     assert sys.executable != str(LEROBOT_PY)
+
+
+def test_every_task_has_a_name_for_each_observation_and_action_float():
+    from mimicrete.export.source import ACTION_NAMES, FRAME_NAMES
+
+    for name in tasks.TASKS:
+        t = tasks.get(name)
+        assert len(FRAME_NAMES[name]) == t.obs_frame_dim, name
+        assert len(set(FRAME_NAMES[name])) == t.obs_frame_dim, name
+        assert len(ACTION_NAMES[name]) == t.act_dim, name

@@ -57,6 +57,8 @@ def test_effector_state_of_each_task():
     ee = effector_state("screw", snap)
     assert ee == {"kind": "screw", "on": False, "spin": 0, "opening": pytest.approx(0.085)}
     assert effector_state("grip", snap)["opening"] == pytest.approx(0.085)
+    row = Session("row", "webxr", "right", standing_calibration(), 0).snapshot()
+    assert effector_state("row", row) == {"kind": "suction", "on": False}
 
 
 TASKS = Path(__file__).resolve().parents[2] / "crates" / "tile-sim" / "tasks"

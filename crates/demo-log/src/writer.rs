@@ -41,6 +41,11 @@ pub const LINK_FRAMES: [&str; 8] = match urdf::LINKS.last_chunk::<8>() {
 };
 /// Frame of the tile (child of [`BASE_FRAME`]).
 pub const TILE_FRAME: &str = "tile";
+/// Frames of a row's objects (TileRow: one per tile, children of [`BASE_FRAME`]): object `i`
+/// of a step's [`StepRecord::row_poses`] drives `ROW_FRAMES[i]`; [`TILE_FRAME`] stays the
+/// current object (the held one, else the next to install). At most this many objects.
+pub const ROW_FRAMES: [&str; 8] =
+    ["tile_0", "tile_1", "tile_2", "tile_3", "tile_4", "tile_5", "tile_6", "tile_7"];
 
 /// A pose: position (m) and orientation quaternion `[x, y, z, w]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -217,6 +222,9 @@ pub struct StepRecord {
     pub ee_pose: Pose,
     /// Tile pose in Base; drives the `tile` frame.
     pub tile_pose: Pose,
+    /// A row's objects' poses in Base, in row order (TileRow; empty for one object): object `i`
+    /// drives frame [`ROW_FRAMES`]`[i]`.
+    pub row_poses: Vec<Pose>,
     /// Named events at this step (`"pick"`, `"install"`, `"fall"`), logged on `/events`.
     pub events: Vec<String>,
     /// Scene entities to add or replace at this step (e.g. a cup changing colour).
@@ -827,8 +835,17 @@ impl DemoWriter {
             || rec.joints.iter().any(|x| !x.is_finite())
             || !rec.ee_pose.is_finite()
             || !rec.tile_pose.is_finite()
+            || rec.row_poses.iter().any(|p| !p.is_finite())
         {
             return Err(DemoError::Invalid(format!("step {}: non-finite reward, joints or pose", rec.step)));
+        }
+        if rec.row_poses.len() > ROW_FRAMES.len() {
+            return Err(DemoError::Invalid(format!(
+                "step {}: {} row objects, a demo has frames for at most {}",
+                rec.step,
+                rec.row_poses.len(),
+                ROW_FRAMES.len()
+            )));
         }
         for e in &rec.scene {
             check_entity(e)?;
@@ -853,9 +870,9 @@ impl DemoWriter {
         let bytes = serde_json::to_vec(&msg).map_err(|e| DemoError::Invalid(e.to_string()))?;
         self.put(0, ns, &bytes)?;
 
-        // /tf: the link chain, then the tile.
+        // /tf: the link chain, then the tile, then a row's objects.
         let stamp = Time::from_ns(ns);
-        let mut tfs = Vec::with_capacity(LINK_FRAMES.len() + 1);
+        let mut tfs = Vec::with_capacity(LINK_FRAMES.len() + 1 + rec.row_poses.len());
         for &(parent, child, rel) in links {
             let pm = PoseMsg::from(&Pose::from_isometry(&rel));
             tfs.push(Tf {
@@ -866,14 +883,18 @@ impl DemoWriter {
                 rotation: pm.orientation,
             });
         }
-        let tile = PoseMsg::from(&rec.tile_pose);
-        tfs.push(Tf {
-            timestamp: stamp,
-            parent_frame_id: BASE_FRAME,
-            child_frame_id: TILE_FRAME,
-            translation: tile.position,
-            rotation: tile.orientation,
-        });
+        for (child, pose) in
+            std::iter::once((TILE_FRAME, &rec.tile_pose)).chain(ROW_FRAMES.into_iter().zip(&rec.row_poses))
+        {
+            let pm = PoseMsg::from(pose);
+            tfs.push(Tf {
+                timestamp: stamp,
+                parent_frame_id: BASE_FRAME,
+                child_frame_id: child,
+                translation: pm.position,
+                rotation: pm.orientation,
+            });
+        }
         let bytes =
             serde_json::to_vec(&TfMsg { transforms: tfs }).map_err(|e| DemoError::Invalid(e.to_string()))?;
         self.put(2, ns, &bytes)?;

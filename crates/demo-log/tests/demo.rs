@@ -489,3 +489,59 @@ fn stage_times_get_their_own_channel_after_the_steps() {
     let (msgs, _) = salvage(&q).unwrap();
     assert!(msgs.iter().all(|m| m.topic != TOPIC_STAGE_TIMES));
 }
+
+#[test]
+fn a_rows_objects_get_frames_of_their_own_on_tf() {
+    let d = tmpdir("row-frames");
+    let p = d.join("row.mcap");
+    let mut w = DemoWriter::create(&p, &meta(0)).unwrap();
+    let pose = |x: f64| Pose { position: [x, 0.4, 0.005], orientation: [0.0, 0.0, 0.0, 1.0] };
+    let n = 4;
+    for i in 0..n {
+        let mut s = step(i, n, 8, 7);
+        s.row_poses = vec![pose(-0.2 + 0.01 * i as f64), pose(-0.03), pose(0.14)];
+        w.write_step(&s).unwrap();
+    }
+    w.finish(&EpisodeSummary::default()).unwrap();
+    let (msgs, _) = salvage(&p).unwrap();
+    let tfs: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == TOPIC_TF)
+        .map(|m| serde_json::from_slice(&m.data).unwrap())
+        .collect();
+    assert_eq!(tfs.len(), n as usize);
+    for (i, tf) in tfs.iter().enumerate() {
+        let t = tf["transforms"].as_array().unwrap();
+        let children: Vec<&str> = t.iter().map(|x| x["child_frame_id"].as_str().unwrap()).collect();
+        // the chain, the current tile, then one frame per object of the row, each under base
+        assert_eq!(&children[..8], &LINK_FRAMES[..]);
+        assert_eq!(&children[8..], [TILE_FRAME, ROW_FRAMES[0], ROW_FRAMES[1], ROW_FRAMES[2]]);
+        assert!(t[8..].iter().all(|x| x["parent_frame_id"] == BASE_FRAME));
+        let x0 = t[9]["translation"]["x"].as_f64().unwrap();
+        assert!((x0 - (-0.2 + 0.01 * i as f64)).abs() < 1e-12, "{x0}");
+        assert_eq!(t[11]["translation"]["x"].as_f64().unwrap(), 0.14);
+    }
+    // one object: no row frames, as every demo before the row
+    write_demo(&d.join("one.mcap"), 0, 3, 8, 7, WriterOptions::default());
+    let (msgs, _) = salvage(&d.join("one.mcap")).unwrap();
+    let tf: serde_json::Value =
+        serde_json::from_slice(&msgs.iter().find(|m| m.topic == TOPIC_TF).unwrap().data).unwrap();
+    assert_eq!(tf["transforms"].as_array().unwrap().len(), 9);
+    // more objects than frames, or a pose that is not finite: refused, naming the step
+    let mut w = DemoWriter::create(d.join("bad.mcap"), &meta(0)).unwrap();
+    let mut s = step(0, 3, 8, 7);
+    s.row_poses = vec![pose(0.0); ROW_FRAMES.len() + 1];
+    assert_eq!(
+        w.write_step(&s).unwrap_err().to_string(),
+        "step 0: 9 row objects, a demo has frames for at most 8"
+    );
+    s.row_poses = vec![pose(f64::NAN)];
+    assert_eq!(w.write_step(&s).unwrap_err().to_string(), "step 0: non-finite reward, joints or pose");
+    // frame_numbers: the row's frames after the tile's; a row too long is refused
+    let q = [0.1, -1.0, 1.2, -0.4, 0.3, 0.9];
+    let f = frame_numbers("ur3", &q, &pose(0.0), &[pose(-0.2), pose(0.0)]).unwrap();
+    assert_eq!(f.len(), 11);
+    assert_eq!(f[ROW_FRAMES[1]], pose(0.0).to_numbers());
+    assert!(!f.contains_key(ROW_FRAMES[2]));
+    assert!(frame_numbers("ur3", &q, &pose(0.0), &[pose(0.0); 9]).is_err());
+}

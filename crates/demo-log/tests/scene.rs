@@ -71,7 +71,7 @@ fn a_demo_without_a_scene_draws_the_robot_only() {
 fn frame_poses_end_at_fk_and_carry_the_tile() {
     let q = [0.3, -1.2, 1.1, -0.4, -1.5, 0.7];
     let tile = Pose { position: [0.1, 0.32, 0.005], orientation: [0.0, 0.0, 0.0, 1.0] };
-    let f = frame_poses(&ur3_kin::UR3, &q, &tile);
+    let f = frame_poses(&ur3_kin::UR3, &q, &tile, &[]);
     let names: Vec<_> = f.iter().map(|x| x.0).collect();
     assert_eq!(&names[..8], &LINK_FRAMES[..]);
     assert_eq!(names[8], TILE_FRAME);
@@ -135,10 +135,10 @@ fn entity_lists_from_json() {
 fn frame_numbers_by_model_name() {
     let q = [0.1, -1.0, 1.2, -0.4, 0.3, 0.9];
     let tile = Pose { position: [0.1, 0.2, 0.3], orientation: [0.0, 0.0, 0.0, 1.0] };
-    let f = frame_numbers("ur3", &q, &tile).unwrap();
-    for (name, p) in frame_poses(&ur3_kin::UR3, &q, &tile) {
+    let f = frame_numbers("ur3", &q, &tile, &[]).unwrap();
+    for (name, p) in frame_poses(&ur3_kin::UR3, &q, &tile, &[]) {
         assert_eq!(f[name], p.to_numbers());
     }
     assert_eq!(f.len(), 9);
-    assert!(frame_numbers("nope", &q, &tile).is_err());
+    assert!(frame_numbers("nope", &q, &tile, &[]).is_err());
 }

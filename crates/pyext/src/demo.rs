@@ -128,8 +128,9 @@ impl PyDemoWriter {
         Ok(PyDemoWriter { inner: Some(w), path })
     }
 
-    /// Record one step; poses are [x, y, z, qx, qy, qz, qw] or (4, 4); `scene`: entity dicts.
-    #[pyo3(signature = (step, t, obs, action, reward, terminated, truncated, gesture, joints, ee_pose, tile_pose, events = None, scene = None))]
+    /// Record one step; poses are [x, y, z, qx, qy, qz, qw] or (4, 4); `scene`: entity dicts;
+    /// `row_poses`: a row's objects' poses (frames `tile_0` …), in row order.
+    #[pyo3(signature = (step, t, obs, action, reward, terminated, truncated, gesture, joints, ee_pose, tile_pose, events = None, scene = None, row_poses = None))]
     #[allow(clippy::too_many_arguments)]
     fn write_step(
         &mut self,
@@ -146,6 +147,7 @@ impl PyDemoWriter {
         tile_pose: &Bound<'_, PyAny>,
         events: Option<Vec<String>>,
         scene: Option<&Bound<'_, PyList>>,
+        row_poses: Option<Vec<Bound<'_, PyAny>>>,
     ) -> PyResult<()> {
         let scene = scene.map(|s| SceneEntity::list_from_json(&from_py(s)?, "scene").map_err(demo_err));
         let rec = StepRecord {
@@ -160,6 +162,12 @@ impl PyDemoWriter {
             joints,
             ee_pose: pose_from(ee_pose, "ee_pose")?,
             tile_pose: pose_from(tile_pose, "tile_pose")?,
+            row_poses: row_poses
+                .unwrap_or_default()
+                .iter()
+                .enumerate()
+                .map(|(i, p)| pose_from(p, &format!("row_poses[{i}]")))
+                .collect::<PyResult<_>>()?,
             events: events.unwrap_or_default(),
             scene: scene.transpose()?.unwrap_or_default(),
         };

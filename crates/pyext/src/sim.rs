@@ -105,16 +105,25 @@ fn scene_entities<'py>(py: Python<'py>, task: &str, seed: u64, model: &str) -> P
     to_py(py, &teleop_core::scene::scene_json(model, &scene).map_err(demo_err)?)
 }
 
-/// `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base: URDF links at `joints`, `tile` at `tile_pose`.
+/// `{frame_id: [x, y, z, qx, qy, qz, qw]}` in Base: URDF links at `joints`, `tile` at `tile_pose`,
+/// a row's `tile_0` … at `row` (in row order).
 #[pyfunction]
-#[pyo3(signature = (joints, tile_pose, model = "ur3"))]
+#[pyo3(signature = (joints, tile_pose, model = "ur3", row = None))]
 fn scene_frames(
     joints: [f64; 6],
     tile_pose: Vec<f64>,
     model: &str,
+    row: Option<Vec<Vec<f64>>>,
 ) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
     let tile = demo_log::Pose::from_numbers(&tile_pose, "tile_pose").map_err(demo_err)?;
-    demo_log::frame_numbers(model, &joints, &tile).map_err(demo_err)
+    let row = row
+        .unwrap_or_default()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| demo_log::Pose::from_numbers(p, &format!("row[{i}]")))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(demo_err)?;
+    demo_log::frame_numbers(model, &joints, &tile, &row).map_err(demo_err)
 }
 
 /// `(obs, reward, terminated, truncated, info)` of `SimEnv.step`.
@@ -239,11 +248,14 @@ impl SimEnv {
         to_py(py, &teleop_core::scene::scene_json(self.env.arm().name, &self.env.scene()).map_err(demo_err)?)
     }
 
-    /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object.
+    /// `scene_frames` of the current state: URDF links at the arm's joints, `tile` at the object,
+    /// a row's `tile_0` … at its tiles.
     fn scene_frames(&self) -> PyResult<BTreeMap<&'static str, [f64; 7]>> {
         let s = self.env.snapshot();
         let tile = demo_log::Pose { position: s.object.t, orientation: s.object.q };
-        demo_log::frame_numbers(self.env.arm().name, &s.q, &tile).map_err(demo_err)
+        let row: Vec<_> =
+            s.row.iter().map(|r| demo_log::Pose { position: r.object.t, orientation: r.object.q }).collect();
+        demo_log::frame_numbers(self.env.arm().name, &s.q, &tile, &row).map_err(demo_err)
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.

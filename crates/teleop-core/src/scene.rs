@@ -4,12 +4,15 @@
 
 use demo_log::serde_json::Value;
 use demo_log::{
-    BASE_FRAME, DemoError, Pose, Primitive, SceneEntity, Shape, TILE_FRAME, foxglove_entity,
+    BASE_FRAME, DemoError, Pose, Primitive, ROW_FRAMES, SceneEntity, Shape, TILE_FRAME, foxglove_entity,
     robot_link_entities,
 };
 use tile_sim::{Scene, SceneFrame, Task};
 use ur3_kin::UrModel;
 use ur3_kin::nalgebra::{Point3, Quaternion, UnitQuaternion, Vector3};
+
+// every object of the longest row tile-sim builds has a frame of its own in a demo
+const _: () = assert!(tile_sim::spec::MAX_ROW <= ROW_FRAMES.len());
 
 /// An `f32` constant as the decimal it was written as (0.075, not 0.07500000298023224).
 fn dec(x: f32) -> f64 {
@@ -18,8 +21,9 @@ fn dec(x: f32) -> f64 {
 
 /// The task part of a tile-sim scene as demo entities (no arm: the robot is drawn by
 /// [`robot_entities`]). Frames: tile-sim's world → `base`, its tool frame → `tool0`, its
-/// object → [`TILE_FRAME`] (the object frame of every task: tile, block or nut). Ids are the
-/// items' names, numbered when a name repeats (`cup_0` … `cup_3`).
+/// object → [`TILE_FRAME`] (the object frame of every task: tile, block or nut), a row's object
+/// `i` → [`ROW_FRAMES`]`[i]` (TileRow). Ids are the items' names, numbered when a name repeats
+/// (`cup_0` … `cup_3`; a row's `tile_0` … `tile_2`).
 pub fn scene_entities(scene: &Scene) -> Vec<SceneEntity> {
     let count = |n: &str| scene.items.iter().filter(|i| i.name == n).count();
     let mut seen = std::collections::BTreeMap::<&str, usize>::new();
@@ -30,9 +34,7 @@ pub fn scene_entities(scene: &Scene) -> Vec<SceneEntity> {
             SceneFrame::Link(6) => "tool0",
             SceneFrame::Link(_) => continue,
             SceneFrame::Object => TILE_FRAME,
-            // A row's tiles (TileRow) each need a frame of their own in the demo, which
-            // demo-log does not have yet: not drawn.
-            SceneFrame::RowObject(_) => continue,
+            SceneFrame::RowObject(i) => ROW_FRAMES[usize::from(i)],
         };
         let (kind, size) = match it.shape {
             tile_sim::Shape::Box { half } => (Shape::Cube, half.map(|h| dec(2.0 * h))),

@@ -488,6 +488,11 @@ impl Session {
             joints: s.q,
             ee_pose: RecPose { position: s.tool0.t, orientation: s.tool0.q },
             tile_pose: RecPose { position: s.object.t, orientation: s.object.q },
+            row_poses: s
+                .row
+                .iter()
+                .map(|r| RecPose { position: r.object.t, orientation: r.object.q })
+                .collect(),
             events: step.events.iter().map(|e| (*e).to_string()).collect(),
             scene: Vec::new(),
         }
@@ -545,7 +550,7 @@ impl Session {
         self.env.snapshot()
     }
     /// Poses in Base (`[x, y, z, qx, qy, qz, qw]`) of every frame the scene's entities are locked
-    /// to (the URDF links `shoulder_link` … `tool0`, and `tile`), from the step's one pass down
+    /// to (the URDF links `shoulder_link` … `tool0`, `tile`, and a row's `tile_0` …), from the step's one pass down
     /// the arm's chain.
     pub fn frame_numbers(&self) -> BTreeMap<&'static str, [f64; 7]> {
         compose(&self.links, &self.env.snapshot())
@@ -605,7 +610,8 @@ fn frame_joints(task: Task, obs: &[f32]) -> [f64; 6] {
 }
 
 /// Poses in Base of the frames the page's scene entities are locked to, as demo-log's
-/// `frame_numbers` gives them: the URDF links composed down the chain from `base`, then the tile.
+/// `frame_numbers` gives them: the URDF links composed down the chain from `base`, then the tile,
+/// then a row's tiles.
 fn compose(links: &Links, s: &Snapshot) -> BTreeMap<&'static str, [f64; 7]> {
     let mut acc = ur3_kin::Pose::identity();
     let mut out: BTreeMap<&'static str, [f64; 7]> = links
@@ -617,5 +623,8 @@ fn compose(links: &Links, s: &Snapshot) -> BTreeMap<&'static str, [f64; 7]> {
         .collect();
     let tile = RecPose { position: s.object.t, orientation: s.object.q };
     out.insert(demo_log::TILE_FRAME, tile.to_numbers());
+    for (frame, r) in demo_log::ROW_FRAMES.into_iter().zip(&s.row) {
+        out.insert(frame, RecPose { position: r.object.t, orientation: r.object.q }.to_numbers());
+    }
     out
 }

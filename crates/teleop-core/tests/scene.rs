@@ -203,3 +203,19 @@ proptest::proptest! {
         }
     }
 }
+
+#[test]
+fn a_rows_tiles_are_drawn_each_in_its_own_frame() {
+    let scene = tile_sim::episode_scene(Task::TileRow, 4);
+    let ents = scene_entities(&scene);
+    for (i, frame) in demo_log::ROW_FRAMES[..3].iter().enumerate() {
+        let tile = ents.iter().find(|e| e.id == format!("tile_{i}")).unwrap_or_else(|| panic!("no tile_{i}"));
+        assert_eq!(tile.frame_id, *frame);
+        assert_eq!(tile.size, [0.15, 0.15, 0.01]);
+        assert!(ents.iter().any(|e| e.id == format!("pad_{i}") && e.frame_id == "base"));
+    }
+    assert!(
+        !ents.iter().any(|e| e.frame_id == TILE_FRAME),
+        "a row's tiles are not in the current tile's frame"
+    );
+}

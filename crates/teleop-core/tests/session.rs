@@ -293,3 +293,56 @@ fn a_released_clutch_lets_the_hand_reposition() {
     assert!(why.iter().all(Option::is_none));
     assert!((tool(&s) - start).norm() < 1e-3, "the tool jumped at re-engagement");
 }
+
+/// Records each step's row poses.
+#[derive(Default)]
+struct RowPoses(Vec<Vec<demo_log::Pose>>);
+
+impl Recorder for RowPoses {
+    fn hand_frame(&mut self, _: &HandFrame, _: f64) -> Result<(), DemoError> {
+        Ok(())
+    }
+    fn step(&mut self, rec: &StepRecord, _: &Links) -> Result<(), DemoError> {
+        self.0.push(rec.row_poses.clone());
+        Ok(())
+    }
+}
+
+#[test]
+fn a_rows_steps_record_and_frame_every_tile() {
+    let mut s = session(Task::TileRow);
+    let mut rec = RowPoses::default();
+    let j = hand();
+    for k in 0..=45 {
+        let f = Frame {
+            t: k as f64 / 90.0,
+            tracked: true,
+            joints: &j,
+            raw: Some("opening"),
+            gesture: Some("opening"),
+            clutch: None,
+        };
+        s.push(&f, Some(&mut rec)).unwrap();
+    }
+    assert!(!rec.0.is_empty());
+    let snap = s.snapshot();
+    assert_eq!(snap.row.len(), 3);
+    let frames = s.frame_numbers();
+    for (i, (frame, r)) in demo_log::ROW_FRAMES.iter().zip(&snap.row).enumerate() {
+        let want = demo_log::Pose { position: r.object.t, orientation: r.object.q };
+        assert_eq!(frames[frame], want.to_numbers(), "frame {frame}");
+        // the newest step recorded the tiles where the snapshot has them; they rest on the
+        // table (settling by ~1 mm in the first steps), so every step recorded them near it
+        assert_eq!(rec.0.last().unwrap()[i], want);
+        for poses in &rec.0 {
+            assert_eq!(poses.len(), 3);
+            assert!(
+                (0..3).all(|k| (poses[i].position[k] - want.position[k]).abs() < 2e-3),
+                "tile {i}: {poses:?} vs {want:?}"
+            );
+        }
+    }
+    assert!(!frames.contains_key(demo_log::ROW_FRAMES[3]));
+    // one object: no row frames
+    assert!(!session(Task::TileSuction).frame_numbers().contains_key(demo_log::ROW_FRAMES[0]));
+}

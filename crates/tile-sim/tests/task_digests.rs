@@ -149,9 +149,24 @@ fn episodes_and_scenes_are_bit_identical_to_the_recorded_ones() {
     assert_eq!(got, GOLDEN, "digests changed; now:\n{}", table.join("\n"));
 }
 
+/// A TileRow observation in the frame layout its digest was recorded with (31 floats: the frame
+/// without the current tile's target and centre, floats 10..16, added after), each frame's
+/// current-tile floats checked against the snapshot's object and target on the way (the newest
+/// frame's; the older frames are earlier steps', checked when they were the newest).
+fn row_obs_as_recorded(env: &Env, obs: &[f32]) -> Vec<f32> {
+    let dim = Task::TileRow.obs_frame_dim();
+    let newest = &obs[obs.len() - dim..];
+    let s = env.snapshot();
+    for (k, v) in s.target.t.iter().chain(&s.object.t).enumerate() {
+        assert_eq!(newest[10 + k], *v as f32, "current tile's float {k}");
+    }
+    obs.chunks(dim).flat_map(|f| f[..10].iter().chain(&f[16..]).copied()).collect()
+}
+
 /// TileRow's episodes (expert and random actions, its own paper and wide starts, every tile's
 /// pose and flags each step), recorded when the task was added (branch tile-row): a change here
-/// means TileRow's episodes changed.
+/// means TileRow's episodes changed. The observation is hashed as it was recorded
+/// ([`row_obs_as_recorded`]), so the digest also says the older floats did not change.
 fn row_digest() -> (u64, u32) {
     let task = Task::TileRow;
     let spec = task.spec();
@@ -160,7 +175,7 @@ fn row_digest() -> (u64, u32) {
     let mut obs = vec![0.0f32; task.obs_dim()];
     let mut act = vec![0.0f32; task.act_dim()];
     let feed = |h: &mut Fnv, env: &Env, obs: &[f32], o: &StepOutcome| {
-        feed_step(h, env, obs, o);
+        feed_step(h, env, &row_obs_as_recorded(env, obs), o);
         for r in env.snapshot().row {
             h.f64s(&r.object.t);
             h.f64s(&r.object.q);
@@ -174,7 +189,7 @@ fn row_digest() -> (u64, u32) {
             let mut env = Env::new(task, seed);
             env.set_variation(v).unwrap();
             env.reset(Some(seed), &mut obs).unwrap();
-            h.f32s(&obs);
+            h.f32s(&row_obs_as_recorded(&env, &obs));
             let mut expert = Expert::new(task);
             loop {
                 expert.act(&env.snapshot(), &mut act);
@@ -187,7 +202,7 @@ fn row_digest() -> (u64, u32) {
             }
             let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
             env.reset(Some(seed + 1000), &mut obs).unwrap();
-            h.f32s(&obs);
+            h.f32s(&row_obs_as_recorded(&env, &obs));
             for _ in 0..120 {
                 for (i, a) in act.iter_mut().enumerate() {
                     *a =
@@ -197,7 +212,7 @@ fn row_digest() -> (u64, u32) {
                 feed(&mut h, &env, &obs, &o);
                 if o.terminated || o.truncated {
                     env.reset(None, &mut obs).unwrap();
-                    h.f32s(&obs);
+                    h.f32s(&row_obs_as_recorded(&env, &obs));
                 }
             }
             h.bytes(format!("{:?}", env.scene()).as_bytes());
@@ -220,7 +235,7 @@ fn tile_row_episodes_are_bit_identical_to_the_recorded_ones() {
 fn constants_record_is_unchanged() {
     let mut c = Constants::get();
     let row = c.tasks.remove("TileRow").expect("the record lists TileRow");
-    assert_eq!((row.obs_frame_dim, row.obs_dim, row.act_dim), (31, 155, 7));
+    assert_eq!((row.obs_frame_dim, row.obs_dim, row.act_dim), (37, 185, 7));
     let mut h = Fnv::new();
     h.bytes(format!("{c:?}").as_bytes());
     assert_eq!(h.0, 0x9665706803e23574, "constants digest now {:#018x}", h.0);

@@ -25,7 +25,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--dataset-id",
         metavar="ID",
-        help="Minari dataset id (default mimicrete/<TileSuction|BlockGrip|Screw>/demos-v0)",
+        help="Minari dataset id (default mimicrete/<TileSuction|BlockGrip|Screw|TileRow>/demos-v0)",
     )
     parser.add_argument("--author", help="Minari: the dataset's author")
 

@@ -36,6 +36,7 @@ from mimicrete.gestures.temporal import (
     train_temporal_builtin,
 )
 from mimicrete.hands import LAYOUT_JOINTS
+from mimicrete.tasks import TASKS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -48,9 +49,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.add_argument(
             "--task",
-            choices=["grip", "suction", "screw"],
+            choices=sorted(TASKS),
             default="grip",
-            help="grip/suction: 3 classes; screw: 5 classes (default grip)",
+            help="grip/suction/row: 3 classes; screw: 5 classes (default grip); a task names "
+            "the gesture model its spec uses (about.gestures)",
         )
         p.add_argument(
             "--data",

@@ -36,8 +36,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--task",
         choices=TASKS,
-        help="the task to record (suction; with --task-file, the task the spec runs; the row's "
-        "scene is not built yet: refused)",
+        help="the task to record (suction; with --task-file, the task the spec runs)",
     )
     parser.add_argument(
         "--task-file",

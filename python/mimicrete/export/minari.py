@@ -36,7 +36,7 @@ from mimicrete.export.source import INFO_KEYS, DemoSet, check_new_output
 
 
 def default_dataset_id(ds: DemoSet) -> str:
-    """``mimicrete/<TileSuction|BlockGrip|Screw>/demos-v0``."""
+    """``mimicrete/<TileSuction|BlockGrip|Screw|TileRow>/demos-v0``."""
     return f"mimicrete/{ds.sim}/demos-v0"
 
 

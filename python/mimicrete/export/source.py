@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import tasks
 from mimicrete._native import MimicreteError
 
 #: Names of one observation frame's floats per task (tile-sim's ``Task::obs_frame_dim`` layout).
@@ -44,12 +45,22 @@ FRAME_NAMES: dict[str, list[str]] = {
     + [f"nut_{a}" for a in _XYZ]
     + ["turns"],
 }
+#: The row's (TileRow, tile-sim ``task/tile_row.rs``): the suction task's for the current tile
+#: (the one held, else the first not installed), then per tile ``i`` its target, its centre and
+#: its installed flag.
+FRAME_NAMES["row"] = FRAME_NAMES["suction"] + [
+    name
+    for i in range((tasks.get("row").obs_frame_dim - len(FRAME_NAMES["suction"])) // 7)
+    for name in (*(f"target{i}_{a}" for a in _XYZ), *(f"tile{i}_{a}" for a in _XYZ))
+    + (f"installed{i}",)
+]
 
 #: Names of the action's entries per task.
 ACTION_NAMES: dict[str, list[str]] = {
     "suction": [*(f"dq{i}" for i in range(6)), "suction_command"],
     "grip": [*(f"dq{i}" for i in range(6)), "gripper_command"],
     "screw": [*(f"dq{i}" for i in range(6)), "gripper_command", "spin_command"],
+    "row": [*(f"dq{i}" for i in range(6)), "suction_command"],
 }
 
 INFO_KEYS: tuple[str, ...] = ("picked", "held", "installed", "fell")
@@ -84,8 +95,8 @@ class DemoEpisode:
 class DemoSet:
     """Every episode of one task, in file-name order."""
 
-    task: str  # suction | grip | screw
-    sim: str  # TileSuction | BlockGrip | Screw
+    task: str  # suction | grip | screw | row
+    sim: str  # TileSuction | BlockGrip | Screw | TileRow
     env_id: str  # mimicrete/TileSuction-v0 ...
     control_dt: float
     obs_dim: int

@@ -20,11 +20,11 @@ from mimicrete import gestures as gest
 from mimicrete.tasks import TaskSpec
 
 from .gesturemode import (
-    PROMPTS,
     GestureMode,
     GestureModeError,
     check_per_class,
     task_classes,
+    task_prompts,
     user_model_path,
 )
 
@@ -201,7 +201,8 @@ class GestureDesk:
                 "task": self.task.name,
                 "classes": list(classes),
                 "prompts": {
-                    c: {"meaning": m, "try": t} for c, (m, t) in PROMPTS[self.task.name].items()
+                    c: {"meaning": m, "try": t}
+                    for c, (m, t) in task_prompts(self.task.name).items()
                 },
                 "target": self._per_class,
                 "counts": {c: 0 for c in classes},

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import tasks
 from mimicrete._native import MimicreteError
 from mimicrete.gestures import (
     TASK_CLASSES,
@@ -46,15 +47,17 @@ MIN_PER_CLASS = 10
 LAYOUT = "webxr"
 HANDEDNESS = "right"
 
-#: What each class makes the end effector do, per task, and a gesture to try for it (the user may
-#: choose any hand shape, as long as the classes differ and each is held the same way).
+#: What each class makes the end effector do, per end effector (the suction head, the gripper)
+#: and for the screw's gesture model, and a gesture to try for it (the user may choose any hand
+#: shape, as long as the classes differ and each is held the same way); which one a task shows
+#: is :func:`task_prompts`'s.
 PROMPTS: dict[str, dict[str, tuple[str, str]]] = {
     "suction": {
         "closing": ("suction on (pick the tile)", "a fist or a pinch"),
         "opening": ("suction off (drop)", "an open, relaxed hand"),
         "fixed": ("hold: the suction stays as it is", "point with the index"),
     },
-    "grip": {
+    "gripper": {
         "closing": ("close the gripper", "a fist or a pinch"),
         "opening": ("open the gripper", "an open, relaxed hand"),
         "fixed": ("hold: the gripper stays as it is", "point with the index"),
@@ -77,6 +80,13 @@ def user_model_path(out: str | Path, task: str) -> Path:
 def user_csv_path(out: str | Path, task: str) -> Path:
     """Where the gesture mode writes the labelled samples it trains on."""
     return Path(out) / f"gesture_{task}_user.csv"
+
+
+def task_prompts(task: str) -> dict[str, tuple[str, str]]:
+    """The :data:`PROMPTS` of a task of the table, from its spec: the screw's for its 5-class
+    gesture model, else its end effector's (the row's: the suction head's)."""
+    t = tasks.get(task)
+    return PROMPTS["screw" if t.gesture_model == "screw" else t.effector]
 
 
 def task_classes(task: str) -> tuple[str, ...]:
@@ -112,7 +122,7 @@ class GestureMode:
         self.task = task
         self.out = Path(out)
         self.classes = task_classes(task)
-        self.prompts = PROMPTS[task]
+        self.prompts = task_prompts(task)
         self.recorder = GestureRecorder(
             self.classes,
             check_per_class(per_class),

@@ -53,9 +53,8 @@ class Live:
     """The live state of one teleoperation server.
 
     Args:
-        task: ``suction`` / ``grip`` / ``screw`` (a row, ``row`` or a spec with a ``[row]``
-            section, is refused with a :class:`mimicrete.tasks.NotBuiltError`: the page's scene
-            draws one object, teleop-core's demo scene skips a row's other tiles).
+        task: ``suction`` / ``grip`` / ``screw`` / ``row`` (a row's tiles each drawn in a frame
+            of its own, ``tile_0`` …).
         out: folder for the demos (``TASK_NNNN.mcap``) and hand logs (``TASK_NNNN.handlog.jsonl``).
         calibration: tracking space → Base; None: ``out/calibration.json`` if saved by a
             recentre, else a standing user's scaled by the task spec's hand scale
@@ -97,9 +96,6 @@ class Live:
                     f"{task_file} runs the {spec_task.name} task, not {self.task.name}"
                 )
             self.spec = (str(task_file), spec)
-        if (self.spec[1] if self.spec else self.task.builtin_spec()).get("row"):
-            one_object = [t for t in tasks.TASKS if not tasks.get(t).builtin_spec().get("row")]
-            raise tasks.not_built("the live page's scene", self.task.name, one_object)
         self.mapping = mapping  # how the hand drives the tool (teleop.session.Session)
         self.out = Path(out)
         self.out.mkdir(parents=True, exist_ok=True)

@@ -20,10 +20,12 @@ from mimicrete.kin import Calibration
 def frame_poses(snap: dict[str, Any]) -> dict[str, list[float]]:
     """``{frame_id: [x, y, z, qx, qy, qz, qw]}`` in Base of every frame the scene's entities are
     locked to (the URDF links ``shoulder_link`` … ``tool0`` at the snapshot's joints, ``tile`` at
-    its object; ``base`` is the identity and not listed), from a snapshot the caller already has:
-    ``_native.scene_frames``, the frames ``SimEnv.scene_frames()`` and the demos' ``/tf`` give."""
+    its object, a row's ``tile_0`` … at its tiles; ``base`` is the identity and not listed), from
+    a snapshot the caller already has: ``_native.scene_frames``, the frames
+    ``SimEnv.scene_frames()`` and the demos' ``/tf`` give."""
     o = snap["object"]
-    return _native.scene_frames(snap["q"], [*o["t"], *o["q"]])
+    row = [[*r["object"]["t"], *r["object"]["q"]] for r in snap.get("row") or []]
+    return _native.scene_frames(snap["q"], [*o["t"], *o["q"]], row=row)
 
 
 #: What the person should do when the robot does not follow, by the reason (the HUD's line).
@@ -50,10 +52,14 @@ def follow_why(session: Any, last_step: Any, recording: bool) -> str | None:
 
 
 def effector_state(task: str, snap: dict[str, Any]) -> dict[str, Any]:
-    """The end effector's state for the HUD and the drawing."""
-    if task == "suction":
+    """The end effector's state for the HUD and the drawing (``task``: any task of the table; the
+    row's is its suction head's)."""
+    from mimicrete import tasks
+
+    t = tasks.get(task)
+    if t.effector == "suction":
         return {"kind": "suction", "on": bool(snap["suction_on"])}
-    if task == "grip":
+    if t.name == "grip":
         return {"kind": "gripper", "opening": float(snap["gripper_width"])}
     # the screw task's tool is the gripper too: its fingers close on the nut
     return {

@@ -47,6 +47,7 @@ fn base() -> &'static Base {
                 joints: q,
                 ee_pose: Pose::IDENTITY,
                 tile_pose: Pose::IDENTITY,
+                row_poses: vec![],
                 events: vec![],
                 scene: vec![],
             })

@@ -67,6 +67,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 joints: q,
                 ee_pose: Pose::from_isometry(&ur3_kin::fk(&ur3_kin::UR3, &q)),
                 tile_pose: Pose { position: [-0.3, 0.1, 0.005], orientation: [0.0, 0.0, 0.0, 1.0] },
+                row_poses: vec![],
                 events: vec![],
                 scene: vec![],
             })?;

@@ -76,6 +76,7 @@ pub fn step(i: u64, n: u64, obs_dim: usize, act_dim: usize) -> StepRecord {
         joints: q,
         ee_pose: Pose::from_isometry(&ee),
         tile_pose: Pose { position: [-0.3, 0.05 * t, 0.005], orientation: [0.0, 0.0, 0.0, 1.0] },
+        row_poses: vec![],
         events: if i == 10 { vec!["pick".into()] } else { vec![] },
         scene: vec![],
     }

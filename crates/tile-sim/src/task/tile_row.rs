@@ -1,8 +1,14 @@
 //! TileRow (issue 26 §2): TileSuction's suction head installs a row of tiles, one after another,
 //! in one episode. The spec's `[row]` ([`RowSpec`](crate::spec::RowSpec)) lays out `count` tiles
-//! and `count` pads; tile `i` belongs on pad `i`. Frame (31 floats): `q[6]`, suction (+1 on / −1
-//! off), cup centre, then per tile `i` of [`MAX_ROW`]: target `i`, tile `i`'s centre, installed
-//! flag (1 / 0); a row shorter than [`MAX_ROW`] leaves the last slots zero. Base frame, metres.
+//! and `count` pads; tile `i` belongs on pad `i`. Frame (37 floats): TileSuction's 16 (`q[6]`,
+//! suction +1 on / −1 off, cup centre, then the current tile's target and centre: see [The
+//! current tile](#the-current-tile)), then per tile `i` of [`MAX_ROW`]: target `i`, tile `i`'s
+//! centre, installed flag (1 / 0); a row shorter than [`MAX_ROW`] leaves the last slots zero.
+//! Base frame, metres. The current tile's six floats repeat one tile's slot: they say which tile
+//! the row is at, so a policy reads "the tile to handle now" where TileSuction's reads its tile,
+//! and the same carry serves each tile of the row (with only the per-tile slots, a learner has
+//! to find the first tile not installed from the flags, and a skill learnt on the last tile does
+//! not carry over to the middle one).
 //!
 //! # Rules (what and why)
 //! * **Pick**: the suction on with the cup centre within `thresholds.pick_dist` of a tile's
@@ -46,6 +52,10 @@ use rapier3d::prelude::*;
 /// millimetres above its pad lands within a step or two and is then far slower; a tile sliding
 /// or bouncing across the target is not installed on the way.
 pub const REST_SPEED: f32 = 0.05;
+
+/// Where the per-tile slots of a frame begin: after TileSuction's 16 floats (the current tile's
+/// target and centre at 10..16).
+const ROW_SLOTS: usize = 16;
 
 /// The TileRow logic.
 #[derive(Debug)]
@@ -105,7 +115,7 @@ pub(crate) fn snapshot_row(s: &State) -> Vec<RowTile> {
 
 impl TaskLogic for TileRow {
     fn obs_frame_dim(&self) -> usize {
-        10 + 7 * MAX_ROW
+        ROW_SLOTS + 7 * MAX_ROW
     }
 
     fn act_dim(&self) -> usize {
@@ -185,8 +195,10 @@ impl TaskLogic for TileRow {
         f[6] = if s.suction_on { 1.0 } else { -1.0 };
         let put = |f: &mut [f32], k: usize, v: Vector| f[k..k + 3].copy_from_slice(&[v.x, v.y, v.z]);
         put(f, 7, s.tcp().translation);
+        put(f, 10, s.target.translation);
+        put(f, 13, body_state(s, s.h.object).0.translation);
         for i in 0..MAX_ROW {
-            let k = 10 + 7 * i;
+            let k = ROW_SLOTS + 7 * i;
             match s.h.row.get(i) {
                 Some(&h) => {
                     put(f, k, s.row.targets[i]);
