@@ -325,3 +325,32 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
         else:
             assert page.evaluate("window.__mimicrete.spectator()") is None
         assert page.mimicrete_errors == []
+
+
+def test_a_rows_tiles_are_drawn_each_in_its_own_frame(chromium: Any, base_url: str) -> None:
+    """The row's scene (``tile_0`` … locked to frames ``tile_0`` …, the server's entities): each
+    tile drawn where the state's frames put it, and moved when its frame moves."""
+    hello = _scene_hello("row", seed=2)
+    fake: dict[str, FakeServer] = {}
+    with br.vr_page(
+        chromium,
+        f"{base_url}/?emulate=quest3&devui=0",
+        viewport=(320, 240),
+        before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
+    ) as page:
+        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
+        frames = dict(hello["frames"])
+        assert {"tile_0", "tile_1", "tile_2"} <= set(frames)
+        ee = {"kind": "suction", "on": False}
+        drawn = _drawn_after(page, fake["s"], {"frames": frames, "ee": ee})
+        for i in range(3):
+            assert drawn["entities"][f"tile_{i}"] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
+            assert drawn["frames"][f"tile_{i}"] == pytest.approx(frames[f"tile_{i}"], abs=1e-6)
+        # tile 1 carried 0.22 m towards the base and 4 cm up: its frame moves, the others stay
+        moved = dict(frames)
+        p = frames["tile_1"]
+        moved["tile_1"] = [p[0], p[1] - 0.22, p[2] + 0.04, *p[3:]]
+        drawn = _drawn_after(page, fake["s"], {"frames": moved, "ee": ee})
+        assert drawn["frames"]["tile_1"][:3] == pytest.approx(moved["tile_1"][:3], abs=1e-6)
+        for i in (0, 2):
+            assert drawn["frames"][f"tile_{i}"] == pytest.approx(frames[f"tile_{i}"], abs=1e-6)
