@@ -8,7 +8,7 @@ STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
 RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml -o -path '*/tasks/*.toml' 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
-.PHONY: help setup native web demos experiments train test test-rs test-py figures bench lint fmt experiments clean export-venv
+.PHONY: help setup native web demos demos-row experiments train test test-rs test-py figures bench lint fmt experiments clean export-venv
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
@@ -56,6 +56,16 @@ $(DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/demonstrator/*.py py
 	touch $@
 
 demos: $(DEMOS)/.done ## 60 scripted hand demonstrations -> MCAP demos in demos/suction
+
+ROW_HANDS := data/hands/row
+ROW_DEMOS := demos/row
+
+$(ROW_DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/demonstrator/*.py python/mimicrete/teleop/*.py python/mimicrete/gestures/*.py python/mimicrete/hands/*.py)
+	$(VENV)/bin/mimicrete synth-hands --task row --episodes 5 --seed 0 --out $(ROW_HANDS)
+	$(VENV)/bin/mimicrete convert $(ROW_HANDS) --task row --out $(ROW_DEMOS) --overwrite
+	touch $@
+
+demos-row: $(ROW_DEMOS)/.done ## 5 scripted rows of tiles (TileRow) -> MCAP demos in demos/row (configs/row_fewdemo.yaml)
 
 train: $(DEMOS)/.done ## the main job end to end: synthetic hands -> demos -> train -> eval -> plots
 	$(PY) train.py
