@@ -112,6 +112,27 @@ def test_spaces_come_from_the_env_the_spec_builds(tmp_path: Path) -> None:
     assert vec.single_action_space.shape == (8,) and vec.observation_space.shape == (2, 90)
 
 
+def test_the_joint_step_is_the_files(tmp_path: Path) -> None:
+    # robot.joint_step: a full action moves each joint by it (the built-in tasks' MAX_JOINT_STEP
+    # unless a spec sets it), in the single and the vector env
+    edit = ('model = "ur3"', 'model = "ur3"\njoint_step = 0.015')
+    slow = spec_copy(tmp_path, "TileSuction", edit)
+    assert tasks.load_task_file(slow)[1]["robot"]["joint_step"] == 0.015
+    assert "joint_step" not in _native.task_spec("TileSuction")["robot"]
+    builtin = gym.make("mimicrete/TileSuction-v0")
+    assert builtin.unwrapped.joint_step == envs.MAX_JOINT_STEP == 0.04
+    env = gym.make("mimicrete/Task-v0", spec=str(slow))
+    assert env.unwrapped.joint_step == 0.015
+    env.reset(seed=0)
+    q0 = np.asarray(env.unwrapped.sim.snapshot()["q"])
+    a = np.array([1, -1, 0.5, 0, -0.25, 2, 0], np.float32)
+    env.step(a)
+    q1 = np.asarray(env.unwrapped.sim.snapshot()["q"])
+    want = np.clip(a[:6], -1, 1).astype(np.float64) * 0.015
+    np.testing.assert_allclose(q1 - q0, want, atol=1e-12)
+    assert envs.make_vec("Task-v0", 2, seed=0, spec=slow).joint_step == 0.015
+
+
 def test_the_vector_env_runs_the_file(tmp_path: Path) -> None:
     copy = spec_copy(tmp_path, "TileSuction")
     mine = envs.make_vec("mimicrete/Task-v0", 3, seed=7, spec=str(copy))
@@ -274,6 +295,11 @@ BAD_SPECS = [
     (("mass = 0.5 ", 'mass = "heavy" '),
      ['line 41, column 8 (mass = "heavy")', 'invalid type: string "heavy"']),
     (('kind = "suction"', 'kind = "vacuum"'), ['(kind = "vacuum")', "unknown variant `vacuum`"]),
+    (('model = "ur3"', 'model = "ur3"\njoint_step = 0'),
+     ["robot.joint_step = 0.0", "must be a finite joint motion > 0"]),
+    (('model = "ur3"', 'model = "ur3"\njoint_step = 0.2'),
+     ["robot.joint_step = 0.2", "must be at most 0.1257 rad per step",
+      "ur3's slowest rated joint speed"]),
 ]  # fmt: skip
 
 

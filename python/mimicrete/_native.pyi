@@ -279,6 +279,10 @@ class SimEnv:
         effector); raises as ``load_task_spec``."""
     def spec(self) -> dict[str, Any]:
         """The task spec this env runs, as a dict (the spec file's tables and fields)."""
+    @property
+    def joint_step(self) -> float:
+        """Joint motion (rad) per step at full action: the spec's ``robot.joint_step``, else
+        ``MAX_JOINT_STEP`` (0.04)."""
     def reset(
         self,
         seed: int | None = None,
@@ -346,6 +350,9 @@ class SimVecEnv:
         ``SimEnv.from_spec_file``); raises as ``load_task_spec``."""
     def spec(self) -> dict[str, Any]:
         """The task spec these envs run, as a dict."""
+    @property
+    def joint_step(self) -> float:
+        """Joint motion (rad) per step at full action (as ``SimEnv.joint_step``)."""
     def reset(self, seed: int | None = None) -> _F32:
         """Reset all envs with base seed ``seed`` (episode counts restart) → obs (num_envs,
         obs_dim)."""

@@ -17,7 +17,8 @@ Ids (registered when this module is imported; see :func:`register_envs`):
 Spaces (all float32): observation ``Box(-inf, inf, (obs_dim,))`` = 5 stacked frames, oldest first,
 zero-padded at episode start (TileSuction frame: 6 joint angles [rad], suction state ±1, cup centre
 [m], target [m], tile centre [m]; Base frame, Z up). Action ``Box(-1, 1, (act_dim,))``: six joint
-motions (× ``MAX_JOINT_STEP`` rad per step, clipped) and the end-effector command (≥0.5 suction /
+motions (× the joint step, clipped: ``MAX_JOINT_STEP`` = 0.04 rad per step, or a task spec's
+``robot.joint_step``, ``env.unwrapped.joint_step``) and the end-effector command (≥0.5 suction /
 close, ≤-0.5 drop / open, otherwise hold); Screw adds the spin command. Rewards are the paper's
 sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate). TileRow's frame
 holds, after the suction state and the cup centre, each tile's target, centre and installed flag
@@ -213,6 +214,12 @@ class MimicreteEnv(gym.Env):
         """The underlying ``mimicrete._native.SimEnv`` (snapshots, scene, test teleports)."""
         return self._sim
 
+    @property
+    def joint_step(self) -> float:
+        """Joint motion (rad) per step at full action: the spec's ``robot.joint_step``, else
+        ``MAX_JOINT_STEP``."""
+        return float(self._sim.joint_step)
+
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
@@ -319,6 +326,11 @@ class MimicreteVecEnv(VectorEnv):
     def task_spec(self) -> dict[str, Any]:
         """The task spec these envs run, as a dict."""
         return self._sim.spec()
+
+    @property
+    def joint_step(self) -> float:
+        """Joint motion (rad) per step at full action (as :attr:`MimicreteEnv.joint_step`)."""
+        return float(self._sim.joint_step)
 
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None

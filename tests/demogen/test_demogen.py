@@ -28,7 +28,7 @@ def _expert_demo(task: str, seed: int, path) -> None:
     run = _Runner(sim, ep, np.asarray(obs, np.float32))
     for _ in range(700):
         a = np.asarray(expert.act(sim), np.float64)
-        target = kin.fk(run.q + a[:6] * gen.MAX_JOINT_STEP, model="ur3")
+        target = kin.fk(run.q + a[:6] * sim.joint_step, model="ur3")
         try:
             run.step(target, a[6:])
         except gen._Abort:
@@ -105,6 +105,33 @@ def test_generation_from_one_demo_installs_at_new_starts(source_dir, tmp_path):
     # the installs are real: the last step of each generated demo is rewarded and terminal
     for sl in d.episode_slices():
         assert d.terminated[sl][-1] and d.rewards[sl].sum() >= 2.0 - 1e-6
+
+
+def test_played_actions_are_in_units_of_the_specs_joint_step(tmp_path):
+    """In a spec with ``robot.joint_step`` (here 0.02 rad, half the built-in step), an action
+    demogen plays that does not saturate puts the arm on its IK answer in one step (it would
+    reach only half way in units of ``MAX_JOINT_STEP``), and a source demo's poses are read
+    with the step it ran at."""
+    text = _native.task_spec("TileSuction", as_toml=True)
+    path = tmp_path / "slow.toml"
+    path.write_text(text.replace('model = "ur3"', 'model = "ur3"\njoint_step = 0.02', 1))
+    sim = gen.sim_env("TileSuction", str(path))
+    assert sim.joint_step == 0.02
+    obs = sim.reset(0)
+    ep = GeneratedEpisode("t", {"object_pose": list(sim.start()["object_pose"])}, 0)
+    run = _Runner(sim, ep, np.asarray(obs, np.float32))
+    assert run.joint_step == 0.02
+    pose = run.pose()
+    for k in range(1, 6):  # 1 mm down a step: no joint needs a full step
+        target = pose.copy()
+        target[2, 3] -= 0.001 * k
+        run.step(target, 0.0)
+        a = ep.rows[-1]["action"][:6]
+        assert np.max(np.abs(a)) < 1.0, a
+        np.testing.assert_allclose(run.q, run.q_ik, atol=1e-6)
+        np.testing.assert_allclose(run.pose()[:3, 3], target[:3, 3], atol=1e-6)
+    meta = {"task_spec": json.dumps(sim.spec())}
+    assert dg.segment.joint_step_of(meta) == 0.02 and dg.segment.joint_step_of({}) == 0.04
 
 
 def test_cli_bad_input_exits_2_naming_the_problem(source_dir, tmp_path):

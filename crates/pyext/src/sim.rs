@@ -179,6 +179,13 @@ impl SimEnv {
         to_py(py, &**self.env.spec())
     }
 
+    /// Joint motion (rad) per step at full action: the spec's `robot.joint_step`, else
+    /// `MAX_JOINT_STEP` (0.04).
+    #[getter]
+    fn joint_step(&self) -> f64 {
+        self.env.joint_step()
+    }
+
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`; at
     /// `object_pose` `[x, y, yaw]` with the target (and pad) moved by `target_offset` when given.
     #[pyo3(signature = (seed = None, object_pose = None, target_offset = None, pad_offset = None))]
@@ -322,6 +329,13 @@ impl SimVecEnv {
     /// The spec these envs run, as a dict.
     fn spec<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
         to_py(py, &**self.venv.spec())
+    }
+
+    /// Joint motion (rad) per step at full action: the spec's `robot.joint_step`, else
+    /// `MAX_JOINT_STEP` (0.04).
+    #[getter]
+    fn joint_step(&self) -> f64 {
+        self.venv.spec().joint_step()
     }
 
     /// Reset all envs, env i with seed `seed + i` (None: a base from the VecEnv's RNG) → obs.

@@ -23,7 +23,7 @@ pub use filter::OneEuro;
 pub use session::{Counts, Frame, Links, NotFollowing, Outcome, Recorder, Session, SessionConfig, Step};
 
 use std::f64::consts::{PI, TAU};
-use tile_sim::{MAX_JOINT_STEP, Task};
+use tile_sim::Task;
 
 /// Largest joint change (rad) an IK answer may ask for in one step before it counts as a jump to
 /// another branch (unreachable), not a motion.
@@ -82,9 +82,11 @@ pub fn wrap_to_pi(a: f64) -> f64 {
     m - PI
 }
 
-/// `clip(wrap(q_ik − q) / MAX_JOINT_STEP, −1, 1)`: the shortest way round, at most one full step.
-pub fn joint_action(q_ik: &[f64; 6], q: &[f64; 6]) -> [f64; 6] {
-    std::array::from_fn(|i| (wrap_to_pi(q_ik[i] - q[i]) / MAX_JOINT_STEP).clamp(-1.0, 1.0))
+/// `clip(wrap(q_ik − q) / step, −1, 1)`: the shortest way round, at most one full step. `step` is
+/// the env's joint motion per step at full action (its spec's `TaskSpec::joint_step`,
+/// `tile_sim::MAX_JOINT_STEP` = 0.04 rad unless the spec sets `robot.joint_step`).
+pub fn joint_action(q_ik: &[f64; 6], q: &[f64; 6], step: f64) -> [f64; 6] {
+    std::array::from_fn(|i| (wrap_to_pi(q_ik[i] - q[i]) / step).clamp(-1.0, 1.0))
 }
 
 /// The end-effector command a demo step records and the env receives, given the newest
@@ -133,7 +135,7 @@ mod tests {
     #[test]
     fn joint_actions_take_the_short_way_and_saturate() {
         let q = [3.1, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let a = joint_action(&[-3.1, 0.02, -1.0, 0.0, 0.0, 0.0], &q);
+        let a = joint_action(&[-3.1, 0.02, -1.0, 0.0, 0.0, 0.0], &q, tile_sim::MAX_JOINT_STEP);
         assert!(a[0] > 0.0 && a[0] <= 1.0, "crossing ±π goes forward: {}", a[0]);
         assert!((a[1] - 0.5).abs() < 1e-12);
         assert_eq!(a[2], -1.0);

@@ -153,7 +153,8 @@ pub struct SessionConfig {
 ///    then updates the hand state.
 /// 3. Per step: IK warm-started from the previous solution and unwrapped next to it (an answer
 ///    more than [`BRANCH_JUMP`] rad away on a joint is another branch: unreachable), the joint
-///    action `clip(wrap(q_ik − q) / MAX_JOINT_STEP, −1, 1)`, the gesture's command (the suction
+///    action `clip(wrap(q_ik − q) / joint_step, −1, 1)` (the env's spec's joint step,
+///    `TaskSpec::joint_step`), the gesture's command (the suction
 ///    gets one only when it switches: [`recorded_command`]), one simulator step, one record.
 ///
 /// Frames the pipeline cannot use are counted, never turned into motion: untracked and
@@ -395,7 +396,7 @@ impl Session {
                         why = Some(w);
                     }
                 }
-                let ja = joint_action(&self.q_ik, &self.q);
+                let ja = joint_action(&self.q_ik, &self.q, self.env.joint_step());
                 for (ai, v) in a.iter_mut().zip(ja) {
                     *ai = v as f32;
                 }

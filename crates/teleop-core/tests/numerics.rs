@@ -13,7 +13,7 @@ proptest! {
         dq in prop::array::uniform6(-10.0f64..10.0),
     ) {
         let target: [f64; 6] = std::array::from_fn(|i| q[i] + dq[i]);
-        let a = joint_action(&target, &q);
+        let a = joint_action(&target, &q, 0.04);
         for i in 0..6 {
             prop_assert!(a[i].abs() <= 1.0);
             let short = wrap_to_pi(dq[i]);

@@ -346,3 +346,64 @@ fn a_rows_steps_record_and_frame_every_tile() {
     // one object: no row frames
     assert!(!session(Task::TileSuction).frame_numbers().contains_key(demo_log::ROW_FRAMES[0]));
 }
+
+#[test]
+fn the_joint_action_is_in_units_of_the_specs_joint_step() {
+    // A spec with a smaller joint step than the built-in 0.04 rad: an action the session sends
+    // that does not saturate puts the arm on its IK answer in that one step (the tool on the
+    // target the step used), which it would only half reach if the action were in units of 0.04.
+    let step = 0.02;
+    let text = tile_sim::TaskSpec::builtin_toml(Task::TileSuction).replacen(
+        "model = \"ur3\"\n",
+        &format!("model = \"ur3\"\njoint_step = {step}\n"),
+        1,
+    );
+    let spec = std::sync::Arc::new(tile_sim::TaskSpec::from_toml(&text, "slow.toml").unwrap());
+    let cfg = SessionConfig {
+        task: Task::TileSuction,
+        layout: HandLayout::WebXr,
+        handedness: Handedness::Right,
+        calibration: Calibration::default(),
+        seed: 3,
+        mapping: Mapping::Clutch,
+        spec: Some(spec),
+    };
+    let mut s = Session::new(cfg).unwrap();
+    assert_eq!(s.env().joint_step(), step);
+    let r = UnitQuaternion::identity();
+    let p = Vector3::new(0.0, -0.3, -0.4);
+    let (mut exact, mut saturated) = (0, 0);
+    for k in 0..180 {
+        // still for 0.3 s, then 3 cm away in one frame, held there
+        let at = if k < 27 { p } else { p + Vector3::new(0.03, 0.0, -0.01) };
+        let j = hand_at(at, &r);
+        let f = Frame {
+            t: k as f64 / 90.0,
+            tracked: true,
+            joints: &j,
+            raw: Some("fixed"),
+            gesture: Some("fixed"),
+            clutch: None,
+        };
+        // a push runs the steps that fell due with the target of the frames before it
+        let target = s.target_pose();
+        let q0 = s.snapshot().q;
+        let steps = s.push(&f, None).unwrap();
+        assert!(steps.len() <= 1);
+        for st in steps {
+            assert!(st.why.is_none(), "{:?}", st.why);
+            let q1 = s.snapshot().q;
+            for i in 0..6 {
+                assert!((q1[i] - q0[i] - f64::from(st.action[i]) * step).abs() < 1e-6, "joint {i}");
+            }
+            if st.action[..6].iter().any(|a| a.abs() >= 1.0) {
+                saturated += 1;
+            } else if let Some(t) = &target {
+                let off = Vector3::from(s.snapshot().tool0.t) - Vector3::from(t.position);
+                assert!(off.norm() < 1e-6, "step {}: the tool is {} m off its target", st.index, off.norm());
+                exact += 1;
+            }
+        }
+    }
+    assert!(saturated > 0 && exact > 20, "saturated {saturated}, exact {exact}");
+}

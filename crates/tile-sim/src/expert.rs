@@ -1,7 +1,8 @@
 //! Scripted joint-space experts (a reference policy and a test oracle).
 //!
 //! The expert reads a [`Snapshot`] and returns the action a human demonstration would record:
-//! joint part `clip((q_goal − q)/MAX_JOINT_STEP, −1, 1)` towards the current waypoint's joint
+//! joint part `clip((q_goal − q)/joint_step, −1, 1)` (the spec's [`TaskSpec::joint_step`],
+//! [`MAX_JOINT_STEP`](crate::MAX_JOINT_STEP) unless it sets `robot.joint_step`) towards the current waypoint's joint
 //! solution, end-effector command ∈ {−1, 0, +1}. Waypoints are Cartesian TCP poses (flange pointing
 //! straight down) solved to joint angles by `ur3_kin::ik` (the project's one IK), seeded with the
 //! current joints so consecutive solutions stay on one branch.
@@ -15,9 +16,9 @@
 //! tile is installed (at most [`ROW_RELEASE_WAIT`] steps) → lift the cups to 0.14 m → the next
 //! tile; a tile that did not install is picked again where it lies.
 
+use crate::Task;
 use crate::env::Snapshot;
 use crate::spec::TaskSpec;
-use crate::{MAX_JOINT_STEP, Task};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
 
@@ -69,6 +70,8 @@ pub struct Expert {
     /// The TCP's offset along tool0 z and the grasp point's height above the object's centre (m).
     tcp_z: f64,
     grasp_dz: f64,
+    /// Joint motion per step at full action (the spec's [`TaskSpec::joint_step`]).
+    joint_step: f64,
     phase: u8,
     goal: Option<[f64; 6]>,
     /// Steps spent in the current phase.
@@ -94,6 +97,7 @@ impl Expert {
             arm: spec.arm(),
             tcp_z: spec.tcp_z() as f64,
             grasp_dz,
+            joint_step: spec.joint_step(),
             phase: 0,
             goal: None,
             ticks: 0,
@@ -138,7 +142,7 @@ impl Expert {
         self.ticks += 1;
         if let Some(g) = self.goal {
             for i in 0..6 {
-                out[i] = ((g[i] - s.q[i]) / MAX_JOINT_STEP).clamp(-1.0, 1.0) as f32;
+                out[i] = ((g[i] - s.q[i]) / self.joint_step).clamp(-1.0, 1.0) as f32;
             }
         }
         self.command(s, out);

@@ -13,6 +13,8 @@
 //! * At `|a_i| = 1` a joint moves [`MAX_JOINT_STEP`] = 0.04 rad per step, i.e. 1 rad/s (the UR3's
 //!   rated joint speed is 3.14 rad/s; 1 rad/s keeps the flange under ~0.5 m/s, a safe teaching speed).
 //!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
+//!   That is the default: a task spec's `robot.joint_step` sets another step ([`TaskSpec::joint_step`];
+//!   the UR5e and UR10e TileSuction specs scale it down by their layout's scale).
 //! * The arm links are `kinematic_position_based` bodies placed by `ur3_kin::fk_all` each step, so
 //!   the arm cannot be pushed, but it pushes (and can knock over, sweep off, or crush) the object.
 //! * Idle steps skip the solver: when every dynamic body (the object, or each tile of a row) is
@@ -52,12 +54,13 @@
 //!   (`tasks/tile_row.toml` explains the layout).
 //!
 //! # Action (f32, length [`Task::act_dim`])
-//! `a[0..6]` ∈ [-1, 1]: joint motion, `q_next = clamp(q + clip(a, -1, 1)·MAX_JOINT_STEP, -π, π)`
-//! (clamped, not wrapped: the arm never jumps across ±π). `a[6]`: end-effector command,
+//! `a[0..6]` ∈ [-1, 1]: joint motion, `q_next = clamp(q + clip(a, -1, 1)·joint_step, -π, π)`
+//! (`joint_step`: the spec's [`TaskSpec::joint_step`], [`MAX_JOINT_STEP`] unless it sets one;
+//! clamped, not wrapped: the arm never jumps across ±π). `a[6]`: end-effector command,
 //! `≥ 0.5` → suction on / gripper close, `≤ -0.5` → drop / open, otherwise fixed (hold the state).
 //! Screw has `a[7]` = spin: `≥ 0.5` tighten, `≤ -0.5` loosen, otherwise stopped.
 //! A recorded human demonstration produces exactly this: joint part
-//! `clip((q_ik − q)/MAX_JOINT_STEP, −1, 1)`, command ∈ {−1, 0, +1}. Values out of range are
+//! `clip((q_ik − q)/joint_step, −1, 1)`, command ∈ {−1, 0, +1}. Values out of range are
 //! clipped; NaN/∞ is a [`SimError`].
 //!
 //! # Observation
@@ -109,7 +112,8 @@ pub const MAX_EPISODE_STEPS: u32 = 750;
 pub const CONTROL_DT: f32 = 0.04;
 /// Rapier solver substeps inside one env step (`IntegrationParameters::num_solver_iterations`).
 pub const PHYSICS_SUBSTEPS: usize = 2;
-/// Joint motion in radians per env step at `|a| = 1` (1 rad/s at [`CONTROL_DT`]).
+/// Joint motion in radians per env step at `|a| = 1` (1 rad/s at [`CONTROL_DT`]): the default of
+/// a spec's `robot.joint_step` ([`TaskSpec::joint_step`]), the step of every built-in task.
 pub const MAX_JOINT_STEP: f64 = 0.04;
 
 /// Errors of the simulator (bad inputs; the state is left unchanged when one is returned).

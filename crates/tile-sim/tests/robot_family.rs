@@ -85,6 +85,66 @@ fn the_hand_scale_is_the_arms_workspace_scale_unless_the_spec_sets_one() {
     assert_eq!(spec.hand_scale(), 2.2);
 }
 
+#[test]
+fn a_full_action_moves_each_joint_by_the_specs_joint_step() {
+    let builtin = tile_sim::Task::TileSuction.spec();
+    let own = TaskSpec::builtin_toml(tile_sim::Task::TileSuction).replacen(
+        "model = \"ur3\"\n",
+        "model = \"ur3\"\njoint_step = 0.03\n",
+        1,
+    );
+    let cases = [
+        (builtin, tile_sim::MAX_JOINT_STEP),
+        (Arc::new(TaskSpec::from_toml(&own, "own.toml").unwrap()), 0.03),
+        (spec_file("tile_suction_ur5e.toml"), 0.025),
+        (spec_file("tile_suction_ur10e.toml"), 0.018),
+    ];
+    for (spec, step) in cases {
+        assert_eq!(spec.joint_step(), step, "{}", spec.name);
+        let task = spec.task();
+        let mut env = Env::from_spec(spec.clone(), 0);
+        assert_eq!(env.joint_step(), step);
+        let mut o = vec![0.0; task.obs_dim()];
+        env.reset(Some(0), &mut o).unwrap();
+        let q0 = env.snapshot().q;
+        // full actions both ways, a half one, a clipped one, none
+        let a = [1.0, -1.0, 0.5, 3.0, 0.0, -1.0, 0.0];
+        env.step(&a, &mut o).unwrap();
+        let q1 = env.snapshot().q;
+        let want = [step, -step, 0.5 * step, step, 0.0, -step];
+        for i in 0..6 {
+            assert_eq!(q1[i], q0[i] + want[i], "{}: joint {i}", spec.name);
+        }
+        // the scripted expert's actions are in units of the same step: a goal one step away
+        // on every joint is one full action
+        let mut ex = Expert::for_spec(&spec);
+        let mut act = vec![0.0; task.act_dim()];
+        ex.act(&env.snapshot(), &mut act);
+        assert!(act[..6].iter().all(|v| v.abs() <= 1.0));
+    }
+}
+
+#[test]
+fn the_family_joint_steps_move_the_tool_about_as_far_as_the_ur3s() {
+    // One full step of the base, shoulder or elbow at each spec's home_q: the tool0 distance
+    // against the UR3's, within 15 % (the layouts' scale is the reach ratio rounded down).
+    let moved = |spec: &TaskSpec, joint: usize| {
+        let mut q = spec.robot.home_q;
+        let a = ur3_kin::fk(spec.arm(), &q);
+        q[joint] += spec.joint_step();
+        let b = ur3_kin::fk(spec.arm(), &q);
+        (b.translation.vector - a.translation.vector).norm()
+    };
+    let ur3 = tile_sim::Task::TileSuction.spec();
+    for file in ["tile_suction_ur5e.toml", "tile_suction_ur10e.toml"] {
+        let spec = spec_file(file);
+        for joint in 0..3 {
+            let (d, d3) = (moved(&spec, joint), moved(&ur3, joint));
+            assert!((d / d3 - 1.0).abs() < 0.15, "{file}: joint {joint} moves tool0 {d} m, the UR3's {d3} m");
+        }
+    }
+}
+
 /// Installs of the scripted expert over `episodes` seeds of `spec`'s paper starts.
 fn expert_installs(spec: Arc<TaskSpec>, episodes: u64) -> (u64, u64) {
     let task = spec.task();

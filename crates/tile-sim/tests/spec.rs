@@ -20,6 +20,7 @@ fn builtin_specs_parse_and_name_their_tasks() {
         assert_eq!(spec.task(), task);
         assert_eq!(spec.robot.model, "ur3");
         assert_eq!(spec.robot.home_q, HOME_Q);
+        assert_eq!((spec.robot.joint_step, spec.joint_step()), (None, tile_sim::MAX_JOINT_STEP));
         assert_eq!((spec.rewards.pick, spec.rewards.success, spec.rewards.fail), (1.0, 1.0, -0.5));
         assert_eq!(spec.table.half_extents, world::TABLE_HALF);
         assert_eq!(spec.table.top_z, world::TABLE_TOP);
@@ -149,6 +150,24 @@ fn bad_values_name_the_field_the_value_and_why() {
         assert_eq!(f, "robot.hand_scale", "{bad}: {v}");
         assert!(why.contains("> 0"), "{why}");
     }
+
+    for bad in ["0.0", "-0.01", "inf", "nan"] {
+        let (f, v, why) =
+            invalid(&edited("model = \"ur3\"\n", &format!("model = \"ur3\"\njoint_step = {bad}\n")));
+        assert_eq!(f, "robot.joint_step", "{bad}: {v}");
+        assert!(why.contains("> 0"), "{why}");
+    }
+    // Above the arm's slowest rated joint speed × CONTROL_DT: the UR3's π rad/s gives 0.1257 rad
+    // a step; the UR10e's shoulder (120°/s) 0.0838, so a step the UR3 takes is too fast there.
+    let (f, v, why) = invalid(&edited("model = \"ur3\"\n", "model = \"ur3\"\njoint_step = 0.13\n"));
+    assert_eq!((f.as_str(), v.as_str()), ("robot.joint_step", "0.13"));
+    assert!(why.contains("at most 0.1257") && why.contains("ur3") && why.contains("rated"), "{why}");
+    let fast = "model = \"ur3\"\njoint_step = 0.1\n";
+    assert_eq!(TaskSpec::from_toml(&edited("model = \"ur3\"\n", fast), "t").unwrap().joint_step(), 0.1);
+    let ur10e = edited("model = \"ur3\"\n", "model = \"ur10e\"\njoint_step = 0.1\n");
+    let e = TaskSpec::from_toml(&ur10e, "t").unwrap_err();
+    assert_eq!(e.field(), Some("robot.joint_step"), "{e}");
+    assert!(e.to_string().contains("at most 0.0838"), "{e}");
 
     let (f, v, why) = invalid(&edited("pick_dist = 0.04 ", "# pick_dist = 0.04 "));
     assert_eq!((f.as_str(), v.as_str()), ("thresholds.pick_dist", "(missing)"));

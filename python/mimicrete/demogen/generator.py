@@ -6,7 +6,9 @@ of its segments into the new tile / target frame (:mod:`.segment`), connect it t
 by blending the offset out over the segment's first part (a min-jerk interpolation from the
 current pose onto the transformed path), and follow the poses with the project's IK, producing
 the joint actions a teleoperated demo records (teleop-core's ``joint_action``:
-``clip(wrap(q_ik − q) / MAX_JOINT_STEP, −1, 1)``, the IK warm-started at its last answer). The
+``clip(wrap(q_ik − q) / joint_step, −1, 1)``, the IK warm-started at its last answer; the joint
+step is the simulator's, ``SimEnv.joint_step``: the demos' task spec's ``robot.joint_step``, else
+``MAX_JOINT_STEP``). The
 effector commands are the source's (the suction's only at its switch, once the cup is within
 reach of the grasp point; the gripper's and the spin as recorded, the gripper kept closing until
 it holds; Screw's gripper "close" from the first step within the grasp tolerance of the nut on,
@@ -56,9 +58,10 @@ def wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def joint_action(q_ik: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """teleop-core's ``joint_action``: the shortest way round, at most one full step."""
-    return np.clip(wrap(q_ik - q) / MAX_JOINT_STEP, -1.0, 1.0)
+def joint_action(q_ik: np.ndarray, q: np.ndarray, step: float = MAX_JOINT_STEP) -> np.ndarray:
+    """teleop-core's ``joint_action``: the shortest way round, at most one full ``step`` (the
+    env's joint motion per step at full action, ``SimEnv.joint_step``)."""
+    return np.clip(wrap(q_ik - q) / step, -1.0, 1.0)
 
 
 def sim_env(task: str, task_file: str | None = None) -> Any:
@@ -155,6 +158,8 @@ class _Runner:
         self.q = np.asarray(snap["q"], np.float64)
         self.q_ik = self.q.copy()
         self.model = robot_model(sim)
+        #: rad per step at full action: the spec's ``robot.joint_step`` (else MAX_JOINT_STEP)
+        self.joint_step = float(sim.joint_step)
         self.done = False
 
     def pose(self) -> np.ndarray:
@@ -175,7 +180,7 @@ class _Runner:
         cmd = np.zeros(spec.act_dim - 6, np.float64)
         cmd[:] = np.atleast_1d(np.asarray(command, np.float64))[: len(cmd)]
         a = np.zeros(spec.act_dim, np.float32)
-        a[:6] = joint_action(self.q_ik, self.q)
+        a[:6] = joint_action(self.q_ik, self.q, self.joint_step)
         if self.noise > 0:  # MimicGen's action noise: executed and recorded (see generate)
             a[:6] = np.clip(a[:6] + self.noise * self.rng.standard_normal(6), -1.0, 1.0)
         a[6:] = cmd
@@ -257,7 +262,7 @@ def generate_episode(
     corrects for an off-centre block.
 
     ``action_noise`` (None: the task's :attr:`.segment.TaskFrames.action_noise`): the standard
-    deviation of Gaussian noise added to every joint action (units of ``MAX_JOINT_STEP``, clipped
+    deviation of Gaussian noise added to every joint action (units of the env's joint step, clipped
     to ``[-1, 1]``; from ``seed``), as MimicGen adds it to the actions it plays (its
     ``action_noise``, 0.05 in its configs). The noisy action is the one executed and recorded (so
     a curriculum's replay reaches the recorded states); the IK keeps tracking the clean path, so

@@ -226,7 +226,8 @@ def segment_episode(
             f"{name}: the grasp segment ends at step {k} of {len(obs)}; a segment would be empty"
         )
     lay = spec.lay
-    q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * tasks.CONTROL_DT])
+    step = joint_step_of(meta)
+    q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * step])
     poses = kin.fk_batch(q_after, model=(meta or {}).get("robot_model") or "ur3")
     obj, target = f[0, lay["object"]], f[0, lay["target"]]
     cmds = actions[:, spec.commands].astype(np.float64)
@@ -235,6 +236,18 @@ def segment_episode(
         Segment(poses[k:], cmds[k:], "target", frame(*target)),
     ]
     return SourceDemo(name, obj.copy(), target.copy(), segs, dict(meta or {}), spec.sim)
+
+
+def joint_step_of(meta: dict[str, str] | None) -> float:
+    """The joint motion per step at full action (rad) of the env a demo ran in: its task spec's
+    ``robot.joint_step`` (the ``task_spec`` metadata of a demo recorded in a spec file), else
+    ``MAX_JOINT_STEP``."""
+    import json
+
+    spec = (meta or {}).get("task_spec")
+    if not spec:
+        return tasks.MAX_JOINT_STEP
+    return float(json.loads(spec)["robot"].get("joint_step", tasks.MAX_JOINT_STEP))
 
 
 def load_sources(path: str | Path, count: int | None = None) -> list[SourceDemo]:

@@ -7,7 +7,8 @@ end-effector command); everything after it runs in Rust, one call per frame: tel
 ``Session`` (``crates/teleop-core``) filters the wrist / index-proximal / middle-proximal joints
 (One Euro), maps them to a tool0 target through the calibration, runs the control steps that fell
 due at the simulator's rate in the hand's own clock (IK warm-started and unwrapped, the joint
-action ``clip((q_ik − q) / MAX_JOINT_STEP, −1, 1)``, the gesture's command, one simulator step)
+action ``clip((q_ik − q) / joint_step, −1, 1)`` with the env's joint step, its task spec's
+``robot.joint_step`` or ``MAX_JOINT_STEP``, the gesture's command, one simulator step)
 and records each into the demo. Its documentation there says how, step by step.
 
 Frames the pipeline cannot use are counted, never turned into made-up motion: untracked frames
@@ -28,6 +29,8 @@ from mimicrete import gestures as gest
 from mimicrete.hands.layouts import check_layout
 
 CONTROL_DT = tasks.CONTROL_DT
+#: The default joint motion per step at full action (rad); a session's env may run its task
+#: spec's ``robot.joint_step`` instead (``SimEnv.joint_step``), and teleop-core divides by that.
 MAX_JOINT_STEP = tasks.MAX_JOINT_STEP
 #: Largest joint change (rad) an IK answer may ask for in one step before it counts as a jump to
 #: another branch (unreachable), not a motion (teleop-core's).

@@ -9,7 +9,7 @@ use crate::spec::TaskSpec;
 use crate::starts::{Start, Variation};
 use crate::task::{State, TaskLogic};
 use crate::world::{self, Scene};
-use crate::{FRAME_STACK, MAX_JOINT_STEP, SimError, Task};
+use crate::{FRAME_STACK, SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
@@ -209,6 +209,12 @@ impl Env {
         &self.s.spec
     }
 
+    /// Joint motion (rad) per step at `|a| = 1`: the spec's `robot.joint_step`, else
+    /// [`MAX_JOINT_STEP`](crate::MAX_JOINT_STEP) ([`TaskSpec::joint_step`]).
+    pub fn joint_step(&self) -> f64 {
+        self.s.spec.joint_step()
+    }
+
     /// Steps after which an episode is truncated (the spec's `episode.max_steps`).
     pub fn max_episode_steps(&self) -> u32 {
         self.s.spec.episode.max_steps
@@ -376,9 +382,10 @@ impl Env {
     /// Step with an already validated action (length and finiteness checked by the caller).
     pub(crate) fn step_unchecked(&mut self, action: &[f32]) -> StepOutcome {
         let mut qn = self.s.q;
+        let step = self.s.spec.joint_step();
         for i in 0..6 {
             let a = action[i].clamp(-1.0, 1.0) as f64;
-            qn[i] = (self.s.q[i] + a * MAX_JOINT_STEP).clamp(-PI, PI);
+            qn[i] = (self.s.q[i] + a * step).clamp(-PI, PI);
         }
         let frames = ur3_kin::fk_all(self.s.arm, &qn);
         for i in 0..6 {

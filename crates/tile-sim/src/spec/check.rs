@@ -300,6 +300,30 @@ impl TaskSpec {
                 );
             }
         }
+        if let Some(step) = self.robot.joint_step {
+            // The slowest joint's rated speed bounds a step every joint takes at full action.
+            let rated = arm.joint_limits().velocity.iter().copied().fold(f64::INFINITY, f64::min);
+            let most = rated * f64::from(crate::CONTROL_DT);
+            if !(step.is_finite() && step > 0.0) {
+                return invalid(
+                    "robot.joint_step",
+                    step,
+                    "must be a finite joint motion > 0 (rad per control step at full action)",
+                );
+            }
+            if step > most {
+                return invalid(
+                    "robot.joint_step",
+                    step,
+                    format!(
+                        "must be at most {most:.4} rad per step: {rated:.4} rad/s, the {}'s slowest rated \
+                         joint speed, over the {} s control step",
+                        arm.name,
+                        crate::CONTROL_DT
+                    ),
+                );
+            }
+        }
         positive("table.half_extents", &self.table.half_extents)?;
         finite("table.top_z", &[self.table.top_z])?;
         friction("table.friction", self.table.friction)?;

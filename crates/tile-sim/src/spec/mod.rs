@@ -9,8 +9,9 @@
 //! seconds; angles in radians except where a field's name ends in `_deg`. Effector geometry is
 //! given in tool0 (the flange frame, z out of the flange). Half extents are half the full size.
 //!
-//! What a spec does not hold: the arm's link shapes (from the robot's DH table), the control rate,
-//! joint step and physics substeps (crate constants), and the observation layout (the task
+//! What a spec does not hold: the arm's link shapes (from the robot's DH table), the control rate
+//! and physics substeps (crate constants; the joint step per action is a constant too unless
+//! `robot.joint_step` sets it), and the observation layout (the task
 //! logic's, [`crate::Task::obs_frame_dim`]). The task logic that judges an episode follows from
 //! the effector: `suction` → TileSuction's (TileRow's with a `[row]`), `gripper` → BlockGrip's,
 //! `gripper` with `spin_rate` → Screw's.
@@ -90,6 +91,17 @@ pub struct RobotSpec {
     /// [`workspace_scale`]: crate::workspace_scale
     #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
     pub hand_scale: Option<f32>,
+    /// How far each joint moves per control step at full action, `|a_i| = 1` (rad per step of
+    /// [`CONTROL_DT`](crate::CONTROL_DT) s): the env's `q_next = clamp(q + clip(a, −1, 1) ·
+    /// joint_step, −π, π)`, and the step the scripted expert, the teleop session and demogen
+    /// divide a joint change by to get an action ([`TaskSpec::joint_step`]). Absent:
+    /// [`MAX_JOINT_STEP`](crate::MAX_JOINT_STEP) = 0.04 rad (1 rad/s), the step of every
+    /// built-in task. Finite, > 0, and at most the arm's slowest rated joint speed
+    /// (`ur3_kin::UrModel::joint_limits`) × `CONTROL_DT` (0.126 rad on the UR3 and UR5e, 0.084
+    /// rad on the UR10e). The larger arms' TileSuction specs set it smaller, so that a full
+    /// step moves the tool about as far as on the UR3 (`tasks/tile_suction_ur5e.toml`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_step: Option<f64>,
 }
 
 /// The table: a fixed box whose top face is the plane `z = top_z`, centred under the base.
@@ -458,6 +470,12 @@ impl TaskSpec {
     /// larger workspace.
     pub fn hand_scale(&self) -> f32 {
         self.robot.hand_scale.unwrap_or_else(|| crate::starts::workspace_scale(self.arm()))
+    }
+
+    /// Joint motion (rad) per control step at `|a| = 1`: `robot.joint_step` if the spec sets
+    /// it, else [`MAX_JOINT_STEP`](crate::MAX_JOINT_STEP) (0.04 rad, 1 rad/s).
+    pub fn joint_step(&self) -> f64 {
+        self.robot.joint_step.unwrap_or(crate::MAX_JOINT_STEP)
     }
 
     /// Objects (and pads) in the task: the row's `count`, else 1.
