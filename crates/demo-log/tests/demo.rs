@@ -523,7 +523,7 @@ fn a_rows_objects_get_frames_of_their_own_on_tf() {
     }
     // one object: no row frames, as every demo before the row
     write_demo(&d.join("one.mcap"), 0, 3, 8, 7, WriterOptions::default());
-    let (msgs, _) = salvage(&d.join("one.mcap")).unwrap();
+    let (msgs, _) = salvage(d.join("one.mcap")).unwrap();
     let tf: serde_json::Value =
         serde_json::from_slice(&msgs.iter().find(|m| m.topic == TOPIC_TF).unwrap().data).unwrap();
     assert_eq!(tf["transforms"].as_array().unwrap().len(), 9);
