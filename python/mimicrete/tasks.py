@@ -9,9 +9,10 @@ the names are the user-facing ones (``suction``, ``grip``, ``screw``, ``row``), 
 (``mimicrete/TileSuction-v0``). Everything else in the package looks tasks up here. A
 researcher's own spec file runs one of these tasks' logic (:func:`load_task_file`).
 
-The row (``TileRow``, issue 26 §2) runs in the simulator and its gymnasium envs; parts of the
-package that are not built for it yet (the scripted demonstrator, demogen, the live page) refuse
-it with a :class:`NotBuiltError` (:func:`not_built`), which the CLI prints as one line, exit 2.
+The row (``TileRow``, issue 26 §2) runs everywhere the other tasks do (the simulator, its
+gymnasium envs, the scripted demonstrator, the live page, the demos and their export) but demogen,
+which refuses it with a :class:`NotBuiltError` (:func:`not_built`), which the CLI prints as one
+line, exit 2.
 """
 
 from __future__ import annotations
@@ -110,9 +111,9 @@ def get(name: str) -> TaskSpec:
 
 
 class NotBuiltError(MimicreteError, ValueError):
-    """A part of the package that is not built for a task yet (the row's scripted demonstrator,
-    demogen, the live page): the message is one line naming the part, the task and the tasks
-    the part does handle (:func:`not_built`). The CLI prints it as one line and exits 2."""
+    """A part of the package that is not built for a task yet (demogen for the row): the message
+    is one line naming the part, the task and the tasks the part does handle (:func:`not_built`).
+    The CLI prints it as one line and exits 2."""
 
 
 def not_built(part: str, task: str, handled: tuple[str, ...] | list[str]) -> NotBuiltError:
