@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import struct
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -244,6 +245,23 @@ def _scene_hello(task: str, seed: int = 0) -> dict[str, Any]:
     )
 
 
+@contextmanager
+def _scene_page(
+    chromium: Any, base_url: str, hello: dict[str, Any], query: str = ""
+) -> Iterator[tuple[Any, FakeServer]]:
+    """The page (emulated Quest 3, 320 x 240) answered by a :class:`FakeServer` greeting it with
+    ``hello``, once it has had a few states; ``query``: more URL parameters."""
+    fake: dict[str, FakeServer] = {}
+    with br.vr_page(
+        chromium,
+        f"{base_url}/?emulate=quest3&devui=0{query}",
+        viewport=(320, 240),
+        before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
+    ) as page:
+        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
+        yield page, fake["s"]
+
+
 def _drawn_after(page: Any, fake: FakeServer, state: dict[str, Any]) -> dict[str, Any]:
     """Answer the next frames with ``state`` and return what the page draws once it has it."""
     fake.state = state
@@ -262,16 +280,8 @@ def test_end_effector_is_drawn_from_its_state(chromium: Any, base_url: str, task
     their thickness) in the tool frame; the nut turns with its frame and a ring shows the spin's
     direction. Geometry comes from the server's scene entities (``cup``, ``finger_*``, ``nut``)."""
     hello = _scene_hello(task)
-    fake: dict[str, FakeServer] = {}
     pip = "&spectator=pip&spectator_hz=10" if task == "grip" else ""  # the corner view too
-    with br.vr_page(
-        chromium,
-        f"{base_url}/?emulate=quest3&devui=0{pip}",
-        viewport=(320, 240),
-        before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
-    ) as page:
-        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
-        s = fake["s"]
+    with _scene_page(chromium, base_url, hello, pip) as (page, s):
         frames = hello["frames"]
         if task == "suction":
             off = _drawn_after(page, s, {"frames": frames, "ee": {"kind": "suction", "on": False}})
@@ -331,18 +341,11 @@ def test_a_rows_tiles_are_drawn_each_in_its_own_frame(chromium: Any, base_url: s
     """The row's scene (``tile_0`` … locked to frames ``tile_0`` …, the server's entities): each
     tile drawn where the state's frames put it, and moved when its frame moves."""
     hello = _scene_hello("row", seed=2)
-    fake: dict[str, FakeServer] = {}
-    with br.vr_page(
-        chromium,
-        f"{base_url}/?emulate=quest3&devui=0",
-        viewport=(320, 240),
-        before_load=lambda p: fake.setdefault("s", FakeServer(p, hello)),
-    ) as page:
-        page.wait_for_function("() => window.__mimicrete.counts.statesReceived > 2")
+    with _scene_page(chromium, base_url, hello) as (page, fake):
         frames = dict(hello["frames"])
         assert {"tile_0", "tile_1", "tile_2"} <= set(frames)
         ee = {"kind": "suction", "on": False}
-        drawn = _drawn_after(page, fake["s"], {"frames": frames, "ee": ee})
+        drawn = _drawn_after(page, fake, {"frames": frames, "ee": ee})
         for i in range(3):
             assert drawn["entities"][f"tile_{i}"] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
             assert drawn["frames"][f"tile_{i}"] == pytest.approx(frames[f"tile_{i}"], abs=1e-6)
@@ -350,7 +353,7 @@ def test_a_rows_tiles_are_drawn_each_in_its_own_frame(chromium: Any, base_url: s
         moved = dict(frames)
         p = frames["tile_1"]
         moved["tile_1"] = [p[0], p[1] - 0.22, p[2] + 0.04, *p[3:]]
-        drawn = _drawn_after(page, fake["s"], {"frames": moved, "ee": ee})
+        drawn = _drawn_after(page, fake, {"frames": moved, "ee": ee})
         assert drawn["frames"]["tile_1"][:3] == pytest.approx(moved["tile_1"][:3], abs=1e-6)
         for i in (0, 2):
             assert drawn["frames"][f"tile_{i}"] == pytest.approx(frames[f"tile_{i}"], abs=1e-6)

@@ -36,6 +36,8 @@ fn hand() -> Vec<[f64; 3]> {
 struct Count {
     hands: Vec<f64>,
     steps: Vec<(u64, f64, usize)>,
+    /// each step's row poses (a row's tiles; empty for one object)
+    rows: Vec<Vec<demo_log::Pose>>,
 }
 
 impl Recorder for Count {
@@ -45,6 +47,7 @@ impl Recorder for Count {
     }
     fn step(&mut self, rec: &StepRecord, links: &Links) -> Result<(), DemoError> {
         self.steps.push((rec.step, rec.t, links.len()));
+        self.rows.push(rec.row_poses.clone());
         Ok(())
     }
 }
@@ -294,24 +297,10 @@ fn a_released_clutch_lets_the_hand_reposition() {
     assert!((tool(&s) - start).norm() < 1e-3, "the tool jumped at re-engagement");
 }
 
-/// Records each step's row poses.
-#[derive(Default)]
-struct RowPoses(Vec<Vec<demo_log::Pose>>);
-
-impl Recorder for RowPoses {
-    fn hand_frame(&mut self, _: &HandFrame, _: f64) -> Result<(), DemoError> {
-        Ok(())
-    }
-    fn step(&mut self, rec: &StepRecord, _: &Links) -> Result<(), DemoError> {
-        self.0.push(rec.row_poses.clone());
-        Ok(())
-    }
-}
-
 #[test]
 fn a_rows_steps_record_and_frame_every_tile() {
     let mut s = session(Task::TileRow);
-    let mut rec = RowPoses::default();
+    let mut rec = Count::default();
     let j = hand();
     for k in 0..=45 {
         let f = Frame {
@@ -324,7 +313,7 @@ fn a_rows_steps_record_and_frame_every_tile() {
         };
         s.push(&f, Some(&mut rec)).unwrap();
     }
-    assert!(!rec.0.is_empty());
+    assert!(!rec.rows.is_empty());
     let snap = s.snapshot();
     assert_eq!(snap.row.len(), 3);
     let frames = s.frame_numbers();
@@ -333,8 +322,8 @@ fn a_rows_steps_record_and_frame_every_tile() {
         assert_eq!(frames[frame], want.to_numbers(), "frame {frame}");
         // the newest step recorded the tiles where the snapshot has them; they rest on the
         // table (settling by ~1 mm in the first steps), so every step recorded them near it
-        assert_eq!(rec.0.last().unwrap()[i], want);
-        for poses in &rec.0 {
+        assert_eq!(rec.rows.last().unwrap()[i], want);
+        for poses in &rec.rows {
             assert_eq!(poses.len(), 3);
             assert!(
                 (0..3).all(|k| (poses[i].position[k] - want.position[k]).abs() < 2e-3),
