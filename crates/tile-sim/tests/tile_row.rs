@@ -225,6 +225,39 @@ fn re_picks_held_tiles_latched_installs_and_falls() {
     assert_eq!(env.step(&HOLD, &mut obs), Err(SimError::EpisodeOver));
 }
 
+/// TileRow's spec with `in_order = false`: any tile may be picked first.
+fn any_order() -> std::sync::Arc<TaskSpec> {
+    let text = edited(ROW, "in_order = true", "in_order = false");
+    std::sync::Arc::new(TaskSpec::from_toml(&text, "any_order.toml").unwrap())
+}
+
+/// The row is laid in order (`row.in_order`, TileRow's spec): the suction on over tile 1 while
+/// tile 0 is not installed is a failure (−0.5, the end, tile 1 not gripped); with `in_order =
+/// false` the same pick holds tile 1 and pays its +1.
+#[test]
+fn a_pick_out_of_turn_ends_a_row_laid_in_order() {
+    assert!(TASK.spec().row.unwrap().in_order);
+    assert!(!any_order().row.unwrap().in_order);
+    for (mut env, in_order) in [(Env::new(TASK, 0), true), (Env::from_spec(any_order(), 0), false)] {
+        let mut obs = vec![0.0f32; TASK.obs_dim()];
+        env.reset(Some(3), &mut obs).unwrap();
+        let tile1 = env.snapshot().row[1].object;
+        cups_over(&mut env, &tile1, 0.005);
+        let o = env.step(&ON, &mut obs).unwrap();
+        let s = env.snapshot();
+        if in_order {
+            assert!(o.terminated && o.fell && !o.installed && !o.held && !o.picked, "{o:?}");
+            assert_eq!(o.reward, -0.5);
+            assert!(!s.row[1].picked && !s.held);
+            assert_eq!(env.step(&HOLD, &mut obs), Err(SimError::EpisodeOver));
+        } else {
+            assert!(!o.terminated && o.held && o.picked, "{o:?}");
+            assert_eq!(o.reward, 1.0);
+            assert!(s.row[1].picked && s.object == s.row[1].object);
+        }
+    }
+}
+
 /// The newest frame holds, in order, q, the suction state, the cup centre, the current tile's
 /// target and centre, and per tile its target, its centre and its installed flag (the layout
 /// `Task::obs_frame_dim` documents).
@@ -323,7 +356,10 @@ fn the_row_spec_round_trips() {
     assert_eq!(pitch, [0.17, 0.0]);
     assert_eq!(TaskSpec::from_toml(ROW, "tile_row.toml").unwrap(), *spec);
     let row = spec.row.unwrap();
-    assert_eq!((row.count, row.object_pitch, row.pad_pitch), (3, [0.17, 0.0], [0.2, 0.0]));
+    assert_eq!(
+        (row.count, row.object_pitch, row.pad_pitch, row.in_order),
+        (3, [0.17, 0.0], [0.2, 0.0], true)
+    );
     for task in [Task::TileSuction, Task::BlockGrip, Task::Screw] {
         let s = task.spec();
         assert_eq!(s.row, None);
@@ -429,11 +465,12 @@ fn the_robust_starts_of_the_row_are_valid_and_installed() {
 /// its centre away from tile 1 and slid 4 cm towards tile 1 (2 cm away), pushes tile 1 about 2 cm
 /// along instead of passing into it, with the idle-physics skip on and off alike. (Held so, the
 /// cups stay more than the skip's 2 cm margin from tile 1 and no other tile is near them: only
-/// the held tile, which the skip counts as part of the arm, comes near tile 1.)
+/// the held tile, which the skip counts as part of the arm, comes near tile 1. The row is not
+/// laid in order here, so that tile 2 may be picked first.)
 #[test]
 fn a_held_tile_pushes_its_neighbour() {
     for skip in [true, false] {
-        let mut env = Env::new(TASK, 0);
+        let mut env = Env::from_spec(any_order(), 0);
         env.set_skip_idle_physics(skip);
         let mut obs = vec![0.0f32; TASK.obs_dim()];
         env.reset(Some(3), &mut obs).unwrap();

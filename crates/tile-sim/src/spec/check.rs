@@ -352,7 +352,7 @@ impl TaskSpec {
     /// narrowest gap is within half a step of a sample, where the gap differs by less than
     /// |pitch| · 0.0009 (0.15 mm for TileRow's 0.17 m pitch).
     fn check_row(&self) -> Result<(), SpecError> {
-        let Some(RowSpec { count, object_pitch, pad_pitch }) = self.row else { return Ok(()) };
+        let Some(RowSpec { count, object_pitch, pad_pitch, .. }) = self.row else { return Ok(()) };
         if !matches!(self.effector, EffectorSpec::Suction { .. }) {
             return invalid("row", count, "only the suction logic (TileRow) installs a row of objects");
         }

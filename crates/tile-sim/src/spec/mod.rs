@@ -341,6 +341,12 @@ pub struct RowSpec {
     /// may touch, not overlap.
     #[serde(serialize_with = "decimal")]
     pub pad_pitch: [f32; 2],
+    /// The row is laid in its order: object `i` may be picked only once objects `0..i` are
+    /// installed. A pick of an object whose turn has not come is a failure (`rewards.fail`, the
+    /// episode ends; the object is not gripped). Off (the default), any object may be picked at
+    /// any time.
+    #[serde(default)]
+    pub in_order: bool,
 }
 
 /// The longest row a spec may have (objects and pads): TileRow's observation frame has a slot

@@ -95,6 +95,12 @@ fn held(s: &State, i: usize) -> bool {
     s.held && s.h.object == s.h.row[i]
 }
 
+/// Picking tile `i` now breaks a row laid in order (`row.in_order`): a tile before it is not
+/// installed yet.
+fn out_of_turn(s: &State, i: usize) -> bool {
+    s.spec.row.is_some_and(|r| r.in_order) && s.row.installed[..i].iter().any(|&b| !b)
+}
+
 /// Make tile `i` the current one (its body and its target).
 fn make_current(s: &mut State, i: usize) {
     s.h.object = s.h.row[i];
@@ -149,6 +155,12 @@ impl TaskLogic for TileRow {
                 }
             }
             if let Some((i, _)) = best {
+                if out_of_turn(s, i) {
+                    out.reward += s.spec.rewards.fail;
+                    out.fell = true;
+                    out.terminated = true;
+                    return;
+                }
                 make_current(s, i);
                 let offset = s.tool0.inverse() * body_state(s, s.h.row[i]).0;
                 s.grasp(offset, out, 0.0);
@@ -161,6 +173,9 @@ impl TaskLogic for TileRow {
     }
 
     fn evaluate(&self, s: &mut State, out: &mut StepOutcome) {
+        if out.terminated {
+            return; // a pick out of turn ended the episode in `effector`
+        }
         let n = s.h.row.len();
         let success_dist = req(s.spec.thresholds.success_dist);
         for i in 0..n {
