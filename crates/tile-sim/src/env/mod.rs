@@ -63,7 +63,8 @@ pub struct StepOutcome {
     /// The success event (install / place / tightened; TileRow: the row complete, its last
     /// tile installed) happened in this step.
     pub installed: bool,
-    /// The failure event (tile/block fell, nut spun off) happened in this step.
+    /// The failure event (tile/block fell, nut spun off; a row laid in order: a tile picked out
+    /// of its turn) happened in this step.
     pub fell: bool,
 }
 

@@ -23,11 +23,17 @@
 //!   (`rewards.success`, +1) once, and the tile stays installed if it is later knocked off its
 //!   pad (that is judged by the fall rules, which end the episode), so the reward sum of an
 //!   episode is at most `count · (pick + success)`.
+//! * **In order** (`row.in_order`, on in the built-in row): tile `i` may be picked only once
+//!   tiles `0..i` are installed; the suction switched on within `pick_dist` of a tile whose turn
+//!   has not come pays `rewards.fail` and ends the episode (`StepOutcome::fell`, the failure
+//!   flag), and the tile is not gripped. Off, the tiles may be picked in any order. Why on: the
+//!   row learner's seed 1 picked the middle tile first (from the home pose it is the nearest,
+//!   and its pick and install pay as much as tile 0's), a row no demo continues from.
 //! * **Tile `i` on pad `i`**, not any free pad: each tile's target is then fixed for the whole
 //!   episode, so the observation's target `i` beside tile `i` is the goal a policy reads (with
 //!   any free pad, the goal of a tile would depend on which pads the others took, which the frame
 //!   would have to spell out); and the order of the row is the demonstration's, which a human
-//!   shows the same way every time. The tiles may still be installed in any order.
+//!   shows the same way every time.
 //! * **Fall**: any tile falling by TileSuction's rules (centre below `fall_z`; not held and
 //!   tilted beyond `fall_tilt_cos` or falling faster than `fall_speed`) pays `rewards.fail`
 //!   (−0.5) and ends the episode. Installs are judged first, so the step that completes the
