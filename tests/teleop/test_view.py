@@ -108,3 +108,25 @@ def test_the_ur3_tasks_keep_the_standing_calibration_bit_for_bit(tmp_path):
         live = Live("suction", tmp_path / str(task_file is None), task_file=task_file)
         assert live.calibration.to_dict() == std
         live.close()
+
+
+@pytest.mark.parametrize("model", ["ur3", "ur5e", "ur10e"])
+def test_frame_poses_pose_the_arm_they_are_given(model):
+    """``frame_poses(snapshot, model)`` poses the links of ``model``: on each spec's arm, the frames
+    the simulator's own ``scene_frames()`` gives (its tool0 at the snapshot's tool0); the UR3's
+    links at a larger arm's joints are elsewhere."""
+    from mimicrete import _native
+    from mimicrete.teleop.view import frame_poses
+
+    spec = TASKS / ("tile_suction.toml" if model == "ur3" else f"tile_suction_{model}.toml")
+    env = _native.SimEnv.from_spec_file(str(spec), 0)
+    env.reset(3)
+    snap = env.snapshot()
+    frames = frame_poses(snap, model)
+    assert frames.keys() == env.scene_frames().keys()
+    for k, v in env.scene_frames().items():
+        np.testing.assert_allclose(frames[k], v, atol=1e-9, err_msg=k)
+    np.testing.assert_allclose(frames["tool0"][:3], snap["tool0"]["t"], atol=1e-9)
+    if model != "ur3":
+        ur3 = frame_poses(snap)
+        assert np.linalg.norm(np.subtract(ur3["tool0"][:3], snap["tool0"]["t"])) > 0.1

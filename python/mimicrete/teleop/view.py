@@ -17,15 +17,16 @@ from mimicrete import _native, kin
 from mimicrete.kin import Calibration
 
 
-def frame_poses(snap: dict[str, Any]) -> dict[str, list[float]]:
+def frame_poses(snap: dict[str, Any], model: str = "ur3") -> dict[str, list[float]]:
     """``{frame_id: [x, y, z, qx, qy, qz, qw]}`` in Base of every frame the scene's entities are
-    locked to (the URDF links ``shoulder_link`` … ``tool0`` at the snapshot's joints, ``tile`` at
-    its object, a row's ``tile_0`` … at its tiles; ``base`` is the identity and not listed), from
-    a snapshot the caller already has: ``_native.scene_frames``, the frames
-    ``SimEnv.scene_frames()`` and the demos' ``/tf`` give."""
+    locked to (the URDF links ``shoulder_link`` … ``tool0`` of the arm ``model`` at the
+    snapshot's joints, ``tile`` at its object, a row's ``tile_0`` … at its tiles; ``base`` is the
+    identity and not listed), from a snapshot the caller already has: ``_native.scene_frames``,
+    the frames ``SimEnv.scene_frames()`` and the demos' ``/tf`` give. ``model``: the spec's
+    ``robot.model`` (the built-in tasks' arm is the UR3)."""
     o = snap["object"]
     row = [[*r["object"]["t"], *r["object"]["q"]] for r in snap.get("row") or []]
-    return _native.scene_frames(snap["q"], [*o["t"], *o["q"]], row=row)
+    return _native.scene_frames(snap["q"], [*o["t"], *o["q"]], model=model, row=row)
 
 
 #: What the person should do when the robot does not follow, by the reason (the HUD's line).
