@@ -24,6 +24,11 @@ fn session_with(task: Task, mapping: Mapping) -> Session {
 }
 
 /// A right hand in WebXR order: wrist at the origin, fingers along +y, palm down.
+/// A tracked frame of `joints` at `t` whose gesture (raw and smoothed) is `gesture`, no clutch.
+fn tracked<'a>(t: f64, joints: &'a [[f64; 3]], gesture: &'a str) -> Frame<'a> {
+    Frame { t, tracked: true, joints, raw: Some(gesture), gesture: Some(gesture), clutch: None }
+}
+
 fn hand() -> Vec<[f64; 3]> {
     let mut j = vec![[0.0; 3]; 25];
     let l = HandLayout::WebXr;
@@ -59,14 +64,7 @@ fn steps_run_at_the_control_rate_in_the_hands_clock() {
     let j = hand();
     let mut steps = 0;
     for k in 0..=90 {
-        let f = Frame {
-            t: 10.0 + k as f64 / 90.0,
-            tracked: true,
-            joints: &j,
-            raw: Some("opening"),
-            gesture: Some("opening"),
-            clutch: None,
-        };
+        let f = tracked(10.0 + k as f64 / 90.0, &j, "opening");
         steps += s.push(&f, Some(&mut rec)).unwrap().len();
     }
     // one second of frames: the steps due at 0, 0.04, ..., 0.96 s ran before the last frame
@@ -132,14 +130,7 @@ fn the_gesture_commands_the_end_effector() {
     let j = hand();
     let mut cmds = Vec::new();
     for (k, g) in ["closing_tightening", "opening_stopped", "opening_stopped"].iter().enumerate() {
-        let f = Frame {
-            t: k as f64 * 0.1,
-            tracked: true,
-            joints: &j,
-            raw: Some(g),
-            gesture: Some(g),
-            clutch: None,
-        };
+        let f = tracked(k as f64 * 0.1, &j, g);
         for st in s.push(&f, None).unwrap() {
             cmds.push((st.action[6], st.action[7]));
         }
@@ -181,14 +172,7 @@ fn sweep(
     for k in 0..n {
         let u = k as f64 / (n - 1).max(1) as f64;
         let j = hand_at(a + (b - a) * u, r);
-        let f = Frame {
-            t: t0 + k as f64 / 90.0,
-            tracked: true,
-            joints: &j,
-            raw: Some("fixed"),
-            gesture: Some("fixed"),
-            clutch: None,
-        };
+        let f = tracked(t0 + k as f64 / 90.0, &j, "fixed");
         why.extend(s.push(&f, None).unwrap().into_iter().map(|st| st.why.map(|w| w.text())));
     }
     why
@@ -236,14 +220,7 @@ fn a_far_jump_of_the_hand_is_followed_along_a_bounded_path() {
     let mut why = Vec::new();
     for k in 0..180 {
         let j = hand_at(far, &r);
-        let f = Frame {
-            t: 0.3 + k as f64 / 90.0,
-            tracked: true,
-            joints: &j,
-            raw: Some("fixed"),
-            gesture: Some("fixed"),
-            clutch: None,
-        };
+        let f = tracked(0.3 + k as f64 / 90.0, &j, "fixed");
         for st in s.push(&f, None).unwrap() {
             why.push(st.why);
             let now = tool(&s);
@@ -303,14 +280,7 @@ fn a_rows_steps_record_and_frame_every_tile() {
     let mut rec = Count::default();
     let j = hand();
     for k in 0..=45 {
-        let f = Frame {
-            t: k as f64 / 90.0,
-            tracked: true,
-            joints: &j,
-            raw: Some("opening"),
-            gesture: Some("opening"),
-            clutch: None,
-        };
+        let f = tracked(k as f64 / 90.0, &j, "opening");
         s.push(&f, Some(&mut rec)).unwrap();
     }
     assert!(!rec.rows.is_empty());
@@ -366,14 +336,7 @@ fn the_joint_action_is_in_units_of_the_specs_joint_step() {
         // still for 0.3 s, then 3 cm away in one frame, held there
         let at = if k < 27 { p } else { p + Vector3::new(0.03, 0.0, -0.01) };
         let j = hand_at(at, &r);
-        let f = Frame {
-            t: k as f64 / 90.0,
-            tracked: true,
-            joints: &j,
-            raw: Some("fixed"),
-            gesture: Some("fixed"),
-            clutch: None,
-        };
+        let f = tracked(k as f64 / 90.0, &j, "fixed");
         // a push runs the steps that fell due with the target of the frames before it
         let target = s.target_pose();
         let q0 = s.snapshot().q;
