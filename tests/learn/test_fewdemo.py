@@ -82,6 +82,84 @@ def test_episodes_from_passed_starts_do_not_move_the_start():
     assert c.summary()["Curriculum/Installed Rate"] == 1.0
 
 
+def test_a_forgotten_passed_start_becomes_the_frontier_again():
+    """forget_threshold: a passed start whose last ``window`` episodes installed at most that
+    share is the demo's frontier again; the starts after it are judged afresh; off by default."""
+    c = _cur(
+        [100, 100],
+        window=3,
+        threshold=0.67,
+        step_fraction=0.1,
+        forget_threshold=0.0,
+        forget_window=3,
+    )
+    for _ in range(3 * 5):
+        c.record(0, True)
+    assert c.stage == [5, 0] and c.start(0) == 40
+    c.record(0, True)  # one frontier episode in the window at start 40
+    for ok in (False, True, False, False):  # start 70 (index 2): the window (True, False, False)
+        c.record(0, ok, frontier=False, start_idx=2)
+    c.record(0, False, frontier=False, start_idx=4)
+    c.record(0, False, frontier=False, start_idx=4)
+    assert c.stage == [5, 0] and c.retreats == 0  # no window of a passed start all failed yet
+    c.record(0, False, frontier=False, start_idx=2)  # (False, False, False) at start 70
+    assert c.stage == [2, 0] and c.start(0) == 70 and c.retreats == 1
+    assert len(c.results[0]) == 0  # the frontier's window starts afresh
+    assert set(c.passed_results[0]) <= {0, 1}  # index 4's window is gone: no longer passed
+    c.record(0, False, frontier=False, start_idx=4)  # an episode that began before: ignored
+    assert c.stage == [2, 0] and set(c.passed_results[0]) <= {0, 1}
+    for _ in range(3):
+        c.record(0, True)
+    assert c.start(0) == 60  # the walk back resumes from the forgotten start
+    assert c.summary()["Curriculum/Retreats"] == 1.0
+    d = _cur([100, 100], forget_threshold=0.0, forget_window=3)
+    c.record(0, False, frontier=False, start_idx=1)
+    d.load_state_dict(c.state_dict())
+    assert d.retreats == 1 and {j: list(r) for j, r in d.passed_results[0].items()} == {1: [False]}
+    off = _cur([100], window=3, threshold=0.67, step_fraction=0.1)  # forget_threshold unset
+    for _ in range(3 * 5):
+        off.record(0, True)
+    for _ in range(10):
+        off.record(0, False, frontier=False, start_idx=1)
+    assert off.stage == [5] and "Curriculum/Retreats" not in off.summary()
+
+
+def test_a_pooled_retreat_brings_every_unsolved_demo_forward():
+    c = _cur(
+        [100, 50],
+        window=2,
+        threshold=0.5,
+        step_fraction=0.2,
+        forget_threshold=0.5,
+        forget_window=2,
+        pooled=True,
+    )
+    for _ in range(2 * 3):
+        c.record(0, True)
+    assert c.stage == [3, 3]
+    c.record(1, False, frontier=False, start_idx=1)
+    c.record(1, True, frontier=False, start_idx=1)  # 1 of 2 <= 0.5: forgotten
+    assert c.stage == [1, 1] and [c.start(d) for d in range(2)] == [60, 30]
+
+
+def test_restart_records_the_schedule_index_each_episode_started_at():
+    """Each replayed episode starts at the start its recorded schedule index names (the real
+    env: its step count after the replay is the start), passed ones not at the frontier."""
+    from mimicrete.learn.env import make_env
+
+    c = _cur([60], reset_prob=1.0, old_start_prob=0.5, step_fraction=0.1)
+    c.stage[0] = 4
+    env = make_env("TileSuction-v0", 4, 0)
+    env.reset(seed=0)
+    obs = np.zeros((4, *env.single_observation_space.shape), np.float32)
+    seen = []
+    for _ in range(12):
+        c.restart(env, np.ones(4, bool), np.zeros(4, bool), obs)
+        seen += [(bool(f), int(k)) for f, k in zip(c.env_frontier, c.env_start_idx, strict=True)]
+    assert {k for f, k in seen if f} == {4} and {k for f, k in seen if not f} == {0, 1, 2, 3}
+    assert c.replayed_steps == sum(c.schedules[0][k] for _, k in seen)
+
+
 def test_choose_only_unsolved_demos_and_own_starts_at_reset_prob():
     c = _cur([50, 50, 50], reset_prob=0.75)
     c.stage[1] = len(c.schedules[1])  # demo 1 solved
