@@ -21,15 +21,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _cli_run import run_cli  # noqa: E402
 
 ROW_SPEC = Path(__file__).resolve().parents[1] / "crates" / "tile-sim" / "tasks" / "tile_row.toml"
-# q[6], suction, cup centre[3], the current tile's target[3] and centre[3], then per tile: its
-# target[3], centre[3], installed flag
-FRAME = 37
+# q[6], suction, cup centre[3], the current tile's target[3] and centre[3], its centre minus the
+# cup's[3] and its target minus its centre[3], then per tile: its target[3], centre[3], installed
+# flag
+FRAME = 43
 TILES = 3
 
 
 def tile(frame: np.ndarray, i: int) -> dict[str, np.ndarray]:
     """Tile ``i``'s fields of one observation frame."""
-    base = 16 + 7 * i
+    base = 22 + 7 * i
     return {
         "target": frame[base : base + 3],
         "centre": frame[base + 3 : base + 6],
@@ -76,6 +77,8 @@ def test_the_gym_id_resets_and_steps_with_the_row_frame() -> None:
     # the current tile (tile 0 at the start) where TileSuction's frame has its tile
     np.testing.assert_allclose(frame[10:13], snap["row"][0]["target"]["t"], atol=1e-5)
     np.testing.assert_allclose(frame[13:16], snap["row"][0]["object"]["t"], atol=1e-5)
+    np.testing.assert_allclose(frame[16:19], frame[13:16] - frame[7:10], atol=1e-6)  # tile - cup
+    np.testing.assert_allclose(frame[19:22], frame[10:13] - frame[13:16], atol=1e-6)
     assert len(snap["row"]) == TILES
     for i, rec in enumerate(snap["row"]):
         t = tile(frame, i)
@@ -276,7 +279,10 @@ def test_a_row_exports_to_lerobot_with_each_tiles_fields(row_demos: Path, tmp_pa
     assert r.returncode == 0, r.stderr
     info = json.loads((out / "meta/info.json").read_text())
     names = info["features"]["observation.state"]["names"]
-    assert len(names) == 5 * FRAME and names[-FRAME:][16:23] == [
+    assert names[-FRAME:][16:22] == [
+        f"t.{w}_{a}" for w in ("tile_from_cup", "target_from_tile") for a in "xyz"
+    ]
+    assert len(names) == 5 * FRAME and names[-FRAME:][22:29] == [
         "t.target0_x", "t.target0_y", "t.target0_z", "t.tile0_x", "t.tile0_y", "t.tile0_z",
         "t.installed0",
     ]  # fmt: skip

@@ -150,9 +150,10 @@ fn episodes_and_scenes_are_bit_identical_to_the_recorded_ones() {
 }
 
 /// A TileRow observation in the frame layout its digest was recorded with (31 floats: the frame
-/// without the current tile's target and centre, floats 10..16, added after), each frame's
-/// current-tile floats checked against the snapshot's object and target on the way (the newest
-/// frame's; the older frames are earlier steps', checked when they were the newest).
+/// without the current tile's target and centre, floats 10..16, and its two differences, floats
+/// 16..22, added after), each frame's current-tile floats checked against the snapshot's object
+/// and target, and its differences against them, on the way (the newest frame's; the older
+/// frames are earlier steps', checked when they were the newest).
 fn row_obs_as_recorded(env: &Env, obs: &[f32]) -> Vec<f32> {
     let dim = Task::TileRow.obs_frame_dim();
     let newest = &obs[obs.len() - dim..];
@@ -160,7 +161,11 @@ fn row_obs_as_recorded(env: &Env, obs: &[f32]) -> Vec<f32> {
     for (k, v) in s.target.t.iter().chain(&s.object.t).enumerate() {
         assert_eq!(newest[10 + k], *v as f32, "current tile's float {k}");
     }
-    obs.chunks(dim).flat_map(|f| f[..10].iter().chain(&f[16..]).copied()).collect()
+    for k in 0..3 {
+        assert_eq!(newest[16 + k], newest[13 + k] - newest[7 + k], "tile - cup {k}");
+        assert_eq!(newest[19 + k], newest[10 + k] - newest[13 + k], "target - tile {k}");
+    }
+    obs.chunks(dim).flat_map(|f| f[..10].iter().chain(&f[22..]).copied()).collect()
 }
 
 /// TileRow's episodes (expert and random actions, its own paper and wide starts, every tile's
@@ -235,7 +240,7 @@ fn tile_row_episodes_are_bit_identical_to_the_recorded_ones() {
 fn constants_record_is_unchanged() {
     let mut c = Constants::get();
     let row = c.tasks.remove("TileRow").expect("the record lists TileRow");
-    assert_eq!((row.obs_frame_dim, row.obs_dim, row.act_dim), (37, 185, 7));
+    assert_eq!((row.obs_frame_dim, row.obs_dim, row.act_dim), (43, 215, 7));
     let mut h = Fnv::new();
     h.bytes(format!("{c:?}").as_bytes());
     assert_eq!(h.0, 0x9665706803e23574, "constants digest now {:#018x}", h.0);

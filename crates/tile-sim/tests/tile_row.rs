@@ -259,16 +259,16 @@ fn a_pick_out_of_turn_ends_a_row_laid_in_order() {
 }
 
 /// The newest frame holds, in order, q, the suction state, the cup centre, the current tile's
-/// target and centre, and per tile its target, its centre and its installed flag (the layout
-/// `Task::obs_frame_dim` documents).
+/// target and centre, its centre minus the cup's and its target minus its centre, and per tile
+/// its target, its centre and its installed flag (the layout `Task::obs_frame_dim` documents).
 #[test]
 fn the_frame_is_the_documented_layout() {
-    assert_eq!((TASK.obs_frame_dim(), TASK.act_dim()), (37, 7));
+    assert_eq!((TASK.obs_frame_dim(), TASK.act_dim()), (43, 7));
     let mut env = Env::new(TASK, 0);
     let mut obs = vec![0.0f32; TASK.obs_dim()];
     env.reset(Some(5), &mut obs).unwrap();
-    let f = &obs[4 * 37..];
-    assert!(obs[..4 * 37].iter().all(|v| *v == 0.0), "older frames are zeros at the start");
+    let f = &obs[4 * 43..];
+    assert!(obs[..4 * 43].iter().all(|v| *v == 0.0), "older frames are zeros at the start");
     let s = env.snapshot();
     let close = |a: &[f32], b: &[f64]| a.iter().zip(b).all(|(x, y)| (*x as f64 - y).abs() < 1e-6);
     assert!(close(&f[..6], &s.q));
@@ -277,9 +277,12 @@ fn the_frame_is_the_documented_layout() {
     // the current tile: tile 0 at the start, as the snapshot's object and target
     assert!(close(&f[10..13], &s.target.t) && close(&f[10..13], &s.row[0].target.t));
     assert!(close(&f[13..16], &s.object.t) && close(&f[13..16], &s.row[0].object.t));
+    let diff = |a: &[f64; 3], b: &[f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    assert!(close(&f[16..19], &diff(&s.object.t, &s.tcp.t)), "tile - cup");
+    assert!(close(&f[19..22], &diff(&s.target.t, &s.object.t)), "target - tile");
     assert_eq!(s.row.len(), 3);
     for (i, r) in s.row.iter().enumerate() {
-        let k = 16 + 7 * i;
+        let k = 22 + 7 * i;
         assert!(close(&f[k..k + 3], &r.target.t), "target {i}");
         assert!(close(&f[k + 3..k + 6], &r.object.t), "tile {i}");
         assert_eq!(f[k + 6], 0.0);
@@ -552,8 +555,8 @@ fn a_row_of_two_runs_from_its_spec() {
     assert_eq!(env.snapshot().row.len(), 2);
     let count = |n: &str| env.scene().items.iter().filter(|i| i.name == n).count();
     assert_eq!((count("pad"), count("tile")), (2, 2));
-    let f = &obs[4 * 37..];
-    assert!(f[30..37].iter().all(|v| *v == 0.0) && f[23..30].iter().any(|v| *v != 0.0));
+    let f = &obs[4 * 43..];
+    assert!(f[36..43].iter().all(|v| *v == 0.0) && f[29..36].iter().any(|v| *v != 0.0));
     let mut ex = Expert::for_spec(&spec);
     let mut sum = 0.0;
     let last = loop {

@@ -46,13 +46,19 @@ FRAME_NAMES: dict[str, list[str]] = {
     + ["turns"],
 }
 #: The row's (TileRow, tile-sim ``task/tile_row.rs``): the suction task's for the current tile
-#: (the one held, else the first not installed), then per tile ``i`` its target, its centre and
-#: its installed flag.
-FRAME_NAMES["row"] = FRAME_NAMES["suction"] + [
-    name
-    for i in range((tasks.get("row").obs_frame_dim - len(FRAME_NAMES["suction"])) // 7)
-    for name in (*(f"target{i}_{a}" for a in _XYZ), *(f"tile{i}_{a}" for a in _XYZ))
-    + (f"installed{i}",)
+#: (the one held, else the first not installed), its centre minus the cup's and its target minus
+#: its centre, then per tile ``i`` its target, its centre and its installed flag.
+_ROW_REL = [f"{w}_{a}" for w in ("tile_from_cup", "target_from_tile") for a in _XYZ]
+_ROW_TILES = (tasks.get("row").obs_frame_dim - len(FRAME_NAMES["suction"]) - len(_ROW_REL)) // 7
+FRAME_NAMES["row"] = [
+    *FRAME_NAMES["suction"],
+    *_ROW_REL,
+    *(
+        name
+        for i in range(_ROW_TILES)
+        for name in (*(f"target{i}_{a}" for a in _XYZ), *(f"tile{i}_{a}" for a in _XYZ))
+        + (f"installed{i}",)
+    ),
 ]
 
 #: Names of the action's entries per task.

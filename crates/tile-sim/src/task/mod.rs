@@ -106,9 +106,10 @@ impl Task {
     /// * Screw (18): `q[6]`, `gripper_width` (m), `spin` (+1 tighten / 0 stopped / −1 loosen),
     ///   `tcp[3]`, `target[3]` (the nut's fully tightened centre), `nut_centre[3]`, `turns`
     ///   (turns screwed so far, ≥ 0 down the bolt).
-    /// * TileRow (37): TileSuction's 16 for the current tile (`q[6]`, `suction`,
+    /// * TileRow (43): TileSuction's 16 for the current tile (`q[6]`, `suction`,
     ///   `cup_centre[3]`, `target[3]` and `tile_centre[3]` of the tile held, else of the first
-    ///   one not installed: `task/tile_row.rs`), then for each of the three tiles `i` in row
+    ///   one not installed: `task/tile_row.rs`), `tile_centre − cup_centre[3]`, `target −
+    ///   tile_centre[3]`, then for each of the three tiles `i` in row
     ///   order: `target_i[3]` m (tile `i`'s centre installed on pad `i`), `tile_centre_i[3]` m,
     ///   `installed_i` (1 installed / 0 not). A spec's row of two leaves the third tile's seven
     ///   floats zero.

@@ -1,14 +1,19 @@
 //! TileRow (issue 26 §2): TileSuction's suction head installs a row of tiles, one after another,
 //! in one episode. The spec's `[row]` ([`RowSpec`](crate::spec::RowSpec)) lays out `count` tiles
-//! and `count` pads; tile `i` belongs on pad `i`. Frame (37 floats): TileSuction's 16 (`q[6]`,
+//! and `count` pads; tile `i` belongs on pad `i`. Frame (43 floats): TileSuction's 16 (`q[6]`,
 //! suction +1 on / −1 off, cup centre, then the current tile's target and centre: see [The
-//! current tile](#the-current-tile)), then per tile `i` of [`MAX_ROW`]: target `i`, tile `i`'s
+//! current tile](#the-current-tile)), the current tile's centre minus the cup centre and its
+//! target minus its centre (6), then per tile `i` of [`MAX_ROW`]: target `i`, tile `i`'s
 //! centre, installed flag (1 / 0); a row shorter than [`MAX_ROW`] leaves the last slots zero.
 //! Base frame, metres. The current tile's six floats repeat one tile's slot: they say which tile
 //! the row is at, so a policy reads "the tile to handle now" where TileSuction's reads its tile,
 //! and the same carry serves each tile of the row (with only the per-tile slots, a learner has
 //! to find the first tile not installed from the flags, and a skill learnt on the last tile does
-//! not carry over to the middle one).
+//! not carry over to the middle one). The two differences say the same in the terms a reach and
+//! a carry are judged in (ManiSkill's pick tasks observe `tcp_to_obj_pos` and `obj_to_goal_pos`
+//! beside the poses): with the absolute positions only, the row learner installed the first two
+//! tiles and carried the third one past its pad on one seed in three (docs/tasks.md, "Learning a
+//! row").
 //!
 //! # Rules (what and why)
 //! * **Pick**: the suction on with the cup centre within `thresholds.pick_dist` of a tile's
@@ -59,9 +64,12 @@ use rapier3d::prelude::*;
 /// or bouncing across the target is not installed on the way.
 pub const REST_SPEED: f32 = 0.05;
 
-/// Where the per-tile slots of a frame begin: after TileSuction's 16 floats (the current tile's
-/// target and centre at 10..16).
-const ROW_SLOTS: usize = 16;
+/// Where the current tile's two differences begin: after TileSuction's 16 floats (the current
+/// tile's target and centre at 10..16).
+const REL: usize = 16;
+/// Where the per-tile slots of a frame begin: after the differences (tile − cup at 16..19, target
+/// − tile at 19..22).
+const ROW_SLOTS: usize = REL + 6;
 
 /// The TileRow logic.
 #[derive(Debug)]
@@ -216,8 +224,11 @@ impl TaskLogic for TileRow {
         f[6] = if s.suction_on { 1.0 } else { -1.0 };
         let put = |f: &mut [f32], k: usize, v: Vector| f[k..k + 3].copy_from_slice(&[v.x, v.y, v.z]);
         put(f, 7, s.tcp().translation);
+        let tile = body_state(s, s.h.object).0.translation;
         put(f, 10, s.target.translation);
-        put(f, 13, body_state(s, s.h.object).0.translation);
+        put(f, 13, tile);
+        put(f, REL, tile - s.tcp().translation);
+        put(f, REL + 3, s.target.translation - tile);
         for i in 0..MAX_ROW {
             let k = ROW_SLOTS + 7 * i;
             match s.h.row.get(i) {
