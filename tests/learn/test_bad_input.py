@@ -66,14 +66,6 @@ def train_argv(cfg: Path, run_dir: Path, *extra: str) -> list[str]:
         ("behavior.max_steps=0", "max_steps: 0 is out of range"),
         ("behavior.network_settings.hidden_units=0", "hidden_units: 0 is out of range"),
         ("behavior.behavioral_cloning.steps=-5", "behavioral_cloning.steps: -5 is out of range"),
-        (
-            "behavior.behavioral_cloning.final_strength=-0.1",
-            "behavioral_cloning.final_strength: -0.1 is out of range",
-        ),
-        (
-            "behavior.demo_curriculum.forget_threshold=1.5",
-            "demo_curriculum.forget_threshold: 1.5 is out of range",
-        ),
         ("env_settings.seed=-1", "env_settings.seed: -1 is out of range"),
         ("env_settings.seed=4294967296", "env_settings.seed: 4294967296 is out of range"),
         ("env_settings.num_envs=0", "env_settings.num_envs: 0 is out of range"),

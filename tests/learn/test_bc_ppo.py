@@ -46,22 +46,6 @@ def test_bc_learning_rate_anneals_to_zero_over_its_steps():
     assert bc_learning_rate(lr0, 0, 10**7) == lr0  # steps 0: constant (ML-Agents)
 
 
-@pytest.mark.parametrize("final", [1e-5, 5e-5, 2.5e-4])
-def test_bc_fades_to_its_final_strength_and_keeps_it(final):
-    lr0 = 0.5 * 5e-4
-    assert bc_learning_rate(lr0, 1000, 0, final) == pytest.approx(lr0)
-    assert bc_learning_rate(lr0, 1000, 500, final) == pytest.approx((lr0 + final) / 2)
-    for step in (1000, 5000, 10**9):
-        assert bc_learning_rate(lr0, 1000, step, final) == pytest.approx(final)
-    _, _, bc = _toy_bc(demos=4, seed=3, hidden=16, steps=1000, batch_size=64, num_epoch=1)
-    bc.initial_lr = bc.current_lr = lr0
-    bc.final_lr = final
-    rng = np.random.default_rng(0)
-    rates = [bc.update(u * 500, rng) for u in range(1, 8)]
-    assert all(r is not None for r in rates)  # a round after every update, long after the fade
-    assert [r[1] for r in rates[2:]] == pytest.approx([final] * 5)
-
-
 def test_bc_rounds_follow_ml_agents_order_of_the_learning_rate():
     """A round runs at the rate the previous one set (the first at the initial rate) and then
     sets the next from the current step: 100k steps at 10,240 per update give 10 rounds."""

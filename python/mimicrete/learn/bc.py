@@ -2,9 +2,7 @@
 
 A second Adam on the actor's parameters only, learning rate = strength x PPO's initial learning
 rate, decayed linearly to 1e-10 over ``steps`` env steps (``steps: 0`` = constant for the whole
-run), or to ``final_strength`` x PPO's initial learning rate, kept from then on (an extension:
-ML-Agents' BC always fades out; a floor keeps the demos' pull on a long task after the fade).
-After every PPO update it makes ``num_epoch`` passes over the demo buffer in minibatches of
+run). After every PPO update it makes ``num_epoch`` passes over the demo buffer in minibatches of
 ``batch_size`` (capped by ``samples_per_update``). As in ML-Agents, a round runs at the rate the
 previous round computed and then sets the rate for the next one from the current env step: the
 first round runs at the initial rate, and BC stops once the rate it holds has reached 1e-10 (with
@@ -25,14 +23,12 @@ from .networks import N_EE, Actor, ee_value_to_index
 MIN_LR = 1e-10
 
 
-def bc_learning_rate(initial: float, steps: int, step: int, final: float = 0.0) -> float:
-    """strength x lr at step 0, linearly to ``final`` (or 1e-10 if it is below) at ``steps``, and
-    ``final`` after (constant if steps == 0)."""
+def bc_learning_rate(initial: float, steps: int, step: int) -> float:
+    """strength x lr at step 0, linearly to 1e-10 at ``steps`` (constant if steps == 0)."""
     if steps <= 0:
         return initial
-    end = max(final, MIN_LR)
     frac = min(max(step / steps, 0.0), 1.0)
-    return (initial - end) * (1.0 - frac) + end
+    return (initial - MIN_LR) * (1.0 - frac) + MIN_LR
 
 
 def ee_class_weights(actions: np.ndarray, n_cont: int, balance: float) -> torch.Tensor | None:
@@ -102,14 +98,12 @@ class BehavioralCloning:
         num_epoch: int,
         samples_per_update: int,
         ee_class_balance: float = 0.0,
-        final_lr: float = 0.0,
     ):
         self.actor = actor
         self.obs = torch.as_tensor(obs, dtype=torch.float32)
         self.actions = torch.as_tensor(actions, dtype=torch.float32)
         self.initial_lr = initial_lr
         self.steps = steps
-        self.final_lr = final_lr
         self.batch_size = batch_size
         self.num_epoch = num_epoch
         self.samples_per_update = samples_per_update
@@ -141,7 +135,7 @@ class BehavioralCloning:
                 loss.backward()
                 self.opt.step()
                 losses.append(loss.item())
-        self.current_lr = bc_learning_rate(self.initial_lr, self.steps, step, self.final_lr)
+        self.current_lr = bc_learning_rate(self.initial_lr, self.steps, step)
         return float(np.mean(losses)), lr
 
     def batches_per_pass(self) -> int:

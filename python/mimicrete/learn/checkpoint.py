@@ -114,10 +114,7 @@ def load_trainer_state(st: RunState, s: dict[str, Any]) -> None:
             st.bc.current_lr = float(s["bc_lr"])
         else:  # a checkpoint of the older order: the rate its next round would have used
             st.bc.current_lr = bc_learning_rate(
-                st.bc.initial_lr,
-                st.bc.steps,
-                int(s["step"]) + st.steps_per_update,
-                st.bc.final_lr,
+                st.bc.initial_lr, st.bc.steps, int(s["step"]) + st.steps_per_update
             )
     if st.curriculum is not None and s.get("curriculum") is not None:
         st.curriculum.load_state_dict(s["curriculum"])

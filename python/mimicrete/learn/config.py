@@ -99,7 +99,6 @@ class BehavioralCloningSettings:
     demo_path: str = ""
     strength: float = 1.0
     steps: int = 0
-    final_strength: float = 0.0  # extension: the strength BC fades to over ``steps`` and keeps
     batch_size: int | None = None  # None: the trainer's batch_size
     num_epoch: int | None = None  # None: the trainer's num_epoch
     samples_per_update: int = 0
@@ -124,10 +123,6 @@ class DemoCurriculumSettings:
     horizon_ratio: float = 0.75  # a demo-start episode is cut after ratio x remaining demo steps
     min_horizon: int = 30  # ... plus this many steps
     old_start_prob: float = 0.3  # share of demo starts at a start already passed
-    # a passed start is forgotten when at most this share of the last ``forget_window`` episodes
-    # from it installed: the demo's start comes forward to it again (curriculum.py; None: never)
-    forget_threshold: float | None = None
-    forget_window: int = 10
     max_demos: int | None = None  # walk back at most this many demos (the first ones); BC uses all
     pooled: bool = False  # one shared start stage and window for all the demos (curriculum.py)
     forward_to: str | None = None  # "wide": then widen the env's own starts to tile-sim's wide ones
@@ -246,7 +241,6 @@ RANGES: dict[tuple[type, str], Range] = {
     (GailSettings, "learning_rate"): POSITIVE,
     (BehavioralCloningSettings, "strength"): NON_NEGATIVE,
     (BehavioralCloningSettings, "steps"): _ints(0, 10**12),
-    (BehavioralCloningSettings, "final_strength"): NON_NEGATIVE,
     (BehavioralCloningSettings, "batch_size"): _ints(1, 10**7),
     (BehavioralCloningSettings, "num_epoch"): _ints(1, 10**4),
     (BehavioralCloningSettings, "samples_per_update"): _ints(0, 10**8),
@@ -262,8 +256,6 @@ RANGES: dict[tuple[type, str], Range] = {
     (DemoCurriculumSettings, "horizon_ratio"): Range(0, 10**6),
     (DemoCurriculumSettings, "min_horizon"): COUNT,
     (DemoCurriculumSettings, "old_start_prob"): UNIT,
-    (DemoCurriculumSettings, "forget_threshold"): UNIT,
-    (DemoCurriculumSettings, "forget_window"): COUNT,
     (DemoCurriculumSettings, "max_demos"): COUNT,
     (DemoCurriculumSettings, "forward_step"): Range(0, 1, lo_open=True),
     (DemoCurriculumSettings, "forward_window"): COUNT,

@@ -27,20 +27,6 @@ episodes, so a stuck policy does not spend 700 steps there. Those episodes are c
 own starts, the one the evaluation measures. Nothing here is read at test time: evaluation and
 the exported policy see only observations.
 
-**Forgotten starts** (``forget_threshold``). A start once passed can be lost again: on the row of
-tiles (TileRow-v0) one seed passed 7 of its 10 stages while BC still pulled towards the demos,
-then, after BC had faded, stopped installing the third tile from every start, the passed ones
-included, and the frontier, which moves only backwards, never came back to where the install
-could be relearnt (docs/tasks.md, "Learning a row"). With ``forget_threshold`` set, the episodes
-from each passed start are judged too (a window of the last ``forget_window`` per start): when at
-most ``forget_threshold`` of them installed, that start becomes the demo's frontier again, and
-the walk back resumes from there once it installs as before. The window is longer than the
-frontier's: a start passed on 3 installs in a row may install half the time, and 3 failures
-there in a row are then common (with a window of 3 the row's starts came forward 30-40 times
-in the first 1.3M steps, and the walk back was half as far as without). Florensa et al. keep
-their starts between a low and a high success bound for the same reason.
-``Curriculum/Retreats`` counts the retreats.
-
 **Forward curriculum** (``forward_to: wide``; RFCL's forward half). Demos are recorded where a
 person records them, at the paper's starts; a policy should work wherever the tile lies. Once
 every demo is solved, the env's own starts widen step by step from the paper's (scale 0) to the
@@ -150,10 +136,6 @@ class ReverseCurriculum:
         self.env_steps = np.zeros(num_envs, np.int64)
         self.env_horizon = np.zeros(num_envs, np.int64)
         self.env_frontier = np.zeros(num_envs, bool)  # started at its demo's current start
-        self.env_start_idx = np.zeros(num_envs, np.int64)  # schedule index it started at
-        # forget_threshold: the windows of the passed starts, per demo, by schedule index
-        self.passed_results: list[dict[int, deque[bool]]] = [{} for _ in tracks]
-        self.retreats = 0
         self.replayed_steps = 0
         self.episodes_done: list[bool] = []  # curriculum episodes finished since the last summary
         # how far the env's own starts have widened (forward_to); forward_start: from the outset
@@ -187,17 +169,11 @@ class ReverseCurriculum:
             )
         )
 
-    def record(
-        self, d: int, installed: bool, frontier: bool = True, start_idx: int | None = None
-    ) -> None:
+    def record(self, d: int, installed: bool, frontier: bool = True) -> None:
         """An episode started in demo ``d`` ended; if it started at the current start
-        (``frontier``), move the start back once the window holds enough installs; if it started
-        at the passed start of schedule index ``start_idx``, bring the start forward to it when
-        it is forgotten (``forget_threshold``)."""
+        (``frontier``), move the start back once the window holds enough installs."""
         if not frontier:
             self.episodes_done.append(bool(installed))
-            if start_idx is not None:
-                self._judge_passed(d, start_idx, installed)
             return
         if self.solved(d):
             return
@@ -208,22 +184,6 @@ class ReverseCurriculum:
             for e in self.unsolved if self.s.pooled else [d]:
                 self.stage[e] += 1
             res.clear()
-
-    def _judge_passed(self, d: int, j: int, installed: bool) -> None:
-        """An episode from demo ``d``'s passed start ``j`` ended: retreat to ``j`` if forgotten."""
-        if self.s.forget_threshold is None or self.solved(d) or j >= self.stage[d]:
-            return  # off, solved since, or no longer a passed start (retreated past it)
-        res = self.passed_results[d].setdefault(j, deque(maxlen=self.s.forget_window))
-        res.append(bool(installed))
-        if len(res) < self.s.forget_window or np.mean(res) > self.s.forget_threshold:
-            return
-        for e in self.unsolved if self.s.pooled else [d]:
-            self.stage[e] = min(self.stage[e], j)
-            # the starts from j on are not passed any more: their windows start afresh
-            self.passed_results[e] = {k: r for k, r in self.passed_results[e].items() if k < j}
-            self.results[e].clear()
-        self.pool_results.clear()
-        self.retreats += 1
 
     def record_own(self, i: int, installed: bool) -> None:
         """An episode of env ``i`` from the env's own start ended: judge the forward scale on it
@@ -282,13 +242,11 @@ class ReverseCurriculum:
                 own_reset[i] = need_reset[i] or rescale
                 self.env_scale[i] = self.forward_scale
                 continue
-            tr, k = self.tracks[d], self.stage[d]
+            tr, s = self.tracks[d], self.start(d)
             self.env_frontier[i] = True
             if self.stage[d] > 0 and self.rng.random() < self.s.old_start_prob:
-                k = int(self.rng.integers(self.stage[d]))  # a passed start
+                s = self.schedules[d][int(self.rng.integers(self.stage[d]))]  # a passed start
                 self.env_frontier[i] = False
-            s = self.schedules[d][k]
-            self.env_start_idx[i] = k
             extra = () if tr.start is None else (tr.start,)  # an explicit (generated) start
             obs[i] = env.reset_replay(int(i), tr.seed, tr.actions[:s], *extra)
             self.replayed_steps += s
@@ -305,8 +263,6 @@ class ReverseCurriculum:
             "Curriculum/Demos Solved": float(len(self.tracks) - len(self.unsolved)),
             "Curriculum/Replayed Steps": float(self.replayed_steps),
         }
-        if self.s.forget_threshold is not None:
-            row["Curriculum/Retreats"] = float(self.retreats)
         if self.s.forward_to is not None:
             row["Curriculum/Forward Scale"] = self.forward_scale
         if self.episodes_done:
@@ -332,11 +288,6 @@ class ReverseCurriculum:
             "forward_scale": self.forward_scale,
             "forward_results": list(self.forward_results),
             "env_scale": self.env_scale.copy(),
-            "env_start_idx": self.env_start_idx.copy(),
-            "passed_results": [
-                {int(j): list(r) for j, r in per.items()} for per in self.passed_results
-            ],
-            "retreats": self.retreats,
         }
 
     def load_state_dict(self, s: dict[str, Any]) -> None:
@@ -347,14 +298,6 @@ class ReverseCurriculum:
         self.pool_results.clear()
         self.pool_results.extend(bool(x) for x in s.get("pool_results", []))
         self.replayed_steps = int(s["replayed_steps"])
-        self.retreats = int(s.get("retreats", 0))
-        self.passed_results = [
-            {
-                int(j): deque((bool(x) for x in r), maxlen=self.s.forget_window)
-                for j, r in per.items()
-            }
-            for per in s.get("passed_results", [{} for _ in self.tracks])
-        ]
         self.rng.bit_generator.state = s["rng"]
         if "env_demo" not in s:  # an older checkpoint: its envs restart from their own starts
             self.forget_envs()
@@ -369,8 +312,4 @@ class ReverseCurriculum:
         self.forward_results.extend(bool(x) for x in s.get("forward_results", []))
         if "env_scale" in s:
             self.env_scale[:] = s["env_scale"]
-        if "env_start_idx" in s:
-            self.env_start_idx[:] = s["env_start_idx"]
-        else:  # an older checkpoint: the passed-start episodes running now are not judged
-            self.env_start_idx[:] = [self.stage[d] if d >= 0 else 0 for d in self.env_demo]
         self._applied_scale = None  # the restored env draws from the paper's starts: set it again

@@ -69,7 +69,6 @@ TAGS = [
     "Curriculum/Replayed Steps",  # simulator steps spent replaying demos (not agent steps)
     "Curriculum/Forward Scale",  # how far the own starts have widened (0 = paper, 1 = wide)
     "Environment/Elapsed Seconds",  # wall clock since this process started training
-    "Curriculum/Retreats",  # passed starts found forgotten and made the frontier again
 ]
 
 CSV_NAME = "scalars.csv"

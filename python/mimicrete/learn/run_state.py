@@ -151,7 +151,6 @@ def new_run_state(
             num_epoch=bcs.num_epoch or hp.num_epoch,
             samples_per_update=bcs.samples_per_update,
             ee_class_balance=bcs.ee_class_balance,
-            final_lr=hp.learning_rate * bcs.final_strength,
         )
     n = cfg.env_settings.num_envs
     curriculum = None

@@ -158,7 +158,7 @@ def _record_finished(st: RunState, finished: list[tuple[int, EpisodeResult]]) ->
                 cur.record_own(i, ep.installed)
         else:
             assert cur is not None
-            cur.record(d, ep.installed, bool(cur.env_frontier[i]), int(cur.env_start_idx[i]))
+            cur.record(d, ep.installed, bool(cur.env_frontier[i]))
 
 
 def reset_envs(st: RunState, seed: int) -> None:
