@@ -12,8 +12,7 @@
 //! not carry over to the middle one). The two differences say the same in the terms a reach and
 //! a carry are judged in (ManiSkill's pick tasks observe `tcp_to_obj_pos` and `obj_to_goal_pos`
 //! beside the poses): with the absolute positions only, the row learner installed the first two
-//! tiles and carried the third one past its pad on one seed in three (docs/tasks.md, "Learning a
-//! row").
+//! tiles but no longer the third on one seed in three (docs/tasks.md, "Learning a row").
 //!
 //! # Rules (what and why)
 //! * **Pick**: the suction on with the cup centre within `thresholds.pick_dist` of a tile's
