@@ -193,6 +193,20 @@ def test_eval_bad_input_is_one_line(toy_yaml, tmp_path, capsys):
     (rd / "policy.pt").unlink()
     rc, _, err = run(["eval", str(rd), "--episodes", "2"], capsys)
     assert rc == 2 and "policy.pt does not exist" in one_error_line(err, "eval")
+    # a policy of another observation size (trained before the task's frame changed)
+    (rd / "policy.pt").write_bytes(good)
+    pol = torch.load(rd / "policy.pt", weights_only=False)
+    n = int(pol["obs_dim"])
+    a = pol["actor"]
+    for k in ("norm.mean", "norm.var"):
+        a[k] = torch.cat([a[k], a[k][:6]])
+    a["body.0.weight"] = torch.cat([a["body.0.weight"], a["body.0.weight"][:, :6]], 1)
+    pol["obs_dim"] = n + 6
+    torch.save(pol, rd / "policy.pt")
+    rc, _, err = run(["eval", str(rd), "--episodes", "2"], capsys)
+    line = one_error_line(err, "eval")
+    assert rc == 2 and f"{rd / 'policy.pt'}: the policy reads {n + 6}-float observations" in line
+    assert f"gives {n} (trained with an older observation layout" in line
     (rd / "policy.pt").write_bytes(good)
     rc, out, _ = run(["eval", str(rd), "--episodes", "2"], capsys)
     assert rc == 0 and json.loads((rd / "eval.json").read_text())["episodes"] == 2

@@ -215,6 +215,7 @@ def evaluate_run(
     if robust:
         starts = "robust"
     task_file = cfg.env_settings.task_file
+    _check_obs_dim(run_dir / "policy.pt", actor, env_id, task_file)
     res = run_episodes(
         actor, env_id, episodes, s, stochastic=stochastic, starts=starts, per_episode=True,
         task_file=task_file,
@@ -231,6 +232,20 @@ def evaluate_run(
         res["starts_sha256"] = starts.sha256
     atomic_write(run_dir / eval_file(stochastic, starts=starts), json.dumps(res, indent=1))
     return res
+
+
+def _check_obs_dim(path: Path, actor: Actor, env_id: str, task_file: str | None) -> None:
+    """``ValueError`` naming the policy file when it reads observations of another size than the
+    env gives (a policy trained before the task's observation changed)."""
+    want = int(actor.norm.mean.shape[0])
+    env = make_env(env_id, 1, 0, task_file)
+    got = int(env.single_observation_space.shape[0])
+    env.close()
+    if want != got:
+        raise ValueError(
+            f"{path}: the policy reads {want}-float observations, {env_id} gives {got} "
+            "(trained with an older observation layout of the task: train it again)"
+        )
 
 
 def format_rows(rows: list[tuple[str, dict]]) -> str:
