@@ -110,13 +110,33 @@ def run_episodes(
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         if isinstance(starts, StartList):
-            env = make_env(env_id, min(max_envs, len(starts.starts)), seed, task_file)
+            n = min(max_envs, len(starts.starts))
+        else:
+            n = _num_envs_for(episodes, max_envs)
+        env = make_env(env_id, n, seed, task_file)
+        _check_obs_dim(actor, env, env_id)
+        if isinstance(starts, StartList):
             done = _run_listed(actor, env, starts, seed, stochastic)
         else:
             name = "robust" if robust else starts
-            env = make_env(env_id, _num_envs_for(episodes, max_envs), seed, task_file)
             done = _run_episodes(actor, env, env_id, episodes, seed, stochastic, name)
     return _stats(done, per_episode)
+
+
+class ObsDimError(ValueError):
+    """A policy that reads observations of another size than its env gives."""
+
+
+def _check_obs_dim(actor: Actor, env: Any, env_id: str) -> None:
+    """:class:`ObsDimError` when ``actor`` reads observations of another size than ``env`` gives
+    (a policy trained before the task's observation changed)."""
+    want = int(actor.norm.mean.shape[0])
+    got = int(env.single_observation_space.shape[0])
+    if want != got:
+        raise ObsDimError(
+            f"the policy reads {want}-float observations, {env_id} gives {got} "
+            "(trained with an older observation layout of the task: train it again)"
+        )
 
 
 def _run_listed(
@@ -215,11 +235,13 @@ def evaluate_run(
     if robust:
         starts = "robust"
     task_file = cfg.env_settings.task_file
-    _check_obs_dim(run_dir / "policy.pt", actor, env_id, task_file)
-    res = run_episodes(
-        actor, env_id, episodes, s, stochastic=stochastic, starts=starts, per_episode=True,
-        task_file=task_file,
-    )  # fmt: skip
+    try:
+        res = run_episodes(
+            actor, env_id, episodes, s, stochastic=stochastic, starts=starts, per_episode=True,
+            task_file=task_file,
+        )  # fmt: skip
+    except ObsDimError as e:
+        raise ObsDimError(f"{run_dir / 'policy.pt'}: {e}") from None
     res = {
         **res,
         "seed": s,
@@ -232,20 +254,6 @@ def evaluate_run(
         res["starts_sha256"] = starts.sha256
     atomic_write(run_dir / eval_file(stochastic, starts=starts), json.dumps(res, indent=1))
     return res
-
-
-def _check_obs_dim(path: Path, actor: Actor, env_id: str, task_file: str | None) -> None:
-    """``ValueError`` naming the policy file when it reads observations of another size than the
-    env gives (a policy trained before the task's observation changed)."""
-    want = int(actor.norm.mean.shape[0])
-    env = make_env(env_id, 1, 0, task_file)
-    got = int(env.single_observation_space.shape[0])
-    env.close()
-    if want != got:
-        raise ValueError(
-            f"{path}: the policy reads {want}-float observations, {env_id} gives {got} "
-            "(trained with an older observation layout of the task: train it again)"
-        )
 
 
 def format_rows(rows: list[tuple[str, dict]]) -> str:

@@ -222,12 +222,13 @@ impl TaskLogic for TileRow {
         }
         f[6] = if s.suction_on { 1.0 } else { -1.0 };
         let put = |f: &mut [f32], k: usize, v: Vector| f[k..k + 3].copy_from_slice(&[v.x, v.y, v.z]);
-        put(f, 7, s.tcp().translation);
-        let tile = body_state(s, s.h.object).0.translation;
-        put(f, 10, s.target.translation);
+        let (cup, tile, target) =
+            (s.tcp().translation, body_state(s, s.h.object).0.translation, s.target.translation);
+        put(f, 7, cup);
+        put(f, 10, target);
         put(f, 13, tile);
-        put(f, REL, tile - s.tcp().translation);
-        put(f, REL + 3, s.target.translation - tile);
+        put(f, REL, tile - cup);
+        put(f, REL + 3, target - tile);
         for i in 0..MAX_ROW {
             let k = ROW_SLOTS + 7 * i;
             match s.h.row.get(i) {
