@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from mimicrete._native import MimicreteError
+
 from .env import make_env
 from .episodes import EpisodeResult, EpisodeStats, EpisodeTracker
 from .networks import Actor, env_action
@@ -123,7 +125,7 @@ def run_episodes(
     return _stats(done, per_episode)
 
 
-class ObsDimError(ValueError):
+class ObsDimError(MimicreteError, ValueError):
     """A policy that reads observations of another size than its env gives."""
 
 
