@@ -90,7 +90,7 @@ impl Expert {
     /// The expert of the task `spec` describes (its logic's script, the spec's TCP and object).
     pub fn for_spec(spec: &TaskSpec) -> Expert {
         let task = spec.task();
-        let suction = matches!(task, Task::TileSuction | Task::TileRow);
+        let suction = matches!(task, Task::TileSuction | Task::TileRow | Task::TilePlace);
         let grasp_dz = if suction { spec.object_half_height() as f64 } else { 0.0 };
         Expert {
             task,
@@ -161,7 +161,7 @@ impl Expert {
             Task::TileSuction => self.phase != 2,
             Task::BlockGrip => !matches!(self.phase, 2 | 6),
             Task::Screw => !matches!(self.phase, 2 | 3),
-            Task::TileRow => !matches!(self.phase, 2 | 6),
+            Task::TileRow | Task::TilePlace => !matches!(self.phase, 2 | 6),
         }
     }
 
@@ -186,6 +186,21 @@ impl Expert {
                 out[6] = -1.0;
                 let done = installed(s) > self.installed_at_pick || self.ticks > ROW_RELEASE_WAIT;
                 if !s.held && done {
+                    self.next();
+                    self.goal = self.plan(s);
+                }
+            }
+            // TilePlace: hold until the vacuum is built up, then lift; let go, then retreat.
+            (Task::TilePlace, 2) => {
+                out[6] = 1.0;
+                if s.held && self.ticks > PLACE_SEAL_WAIT {
+                    self.next();
+                    self.goal = self.plan(s);
+                }
+            }
+            (Task::TilePlace, 6) => {
+                out[6] = -1.0;
+                if !s.held {
                     self.next();
                     self.goal = self.plan(s);
                 }
@@ -275,6 +290,35 @@ impl Expert {
                 1 => self.linear(s, tool0_for_tcp(obj, tz)),
                 _ => Some(s.q),
             },
+            // TileSuction's script with contact: the lips set on the face (1 mm above it), the
+            // tile turned square to its target on the way, lowered to 1.5 mm above its resting
+            // height, let go, and the head lifted clear.
+            Task::TilePlace => {
+                let grasp = obj + up * self.grasp_dz;
+                let t = v3(s.tcp.t);
+                // The head turned square to the tile (its cups' pattern repeats every 90°), so
+                // every lip lands on the face.
+                let over = |p: Vector3<f64>| {
+                    let g = tool0_for_tcp(p, tz);
+                    Isometry3::from_parts(g.translation, square_to(&g.rotation, &iso(&s.object).rotation))
+                };
+                match self.phase {
+                    0 => ik_on(self.arm, &over(grasp + up * 0.08), &s.q),
+                    1 => self.linear(s, over(grasp + up * 0.001)),
+                    3 => self.linear(s, up_to(s, 0.13 - t.z)),
+                    4 | 5 => {
+                        let lift = if self.phase == 4 { 0.08 } else { 0.0015 };
+                        let tile_in_tool = iso(&s.tool0).inverse() * iso(&s.object);
+                        let tile_goal = Isometry3::from_parts(
+                            Translation3::from(tgt + up * lift),
+                            square_to(&iso(&s.object).rotation, &iso(&s.target).rotation),
+                        );
+                        self.linear(s, tile_goal * tile_in_tool.inverse())
+                    }
+                    7 => self.linear(s, up_to(s, 0.05)),
+                    _ => Some(s.q),
+                }
+            }
             // Every move a straight line (legs of 2 cm), so the arm never swings the cups or a
             // held tile through the other tiles.
             Task::TileRow => {
@@ -299,6 +343,28 @@ impl Expert {
             }
         }
     }
+}
+
+/// tool0 moved straight up by `dz` (m), turned as it is.
+fn up_to(s: &Snapshot, dz: f64) -> Isometry3<f64> {
+    let t0 = iso(&s.tool0);
+    Isometry3::from_parts(Translation3::from(t0.translation.vector + Vector3::z() * dz), t0.rotation)
+}
+
+/// TilePlace: steps the expert keeps still after the hold began, so the vacuum is built up
+/// (the built-in seal time is 0.1 s, 2.5 steps) before it lifts.
+const PLACE_SEAL_WAIT: u32 = 4;
+
+/// The rotation that turns `tile` (a square tile, or a head whose cups repeat every 90°) by the
+/// least yaw about Base z to lie square to `target` (modulo 90°).
+fn square_to(tile: &UnitQuaternion<f64>, target: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
+    let yaw = |r: &UnitQuaternion<f64>| {
+        let x = r * Vector3::x();
+        x.y.atan2(x.x)
+    };
+    let q = std::f64::consts::FRAC_PI_2;
+    let err = (yaw(target) - yaw(tile) + 0.5 * q).rem_euclid(q) - 0.5 * q;
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), err) * tile
 }
 
 /// TileRow: how many tiles of the row are installed (0 for the other tasks).

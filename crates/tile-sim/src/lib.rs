@@ -91,7 +91,7 @@ mod task;
 mod vecenv;
 pub mod world;
 
-pub use env::{Env, HOME_Q, PoseRec, Snapshot, StepOutcome, episode_scene, object_start};
+pub use env::{Env, HOME_Q, Placement, PoseRec, Snapshot, StepOutcome, episode_scene, object_start};
 pub use owned::{RecordState, StepInfo};
 pub use spec::{SPEC_VERSION, SpecError, TaskSpec};
 pub use starts::{

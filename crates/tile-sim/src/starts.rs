@@ -462,7 +462,7 @@ impl Start {
 /// centre for the fingers.
 fn grasp_height(spec: &TaskSpec) -> f32 {
     match spec.task() {
-        Task::TileSuction | Task::TileRow => spec.object_half_height(),
+        Task::TileSuction | Task::TileRow | Task::TilePlace => spec.object_half_height(),
         Task::BlockGrip | Task::Screw => 0.0,
     }
 }

@@ -318,7 +318,7 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
     }
     let mut fingers = None;
     match &spec.effector {
-        EffectorSpec::Suction { plate_half_extents: plate, cup_offset, cup_radius, tcp_z } => {
+        EffectorSpec::Suction { plate_half_extents: plate, cup_offset, cup_radius, tcp_z, .. } => {
             parts[5].push((
                 Pose::from_translation(Vector::new(0.0, 0.0, plate[2])),
                 SharedShape::cuboid(plate[0], plate[1], plate[2]),
@@ -464,7 +464,7 @@ pub fn scene_spec(spec: &TaskSpec, start: &Start) -> Scene {
     let object =
         item(intern(&spec.object.name), SceneFrame::Object, object_shape(spec), [0.0; 3], spec.object.rgba);
     match &spec.effector {
-        EffectorSpec::Suction { plate_half_extents: plate, cup_offset, cup_radius, tcp_z } => {
+        EffectorSpec::Suction { plate_half_extents: plate, cup_offset, cup_radius, tcp_z, .. } => {
             let half = spec.object.half_extents.unwrap_or([0.0; 3]);
             push_pad_and_target(&mut items, spec, start, [half[0], half[1]], 0.0);
             items.push(item(

@@ -40,6 +40,7 @@ fn builtin_specs_parse_and_name_their_tasks() {
             Task::BlockGrip => "block_grip.toml",
             Task::Screw => "screw.toml",
             Task::TileRow => "tile_row.toml",
+            Task::TilePlace => "tile_place.toml",
         });
         assert_eq!(TaskSpec::from_file(&file).unwrap(), *spec);
         assert_eq!(std::fs::read_to_string(&file).unwrap(), TaskSpec::builtin_toml(task));
@@ -64,6 +65,7 @@ fn builtin_specs_hold_the_constants_values() {
             cup_offset: world::CUP_OFFSET,
             cup_radius: world::CUP_RADIUS,
             tcp_z: world::CUP_TCP_Z,
+            seal: None,
         }
     );
     assert_eq!(

@@ -233,14 +233,16 @@ fn tile_row_episodes_are_bit_identical_to_the_recorded_ones() {
     assert_eq!(digest, 0xd2713cd36d31181c, "TileRow digest now {digest:#018x}");
 }
 
-/// The constants record as it was (digest recorded at commit 22561ac), plus TileRow's sizes: the
-/// record without its `TileRow` entry hashes to the recorded digest, so every older value is
-/// unchanged, and TileRow's entry is checked on its own.
+/// The constants record as it was (digest recorded at commit 22561ac), plus TileRow's and
+/// TilePlace's sizes: the record without those entries hashes to the recorded digest, so every
+/// older value is unchanged, and the two entries are checked on their own.
 #[test]
 fn constants_record_is_unchanged() {
     let mut c = Constants::get();
     let row = c.tasks.remove("TileRow").expect("the record lists TileRow");
     assert_eq!((row.obs_frame_dim, row.obs_dim, row.act_dim), (43, 215, 7));
+    let place = c.tasks.remove("TilePlace").expect("the record lists TilePlace");
+    assert_eq!((place.obs_frame_dim, place.obs_dim, place.act_dim), (28, 140, 7));
     let mut h = Fnv::new();
     h.bytes(format!("{c:?}").as_bytes());
     assert_eq!(h.0, 0x9665706803e23574, "constants digest now {:#018x}", h.0);

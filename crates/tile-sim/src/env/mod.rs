@@ -129,6 +129,25 @@ pub struct Env {
     skipped_steps: u64,
     skip_idle_physics: bool,
     variation: Variation,
+    /// How the last finished episode ended ([`Env::last_placement`]).
+    last_placement: Option<Placement>,
+}
+
+/// Where the object ended an episode, beside the success flag: what a tiler would check.
+/// Base frame, m; yaw in degrees, modulo the object's symmetry (90° for a square tile).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Placement {
+    /// Still held by the end effector at the end.
+    pub held: bool,
+    /// The object's centre above the target's (m; negative: below it, pushed into the pad).
+    pub height_above_rest: f32,
+    /// The object's centre to the target's in x and y (m).
+    pub xy_error: f32,
+    /// The target's yaw minus the object's (degrees, wrapped by the object's symmetry).
+    pub yaw_error_deg: f32,
+    /// The lip-to-face gap (m) when each hold of the episode began (suction heads; empty for
+    /// the grippers): the TCP above the face the cups took (negative: pressed into it).
+    pub hold_gaps: Vec<f32>,
 }
 
 /// Where episode `seed` of `task` puts the object's centre (tile, block or nut) at reset under
@@ -181,7 +200,10 @@ impl Env {
                 start: Start::default(),
                 target: Pose::IDENTITY,
                 row: Default::default(),
+                seal: Default::default(),
+                hold_gaps: Vec::new(),
             },
+            last_placement: None,
             rng,
             episode_seed: first,
             step_idx: 0,
@@ -335,6 +357,7 @@ impl Env {
         self.s.held = false;
         self.s.hold_offset = Pose::IDENTITY;
         self.s.picked = false;
+        self.s.hold_gaps.clear();
         self.logic.reset(&mut self.s);
         self.teleport_arm(self.s.spec.robot.home_q);
         self.hist.iter_mut().for_each(|v| *v = 0.0);
@@ -429,8 +452,37 @@ impl Env {
             out.truncated = true;
         }
         self.done = out.terminated || out.truncated;
+        if self.done {
+            self.last_placement = self.placement();
+        }
         self.push_frame();
         out
+    }
+
+    /// Where the object is now, as [`Placement`] judges it (`None` for the Screw task, whose
+    /// nut rides its bolt).
+    pub fn placement(&self) -> Option<Placement> {
+        if self.task == Task::Screw {
+            return None;
+        }
+        let p = self.s.object_pose();
+        let d = p.translation - self.s.target.translation;
+        let half = self.s.spec.object.half_extents.unwrap_or([0.0; 3]);
+        let (yo, period) = crate::task::tile_place::yaw_and_period(&p, half);
+        let (yt, _) = crate::task::tile_place::yaw_and_period(&self.s.target, half);
+        Some(Placement {
+            held: self.s.held,
+            height_above_rest: d.z,
+            xy_error: (d.x * d.x + d.y * d.y).sqrt(),
+            yaw_error_deg: crate::task::tile_place::wrap(yt - yo, period).to_degrees(),
+            hold_gaps: self.s.hold_gaps.clone(),
+        })
+    }
+
+    /// The [`Placement`] at the end of this env's last finished episode (terminated or
+    /// truncated; kept through the reset that follows), `None` before one has finished.
+    pub fn last_placement(&self) -> Option<&Placement> {
+        self.last_placement.as_ref()
     }
 
     /// Whether any arm/finger collider (or, in a row, the held object's), swept from its current

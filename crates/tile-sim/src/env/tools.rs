@@ -53,7 +53,17 @@ impl Env {
                 "joint angles must be finite and within [-pi, pi]: {q:?}"
             )));
         }
+        // A tile held by a seal (TilePlace) keeps its pose in the flange's frame.
+        let sealed = self.s.seal.joint.map(|_| self.s.tool0.inverse() * self.s.object_pose());
         self.teleport_arm(q);
+        if let Some(rel) = sealed {
+            let p = self.s.tool0 * rel;
+            if let Some(b) = self.s.world.bodies.get_mut(self.s.h.object) {
+                b.set_position(p, true);
+                b.set_linvel(Vector::ZERO, true);
+                b.set_angvel(Vector::ZERO, true);
+            }
+        }
         if self.s.held && self.logic.carries_object() {
             let p = self.s.tool0 * self.s.hold_offset;
             if let Some(b) = self.s.world.bodies.get_mut(self.s.h.object) {
@@ -73,7 +83,7 @@ impl Env {
         if t.iter().chain(q.iter()).any(|v| !v.is_finite()) {
             return Err(SimError::InvalidState("object pose must be finite".into()));
         }
-        if !self.logic.carries_object() {
+        if self.task == Task::Screw {
             return Err(SimError::InvalidState("the nut rides the bolt: use set_turns".into()));
         }
         let rot = Rotation::from_xyzw(q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32);
@@ -81,7 +91,9 @@ impl Env {
             return Err(SimError::InvalidState("zero quaternion".into()));
         }
         let p = Pose::from_parts(Vector::new(t[0] as f32, t[1] as f32, t[2] as f32), rot.normalize());
-        if self.s.held {
+        if self.s.seal.joint.is_some() {
+            self.s.drop_hold();
+        } else if self.s.held {
             self.s.held = false;
             self.s.set_object_kinematic(false);
         }

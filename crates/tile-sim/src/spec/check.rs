@@ -3,7 +3,8 @@
 //! field is reported as a [`SpecError::Invalid`] with its dotted path, its value and why.
 
 use super::{
-    EffectorSpec, MAX_ROW, RowSpec, SPEC_VERSION, TargetSpec, TaskSpec, ThresholdsSpec, VariationSpec,
+    EffectorSpec, MAX_ROW, RowSpec, Rule, SPEC_VERSION, SealSpec, TargetSpec, TaskSpec, ThresholdsSpec,
+    VariationSpec,
 };
 use crate::{MAX_YAW, Start, Task};
 use std::fmt::Debug;
@@ -153,6 +154,7 @@ fn logic(task: Task) -> &'static str {
         Task::BlockGrip => "gripper",
         Task::Screw => "screw",
         Task::TileRow => "suction row",
+        Task::TilePlace => "placed suction",
     }
 }
 
@@ -173,21 +175,92 @@ fn threshold<T: Copy + Debug>(
 }
 
 fn check_thresholds(task: Task, t: &ThresholdsSpec) -> Result<(), SpecError> {
-    use Task::{BlockGrip as G, Screw as S, TileRow as R, TileSuction as T};
+    use Task::{BlockGrip as G, Screw as S, TilePlace as P, TileRow as R, TileSuction as T};
     let dist = |x: f32| x.is_finite() && x > 0.0 && x < 1.0;
     let cos = |x: f32| x.is_finite() && x > 0.0 && x < 1.0;
     let (d, c) = ("a distance in (0, 1) m", "a cosine in (0, 1)");
     let height = |x: f32| x.is_finite();
     let speed = |x: f32| x.is_finite() && x > 0.0;
     threshold(task, &[T, R], "thresholds.pick_dist", t.pick_dist, dist, d)?;
-    threshold(task, &[T, G, R], "thresholds.success_dist", t.success_dist, dist, d)?;
-    threshold(task, &[T, G, R], "thresholds.fall_z", t.fall_z, height, "a finite height (m)")?;
-    threshold(task, &[T, G, R], "thresholds.fall_speed", t.fall_speed, speed, "a speed > 0 m/s")?;
-    threshold(task, &[T, R], "thresholds.fall_tilt_cos", t.fall_tilt_cos, cos, c)?;
+    threshold(task, &[T, G, R, P], "thresholds.success_dist", t.success_dist, dist, d)?;
+    threshold(task, &[T, G, R, P], "thresholds.fall_z", t.fall_z, height, "a finite height (m)")?;
+    threshold(task, &[T, G, R, P], "thresholds.fall_speed", t.fall_speed, speed, "a speed > 0 m/s")?;
+    threshold(task, &[T, R, P], "thresholds.fall_tilt_cos", t.fall_tilt_cos, cos, c)?;
+    let yaw = |x: f32| x.is_finite() && x > 0.0 && x < 45.0;
+    threshold(
+        task,
+        &[P],
+        "thresholds.success_yaw_deg",
+        t.success_yaw_deg,
+        yaw,
+        "an angle in (0, 45) degrees",
+    )?;
+    let small = |x: f32| x.is_finite() && x > 0.0 && x < 0.1;
+    let sd = "a distance in (0, 0.1) m";
+    threshold(task, &[P], "thresholds.release_height", t.release_height, small, sd)?;
+    threshold(task, &[P], "thresholds.rest_height", t.rest_height, small, sd)?;
+    threshold(task, &[P], "thresholds.rest_speed", t.rest_speed, speed, "a speed > 0 m/s")?;
+    let steps = |x: u32| (1..=100).contains(&x);
+    threshold(task, &[P], "thresholds.rest_steps", t.rest_steps, steps, "1 to 100 steps")?;
     threshold(task, &[S], "thresholds.align_cos", t.align_cos, cos, c)?;
     threshold(task, &[S], "thresholds.slip_dist", t.slip_dist, dist, d)?;
     let turns = |x: f64| x.is_finite() && x > 0.0;
     threshold(task, &[S], "thresholds.fail_turns", t.fail_turns, turns, "a number of turns > 0")
+}
+
+/// `[effector.seal]` and `thresholds.rule` go together: the placed rule needs the seal (a proximity
+/// hold would let a tile be set down from the air), the paper's rule runs the paper's rigid hold.
+fn check_seal(seal: Option<&SealSpec>, rule: Option<Rule>, row: bool) -> Result<(), SpecError> {
+    let placed = rule == Some(Rule::Placed);
+    if placed && row {
+        return invalid(
+            "thresholds.rule",
+            "placed",
+            "the placed rule is not built for a [row] yet (TileRow)",
+        );
+    }
+    let Some(s) = seal else {
+        if placed {
+            return invalid(
+                "effector.seal",
+                "(missing)",
+                "the placed rule holds a tile by its sealed cups: add [effector.seal]",
+            );
+        }
+        return Ok(());
+    };
+    if !placed {
+        return invalid(
+            "effector.seal",
+            "{...}",
+            "the seal runs with thresholds.rule = \"placed\" (the paper's rule holds rigidly within pick_dist)",
+        );
+    }
+    positive("effector.seal.gap", &[s.gap])?;
+    if s.gap >= 0.05 {
+        return invalid(
+            "effector.seal.gap",
+            s.gap,
+            "must be below 0.05 m (a lip seals on the face, not from the air)",
+        );
+    }
+    if !(s.angle_deg.is_finite() && s.angle_deg > 0.0 && s.angle_deg < 45.0) {
+        return invalid("effector.seal.angle_deg", s.angle_deg, "must be an angle in (0, 45) degrees");
+    }
+    if !(s.vacuum_kpa.is_finite() && s.vacuum_kpa > 0.0 && s.vacuum_kpa < 101.325) {
+        return invalid(
+            "effector.seal.vacuum_kpa",
+            s.vacuum_kpa,
+            "must be a relative vacuum in (0, 101.325) kPa (below the atmosphere's pressure)",
+        );
+    }
+    if !(s.time.is_finite() && s.time >= 0.0 && s.time <= 5.0) {
+        return invalid("effector.seal.time", s.time, "must be in [0, 5] s");
+    }
+    if !(s.safety_factor.is_finite() && s.safety_factor >= 1.0) {
+        return invalid("effector.seal.safety_factor", s.safety_factor, "must be a finite number >= 1");
+    }
+    friction("effector.seal.lip_friction", s.lip_friction)
 }
 
 impl TaskSpec {
@@ -401,7 +474,8 @@ impl TaskSpec {
 
     fn check_effector(&self) -> Result<(), SpecError> {
         match &self.effector {
-            EffectorSpec::Suction { plate_half_extents, cup_offset, cup_radius, tcp_z } => {
+            EffectorSpec::Suction { plate_half_extents, cup_offset, cup_radius, tcp_z, seal } => {
+                check_seal(seal.as_ref(), self.thresholds.rule, self.row.is_some())?;
                 positive("effector.plate_half_extents", plate_half_extents)?;
                 positive("effector.cup_offset", &[*cup_offset])?;
                 positive("effector.cup_radius", &[*cup_radius])?;
@@ -422,6 +496,13 @@ impl TaskSpec {
                 finger_friction,
                 spin_rate,
             } => {
+                if self.thresholds.rule == Some(Rule::Placed) {
+                    return invalid(
+                        "thresholds.rule",
+                        "placed",
+                        "the placed rule is built for the suction head only (TilePlace) so far",
+                    );
+                }
                 positive("effector.body_half_extents", body_half_extents)?;
                 positive("effector.finger_half_extents", finger_half_extents)?;
                 positive("effector.finger_z", &[*finger_z])?;
@@ -488,9 +569,8 @@ impl TaskSpec {
         }
         let (task, shape) = (self.task(), o.shape.as_str());
         match (task, shape) {
-            (Task::TileSuction | Task::BlockGrip | Task::TileRow, "box") | (Task::Screw, "cylinder") => {
-                Ok(())
-            }
+            (Task::TileSuction | Task::BlockGrip | Task::TileRow | Task::TilePlace, "box")
+            | (Task::Screw, "cylinder") => Ok(()),
             (Task::Screw, _) => invalid("object.shape", shape, "the screw logic turns a cylinder (the nut)"),
             _ => invalid("object.shape", shape, format!("the {} logic moves a box", task.name())),
         }
@@ -500,7 +580,7 @@ impl TaskSpec {
         match (&self.target, self.task()) {
             (
                 TargetSpec::Pad { xy, half_extents, friction: f },
-                Task::TileSuction | Task::BlockGrip | Task::TileRow,
+                Task::TileSuction | Task::BlockGrip | Task::TileRow | Task::TilePlace,
             ) => {
                 finite("target.xy", xy)?;
                 positive("target.half_extents", half_extents)?;

@@ -13,8 +13,8 @@
 //! and physics substeps (crate constants; the joint step per action is a constant too unless
 //! `robot.joint_step` sets it), and the observation layout (the task
 //! logic's, [`crate::Task::obs_frame_dim`]). The task logic that judges an episode follows from
-//! the effector: `suction` → TileSuction's (TileRow's with a `[row]`), `gripper` → BlockGrip's,
-//! `gripper` with `spin_rate` → Screw's.
+//! the effector: `suction` → TileSuction's (TileRow's with a `[row]`, TilePlace's with
+//! `thresholds.rule = "placed"`), `gripper` → BlockGrip's, `gripper` with `spin_rate` → Screw's.
 
 mod check;
 
@@ -138,6 +138,11 @@ pub enum EffectorSpec {
         /// The TCP, the centre of the four cup lips, along tool0 z (m).
         #[serde(serialize_with = "decimal")]
         tcp_z: f32,
+        /// How the cups hold a tile under the placed rule (`thresholds.rule = "placed"`, the
+        /// TilePlace logic): a seal per cup and a force-limited hold. Absent: the paper's rigid
+        /// hold within `thresholds.pick_dist`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        seal: Option<SealSpec>,
     },
     /// A parallel gripper: a body box and two finger boxes sliding along tool0 y, closing and
     /// opening at a constant speed; with `spin_rate`, the screwing effector (it turns what it grips).
@@ -164,6 +169,39 @@ pub enum EffectorSpec {
         #[serde(default, serialize_with = "decimal")]
         spin_rate: Option<f32>,
     },
+}
+
+/// A suction head's seal and holding force (`[effector.seal]`, the TilePlace logic,
+/// `task/tile_place.rs`). A cup seals when its lip lies on the tile's face: the lip centre within
+/// `gap` of the face plane (either side: a lip pressed in counts), the whole lip on the face, and
+/// the cup's axis within `angle_deg` of the face normal. While the suction is on and a cup
+/// stays sealed the vacuum builds up over `time`; the hold's force limits are then
+/// `vacuum_kpa · π · cup_radius² · sealed cups / safety_factor` along the cups' axis (peel),
+/// `lip_friction` times that across it (shear), and that force times `cup_offset` as a torque.
+/// Defaults of the built-in spec: a Ø30 mm flat cup at −60 kPa (≈ 42 N in theory per cup,
+/// Schmalz's design guide), safety factor 1.5 (smooth dense parts), lip friction 0.5 (glazed
+/// ceramic, dry).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SealSpec {
+    /// Largest distance (m) between a cup's lip and the face for it to seal (and stay sealed).
+    #[serde(serialize_with = "decimal")]
+    pub gap: f32,
+    /// Largest angle (degrees) between a cup's axis and the face normal for it to seal.
+    #[serde(serialize_with = "decimal")]
+    pub angle_deg: f32,
+    /// Relative vacuum (kPa below ambient) once the seal is built up.
+    #[serde(serialize_with = "decimal")]
+    pub vacuum_kpa: f32,
+    /// Seconds from the first sealed step to the full vacuum (the force ramps up linearly).
+    #[serde(serialize_with = "decimal")]
+    pub time: f32,
+    /// Holding force divisor (≥ 1).
+    #[serde(serialize_with = "decimal")]
+    pub safety_factor: f32,
+    /// Friction coefficient of the lips on the face: the shear limit over the peel limit.
+    #[serde(serialize_with = "decimal")]
+    pub lip_friction: f32,
 }
 
 /// The object the task moves.
@@ -296,6 +334,40 @@ pub struct ThresholdsSpec {
     /// Screw: failure when the nut is loosened more than this many turns (it leaves the bolt).
     #[serde(default)]
     pub fail_turns: Option<f64>,
+    /// The success rule: `"paper"` (absent: the paper's, the tile's centre within
+    /// `success_dist` of the target, held or not) or `"placed"` (the TilePlace logic, which also
+    /// needs `[effector.seal]`): released no higher than `release_height` above its resting
+    /// height, then resting (slower than `rest_speed` for `rest_steps` steps, its centre within
+    /// `rest_height` of the target's height), the centre within `success_dist` of the target in
+    /// x and y and its yaw within `success_yaw_deg` of the target's (a square tile: modulo 90°).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rule: Option<Rule>,
+    /// Placed: the yaw tolerance (degrees).
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
+    pub success_yaw_deg: Option<f32>,
+    /// Placed: a tile let go more than this (m) above its resting height was dropped, not set down.
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
+    pub release_height: Option<f32>,
+    /// Placed: the resting tile's centre within this (m) of the target's height (on the pad,
+    /// not tilted on an edge, not pushed into it).
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
+    pub rest_height: Option<f32>,
+    /// Placed: resting means slower than this (m/s) ...
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
+    pub rest_speed: Option<f32>,
+    /// ... for this many steps in a row.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rest_steps: Option<u32>,
+}
+
+/// A success rule ([`ThresholdsSpec::rule`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Rule {
+    /// The paper's: proximity, held or not, any yaw (with the paper's rigid hold).
+    Paper,
+    /// Placed as a tiler means it (with the contact hold of `[effector.seal]`).
+    Placed,
 }
 
 /// The sparse rewards (each paid at the event, the pick only once per episode).
@@ -397,11 +469,12 @@ fn decimal<T: Decimal, S: serde::Serializer>(v: &T, s: S) -> Result<S::Ok, S::Er
 }
 
 /// The built-in spec files, in [`Task::ALL`] order.
-const BUILTIN_TOML: [(&str, &str); 4] = [
+const BUILTIN_TOML: [(&str, &str); 5] = [
     ("tile_suction.toml", include_str!("../../tasks/tile_suction.toml")),
     ("block_grip.toml", include_str!("../../tasks/block_grip.toml")),
     ("screw.toml", include_str!("../../tasks/screw.toml")),
     ("tile_row.toml", include_str!("../../tasks/tile_row.toml")),
+    ("tile_place.toml", include_str!("../../tasks/tile_place.toml")),
 ];
 
 impl TaskSpec {
@@ -428,7 +501,7 @@ impl TaskSpec {
 
     /// The built-in spec of `task` (parsed once, shared).
     pub fn builtin(task: Task) -> Arc<TaskSpec> {
-        static SPECS: OnceLock<[Arc<TaskSpec>; 4]> = OnceLock::new();
+        static SPECS: OnceLock<[Arc<TaskSpec>; 5]> = OnceLock::new();
         let specs = SPECS.get_or_init(|| {
             BUILTIN_TOML.map(|(name, text)| {
                 Arc::new(TaskSpec::from_toml(text, name).expect("invariant: the built-in specs are valid"))
@@ -448,6 +521,7 @@ impl TaskSpec {
     pub fn task(&self) -> Task {
         match self.effector {
             EffectorSpec::Suction { .. } if self.row.is_some() => Task::TileRow,
+            EffectorSpec::Suction { .. } if self.thresholds.rule == Some(Rule::Placed) => Task::TilePlace,
             EffectorSpec::Suction { .. } => Task::TileSuction,
             EffectorSpec::Gripper { spin_rate: None, .. } => Task::BlockGrip,
             EffectorSpec::Gripper { spin_rate: Some(_), .. } => Task::Screw,
@@ -499,6 +573,14 @@ impl TaskSpec {
     /// row).
     pub fn pad_offset(&self, i: usize) -> [f32; 2] {
         self.row.map_or([0.0; 2], |r| [i as f32 * r.pad_pitch[0], i as f32 * r.pad_pitch[1]])
+    }
+
+    /// The suction head's seal (`[effector.seal]`), if it has one.
+    pub fn seal(&self) -> Option<&SealSpec> {
+        match &self.effector {
+            EffectorSpec::Suction { seal, .. } => seal.as_ref(),
+            EffectorSpec::Gripper { .. } => None,
+        }
     }
 
     /// Half the object's height (m): its centre's height above the surface it rests on.

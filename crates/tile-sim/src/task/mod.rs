@@ -5,11 +5,12 @@
 //! stacking are the [`Env`](crate::Env)'s, the same for every task. Base frame, metres, radians.
 //!
 //! One module per task: [`suction`] (TileSuction), [`gripper`] (BlockGrip), [`screw`] (Screw),
-//! [`tile_row`] (TileRow).
+//! [`tile_row`] (TileRow), [`tile_place`] (TilePlace).
 
 pub(crate) mod gripper;
 pub(crate) mod screw;
 pub(crate) mod suction;
+pub(crate) mod tile_place;
 pub(crate) mod tile_row;
 
 use crate::env::StepOutcome;
@@ -47,6 +48,12 @@ use std::sync::Arc;
 ///   that step, so a success sums to 6). Any tile falling (TileSuction's rules) → −0.5,
 ///   terminated. `StepOutcome::installed` marks the step the row is complete, not each tile's
 ///   install (each is a +1 and an observation flag). The module `task/tile_row.rs` says why.
+/// * `TilePlace` (issue 46): TileSuction's arm, head, tile, pad and starts under rules a real
+///   cell keeps. The held tile stays a dynamic body (it collides with the table, the pad and the
+///   arm) held by a force-limited joint that exists only while a cup's lip is sealed on its face
+///   (`[effector.seal]`); the first hold pays +1; placed (released, resting on the pad, centre
+///   within 5 mm and yaw within 2° of the target) pays +1 and ends the episode; a fall −0.5.
+///   `task/tile_place.rs` has the rules and the numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(into = "&'static str")]
 pub enum Task {
@@ -54,31 +61,35 @@ pub enum Task {
     BlockGrip,
     Screw,
     TileRow,
+    TilePlace,
 }
 
 impl Task {
     /// All tasks, in a fixed order (the paper's three first).
-    pub const ALL: [Task; 4] = [Task::TileSuction, Task::BlockGrip, Task::Screw, Task::TileRow];
+    pub const ALL: [Task; 5] =
+        [Task::TileSuction, Task::BlockGrip, Task::Screw, Task::TileRow, Task::TilePlace];
 
-    /// Parse "TileSuction"/"BlockGrip"/"Screw"/"TileRow" or "suction"/"grip"/"screw"/"row"
-    /// (case-insensitive).
+    /// Parse "TileSuction"/"BlockGrip"/"Screw"/"TileRow"/"TilePlace" or
+    /// "suction"/"grip"/"screw"/"row"/"place" (case-insensitive).
     pub fn from_name(name: &str) -> Result<Task, SimError> {
         match name.to_ascii_lowercase().as_str() {
             "tilesuction" | "suction" | "tile_suction" => Ok(Task::TileSuction),
             "blockgrip" | "grip" | "gripping" | "block_grip" => Ok(Task::BlockGrip),
             "screw" | "screwing" => Ok(Task::Screw),
             "tilerow" | "row" | "tile_row" => Ok(Task::TileRow),
+            "tileplace" | "place" | "tile_place" => Ok(Task::TilePlace),
             _ => Err(SimError::UnknownTask(name.to_string())),
         }
     }
 
-    /// Canonical name ("TileSuction", "BlockGrip", "Screw", "TileRow").
+    /// Canonical name ("TileSuction", "BlockGrip", "Screw", "TileRow", "TilePlace").
     pub fn name(self) -> &'static str {
         match self {
             Task::TileSuction => "TileSuction",
             Task::BlockGrip => "BlockGrip",
             Task::Screw => "Screw",
             Task::TileRow => "TileRow",
+            Task::TilePlace => "TilePlace",
         }
     }
 
@@ -94,6 +105,7 @@ impl Task {
             Task::BlockGrip => &gripper::BlockGrip,
             Task::Screw => &screw::Screw,
             Task::TileRow => &tile_row::TileRow,
+            Task::TilePlace => &tile_place::TilePlace,
         }
     }
 
@@ -113,6 +125,11 @@ impl Task {
     ///   order: `target_i[3]` m (tile `i`'s centre installed on pad `i`), `tile_centre_i[3]` m,
     ///   `installed_i` (1 installed / 0 not). A spec's row of two leaves the third tile's seven
     ///   floats zero.
+    /// * TilePlace (28): TileSuction's 16, then `vacuum` (the vacuum switch: 0 … 1, the sealed
+    ///   cups' share times the built-up vacuum), `tile_centre − cup_centre[3]`, `target −
+    ///   tile_centre[3]`, `yaw_error` (rad, the target's yaw minus the tile's, wrapped to ±45° for
+    ///   a square tile), `cos 4ψ, sin 4ψ` of the tile's yaw ψ and of the target's (a square tile's
+    ///   yaw is known modulo 90°: 4ψ is what a camera sees).
     ///
     /// All positions in the Base frame.
     pub fn obs_frame_dim(self) -> usize {
@@ -165,6 +182,11 @@ pub(crate) struct State {
     pub(crate) target: Pose,
     /// TileRow's per-tile episode state (default for the other tasks).
     pub(crate) row: tile_row::RowState,
+    /// TilePlace's seal and placing state (default for the other tasks).
+    pub(crate) seal: tile_place::SealState,
+    /// The lip-to-face gap (m, cup centre above the grasped face; negative: pressed in) when each
+    /// hold of this episode began (the suction tasks).
+    pub(crate) hold_gaps: Vec<f32>,
 }
 
 impl State {

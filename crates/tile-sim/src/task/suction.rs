@@ -86,6 +86,8 @@ impl TaskLogic for Suction {
             let tile = s.object_pose();
             let grasp = grasp_point(&tile, s.spec.object_half_height());
             if (s.tcp().translation - grasp).length() < req(s.spec.thresholds.pick_dist) {
+                let gap = super::tile_place::lip_gap(s.tcp().translation, &tile, s.spec.object_half_height());
+                s.hold_gaps.push(gap);
                 let offset = s.tool0.inverse() * tile;
                 let reward = s.spec.rewards.pick;
                 s.grasp(offset, out, reward);

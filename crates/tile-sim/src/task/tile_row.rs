@@ -175,7 +175,9 @@ impl TaskLogic for TileRow {
                     return;
                 }
                 make_current(s, i);
-                let offset = s.tool0.inverse() * body_state(s, s.h.row[i]).0;
+                let tile = body_state(s, s.h.row[i]).0;
+                s.hold_gaps.push(super::tile_place::lip_gap(tcp, &tile, half));
+                let offset = s.tool0.inverse() * tile;
                 s.grasp(offset, out, 0.0);
                 if !s.row.picked[i] {
                     s.row.picked[i] = true;

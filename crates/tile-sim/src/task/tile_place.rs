@@ -1,0 +1,350 @@
+//! TilePlace (issue 46): TileSuction's scene under rules a real cell keeps. Nothing is held
+//! without contact, nothing passes through anything, and a success is a tile a tiler would
+//! accept. Frame (28 floats): TileSuction's 16, the vacuum switch, tile − cup, target − tile, the
+//! yaw error and the yaws as `cos 4ψ, sin 4ψ` ([`Task::obs_frame_dim`](crate::Task::obs_frame_dim)).
+//!
+//! # The hold
+//! * **Seal, per cup.** With the suction on, a cup seals when its lip lies on the tile's face:
+//!   the lip centre within `seal.gap` of the face's plane (either side: a lip pressed a little
+//!   into the face counts), the whole lip inside the face's outline, and the cup's axis within
+//!   `seal.angle_deg` of the face's normal. Judged after each physics step, on the poses the step
+//!   left (so a held tile lagging its cups is judged where it is).
+//! * **Vacuum.** From the first step a cup is sealed the vacuum builds up linearly over
+//!   `seal.time` to `seal.vacuum_kpa`; it falls to zero when no cup is sealed or the suction is
+//!   off. The observation's vacuum switch is that level times the sealed cups' share.
+//! * **Hold.** While a cup is sealed the tile is held by a joint between the last link and the
+//!   tile, never by moving the tile: the tile stays a dynamic body, so it collides with the
+//!   table, the pad and the arm like any other. The joint pulls the tile's face
+//!   [`PRELOAD`] past the lips, so the cups' colliders press on the face as the vacuum does, and
+//!   each of its six axes is a spring-damper motor whose force is capped: along the cups' axis
+//!   (peel) at `vacuum · π · cup_radius² · sealed cups / safety_factor`, across it (shear) at
+//!   `lip_friction` times that, and about each axis at that force times `cup_offset`. A load the
+//!   cups cannot hold (the tile's weight and inertia when swung, a push against the table)
+//!   therefore moves the tile away from the lips, and once no lip is within `seal.gap` of the
+//!   face the hold is gone (the grip broke: the tile falls or stays where it was pushed).
+//! * **Release.** The suction command off removes the joint; the tile's height at that moment is
+//!   kept to judge the drop.
+//!
+//! # Rules
+//! * **Pick** (+1 once, `rewards.pick`): the first hold of the episode.
+//! * **Placed** (+1, `rewards.success`, ends the episode): not held, resting (slower than
+//!   `thresholds.rest_speed` for `thresholds.rest_steps` steps in a row) with its centre within
+//!   `thresholds.rest_height` of the target's height, within `thresholds.success_dist` of the
+//!   target in x and y, its yaw within `thresholds.success_yaw_deg` of the target's (modulo 90°
+//!   for a square tile, 180° for an oblong one), and let go at most `thresholds.release_height`
+//!   above where it rests (a drop is not a placement, even when it lands well).
+//! * **Fall** (−0.5, `rewards.fail`, ends the episode): TileSuction's rules.
+//!
+//! A tile released off target is not a failure: it rests where it is and can be picked again.
+
+use super::suction::{fell, req};
+use super::{State, TaskLogic};
+use crate::CONTROL_DT;
+use crate::env::StepOutcome;
+use crate::spec::{EffectorSpec, SealSpec, TaskSpec};
+use rapier3d::prelude::*;
+
+/// The lips' drag on the tile's sliding, per kg (or kg·m² in yaw), 1/s: large enough to stop a
+/// relative slide within a step whenever the friction cap allows (a stiff Coulomb friction).
+const DRAG: f32 = 1000.0;
+
+/// The force (N) one cup pushes back with when pressed onto the face (its lip's and bellows'
+/// stiffness; a flat Ø30 mm cup gives a few newtons over its stroke). A held tile pressed against
+/// the table or the pad is pushed by the cups with at most this per cup, while it is pulled by
+/// up to the vacuum's peel force.
+const CUP_PUSH: f32 = 5.0;
+
+/// TilePlace's seal and placing state.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct SealState {
+    /// The joint holding the tile (while a cup is sealed).
+    pub(crate) joint: Option<ImpulseJointHandle>,
+    /// Cups sealed after the last step.
+    pub(crate) sealed: u8,
+    /// Vacuum built up, 0 … 1 of `seal.vacuum_kpa`.
+    pub(crate) level: f32,
+    /// The hold broke (no lip left on the face with the suction on) in the last step.
+    pub(crate) broke: bool,
+    /// The cups were pressed into the held tile's face beyond `seal.gap` (the cups' stroke) in
+    /// the last step: the arm pushed the tile against something that does not give.
+    pub(crate) pressed: bool,
+    /// The tile's centre height (m) when it was last let go.
+    pub(crate) released_z: Option<f32>,
+    /// Steps in a row the released tile has been resting.
+    pub(crate) rest_run: u32,
+}
+
+/// The TilePlace logic.
+#[derive(Debug)]
+pub(crate) struct TilePlace;
+
+/// The suction head's numbers the hold needs: (cup offset, cup radius, TCP z, seal).
+fn head(spec: &TaskSpec) -> (f32, f32, f32, SealSpec) {
+    match &spec.effector {
+        EffectorSpec::Suction { cup_offset, cup_radius, tcp_z, seal: Some(seal), .. } => {
+            (*cup_offset, *cup_radius, *tcp_z, *seal)
+        }
+        _ => unreachable!("invariant: the spec check gives TilePlace a suction head with a seal"),
+    }
+}
+
+/// The tile's face the cups reach (the one turned up): its centre and outward normal.
+fn face(tile: &Pose, half_height: f32) -> (Vector, Vector) {
+    let up = tile.rotation * Vector::Z;
+    let n = if up.z >= 0.0 { up } else { -up };
+    (tile.translation + n * half_height, n)
+}
+
+/// The signed gap (m) between the TCP (the lips' centre) and the face the cups reach, along the
+/// face's normal: positive above the face, negative pressed into it.
+pub(crate) fn lip_gap(tcp: Vector, tile: &Pose, half_height: f32) -> f32 {
+    let (c, n) = face(tile, half_height);
+    (tcp - c).dot(n)
+}
+
+/// How many of the four cups on `tool0` are sealed on `tile` (a box of half extents `half`).
+fn sealed_cups(spec: &TaskSpec, tool0: &Pose, tile: &Pose, half: [f32; 3]) -> u8 {
+    let (off, r, tcp_z, seal) = head(spec);
+    let (c, n) = face(tile, half[2]);
+    let axis = tool0.rotation * Vector::Z; // out of the flange, towards the face
+    if (-axis).dot(n) < seal.angle_deg.to_radians().cos() {
+        return 0;
+    }
+    let inv = tile.inverse();
+    let mut k = 0;
+    for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        let lip = *tool0 * Vector::new(sx * off, sy * off, tcp_z);
+        if (lip - c).dot(n).abs() > seal.gap {
+            continue;
+        }
+        let local = inv * lip;
+        if local.x.abs() + r <= half[0] && local.y.abs() + r <= half[1] {
+            k += 1;
+        }
+    }
+    k
+}
+
+/// The hold's force cap (N) along the cups' axis with `cups` sealed at vacuum `level` (0 … 1).
+fn peel_force(spec: &TaskSpec, cups: u8, level: f32) -> f32 {
+    let (_, r, _, seal) = head(spec);
+    level * f32::from(cups) * seal.vacuum_kpa * 1000.0 * std::f32::consts::PI * r * r / seal.safety_factor
+}
+
+/// The tile's yaw about Base z (rad) and the symmetry period of a box with `half` extents.
+pub(crate) fn yaw_and_period(p: &Pose, half: [f32; 3]) -> (f32, f32) {
+    let x = p.rotation * Vector::X;
+    let period =
+        if (half[0] - half[1]).abs() < 1e-6 { std::f32::consts::FRAC_PI_2 } else { std::f32::consts::PI };
+    (x.y.atan2(x.x), period)
+}
+
+/// `a` wrapped into `[-period / 2, period / 2)`.
+pub(crate) fn wrap(a: f32, period: f32) -> f32 {
+    (a + 0.5 * period).rem_euclid(period) - 0.5 * period
+}
+
+impl State {
+    fn tile_half(&self) -> [f32; 3] {
+        self.spec.object.half_extents.unwrap_or([0.0; 3])
+    }
+
+    /// The target's yaw minus the tile's, wrapped by the tile's symmetry (rad).
+    pub(crate) fn yaw_error(&self) -> f32 {
+        let half = self.tile_half();
+        let (tile, period) = yaw_and_period(&self.object_pose(), half);
+        let (target, _) = yaw_and_period(&self.target, half);
+        wrap(target - tile, period)
+    }
+
+    /// Let go of a sealed tile (no hold afterwards; the vacuum falls).
+    pub(crate) fn drop_hold(&mut self) {
+        if let Some(j) = self.seal.joint.take() {
+            self.world.impulse_joints.remove(j, true);
+        }
+        self.held = false;
+    }
+
+    /// Make the joint that holds the tile, drawing its face onto the lips (as the vacuum does).
+    fn make_hold(&mut self) {
+        let (_, _, tcp_z, _) = head(&self.spec);
+        let tile = self.object_pose();
+        let tcp = self.tool0 * Pose::from_translation(Vector::new(0.0, 0.0, tcp_z));
+        let axis = self.tool0.rotation * Vector::Z;
+        let gap = lip_gap(tcp.translation, &tile, self.tile_half()[2]);
+        // The point of the tile's face under the TCP: the joint draws it onto the TCP.
+        let anchor = Pose::from_parts(tcp.translation + axis * gap, tcp.rotation);
+        // The cups and the held face touch through the joint (the cups' compliance), not
+        // through contacts; every other collider of the arm and the world still collides.
+        let joint = GenericJointBuilder::new(JointAxesMask::empty())
+            .local_frame1(Pose::from_translation(Vector::new(0.0, 0.0, tcp_z)))
+            .local_frame2(tile.inverse() * anchor)
+            .contacts_enabled(false)
+            .build();
+        let h = self.world.impulse_joints.insert(self.h.links[5], self.h.object, joint, true);
+        self.seal.joint = Some(h);
+        self.held = true;
+        self.hold_gaps.push(gap);
+    }
+
+    /// Set the hold's motors for `cups` sealed cups at the current vacuum level.
+    fn tune_hold(&mut self) {
+        let Some(h) = self.seal.joint else { return };
+        let (off, _, _, seal) = head(&self.spec);
+        let f = peel_force(&self.spec, self.seal.sealed, self.seal.level).max(1e-3);
+        let mass = self.spec.object.mass.unwrap_or(1.0);
+        let half = self.tile_half();
+        let inertia = mass * (half[0] * half[0] + half[1] * half[1]) / 3.0;
+        // Springs that reach the cap at the seal gap (linear) or at 2° (angular), damped
+        // critically for the tile's mass and inertia.
+        let k_lin = f / seal.gap;
+        let c_lin = 2.0 * (k_lin * mass).sqrt();
+        let torque = f * off;
+        let k_ang = torque / 2f32.to_radians();
+        let c_ang = 2.0 * (k_ang * inertia).sqrt();
+        // Along the cups' axis and in tilt: springs to the pose the hold began with (the cups'
+        // elasticity), capped at the peel force and torque. Across the face and in yaw: the lips'
+        // friction, a drag on the relative velocity capped at `lip_friction` times the peel force
+        // (and that times `cup_offset` in yaw), so an overload slides the tile for good.
+        let slide = seal.lip_friction * f;
+        let (_, _, tcp_z, _) = head(&self.spec);
+        let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
+        let pressed = lip_gap(tcp, &self.object_pose(), half[2]) < 0.0;
+        let axial = if pressed { CUP_PUSH * f32::from(self.seal.sealed) } else { f };
+        let Some(j) = self.world.impulse_joints.get_mut(h, true) else { return };
+        for (axis, k, c, cap) in [
+            (JointAxis::LinZ, k_lin, c_lin, axial),
+            (JointAxis::AngX, k_ang, c_ang, torque),
+            (JointAxis::AngY, k_ang, c_ang, torque),
+            (JointAxis::LinX, 0.0, DRAG * mass, slide),
+            (JointAxis::LinY, 0.0, DRAG * mass, slide),
+            (JointAxis::AngZ, 0.0, DRAG * inertia, slide * off),
+        ] {
+            j.data.set_motor_model(axis, MotorModel::ForceBased);
+            j.data.set_motor(axis, 0.0, 0.0, k, c);
+            j.data.set_motor_max_force(axis, cap);
+        }
+    }
+
+    /// After a physics step: which cups are sealed, the vacuum, the hold made, kept or broken.
+    fn update_seal(&mut self, out: &mut StepOutcome) {
+        self.seal.broke = false;
+        let (_, _, tcp_z, seal) = head(&self.spec);
+        if self.seal.joint.is_some() {
+            let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
+            self.seal.pressed = lip_gap(tcp, &self.object_pose(), self.tile_half()[2]) < -seal.gap;
+        }
+        let cups = if self.suction_on {
+            sealed_cups(&self.spec, &self.tool0, &self.object_pose(), self.tile_half())
+        } else {
+            0
+        };
+        self.seal.sealed = cups;
+        if cups == 0 {
+            self.seal.level = 0.0;
+            if self.seal.joint.is_some() {
+                self.seal.broke = true;
+                self.released();
+                self.drop_hold();
+            }
+            return;
+        }
+        let ramp = if seal.time > 0.0 { CONTROL_DT / seal.time } else { 1.0 };
+        self.seal.level = (self.seal.level + ramp).min(1.0);
+        if self.seal.joint.is_none() {
+            self.make_hold();
+            let reward = self.spec.rewards.pick;
+            self.first_pick(out, reward);
+        }
+        self.tune_hold();
+    }
+
+    /// Keep where the tile was let go.
+    fn released(&mut self) {
+        self.seal.released_z = Some(self.object_pose().translation.z);
+        self.seal.rest_run = 0;
+    }
+}
+
+impl TaskLogic for TilePlace {
+    fn obs_frame_dim(&self) -> usize {
+        28
+    }
+
+    fn act_dim(&self) -> usize {
+        7
+    }
+
+    fn reset(&self, s: &mut State) {
+        s.reset_effector(0.0);
+        s.seal = SealState::default();
+    }
+
+    fn gripper_width(&self, _s: &State) -> f64 {
+        0.0
+    }
+
+    fn carries_object(&self) -> bool {
+        false
+    }
+
+    fn effector(&self, s: &mut State, action: &[f32], _out: &mut StepOutcome) {
+        if s.seal.joint.is_some() {
+            // A held tile never sleeps: the arm it hangs from moves it through the joint.
+            s.world.wake_up(s.h.object, true);
+        }
+        let cmd = action[6];
+        if cmd >= 0.5 {
+            s.suction_on = true;
+        } else if cmd <= -0.5 && s.suction_on {
+            s.suction_on = false;
+            s.seal.level = 0.0;
+            s.seal.sealed = 0;
+            if s.seal.joint.is_some() {
+                s.released();
+                s.drop_hold();
+            }
+        }
+    }
+
+    fn evaluate(&self, s: &mut State, out: &mut StepOutcome) {
+        s.update_seal(out);
+        let t = &s.spec.thresholds;
+        let (p, v) = s.object_state();
+        let resting = !s.held && v.length() < req(t.rest_speed);
+        s.seal.rest_run = if resting { s.seal.rest_run + 1 } else { 0 };
+        let d = p.translation - s.target.translation;
+        let dropped_from = s.seal.released_z.map_or(f32::INFINITY, |z| z - p.translation.z);
+        let placed = s.seal.rest_run >= req(t.rest_steps)
+            && d.z.abs() <= req(t.rest_height)
+            && (d.x * d.x + d.y * d.y).sqrt() <= req(t.success_dist)
+            && s.yaw_error().abs() <= req(t.success_yaw_deg).to_radians()
+            && dropped_from <= req(t.release_height);
+        if placed {
+            out.reward += s.spec.rewards.success;
+            out.installed = true;
+            out.terminated = true;
+        } else if s.seal.pressed || fell(&s.spec, &p, v, s.held) {
+            out.reward += s.spec.rewards.fail;
+            out.fell = true;
+            out.terminated = true;
+        }
+    }
+
+    fn write_frame(&self, s: &State, f: &mut [f32]) {
+        let suction = if s.suction_on { 1.0 } else { -1.0 };
+        let k = s.write_frame(&[suction], f);
+        let tcp = s.tcp().translation;
+        let tile = s.object_pose();
+        let tgt = s.target.translation;
+        f[k] = s.seal.level * f32::from(s.seal.sealed) / 4.0;
+        let (a, b) = (tile.translation - tcp, tgt - tile.translation);
+        f[k + 1..k + 7].copy_from_slice(&[a.x, a.y, a.z, b.x, b.y, b.z]);
+        let half = s.tile_half();
+        let (yt, period) = yaw_and_period(&tile, half);
+        let (yg, _) = yaw_and_period(&s.target, half);
+        let m = std::f32::consts::TAU / period;
+        f[k + 7] = wrap(yg - yt, period);
+        f[k + 8..k + 12].copy_from_slice(&[(m * yt).cos(), (m * yt).sin(), (m * yg).cos(), (m * yg).sin()]);
+    }
+}
