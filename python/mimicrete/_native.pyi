@@ -210,6 +210,13 @@ class _PoseRec(TypedDict):
     t: list[float]
     q: list[float]
 
+class _Placement(TypedDict):
+    held: bool
+    height_above_rest: float
+    xy_error: float
+    yaw_error_deg: float
+    hold_gaps: list[float]
+
 class _Snapshot(TypedDict):
     task: str
     q: list[float]
@@ -318,6 +325,11 @@ class SimEnv:
     def scene_frames(self) -> dict[str, list[float]]:
         """``scene_frames`` of the current state (links at the joints, ``tile`` at the object, a
         row's ``tile_0`` … at its tiles)."""
+    def placement(self) -> _Placement | None:
+        """Where the object is now as a tiler would check it (held, height above its rest on
+        the target, xy and yaw error, the lip-to-face gap of each hold); None for Screw."""
+    def last_placement(self) -> _Placement | None:
+        """``placement()`` at the end of the last finished episode (None before one)."""
     def set_joints(self, q: _F64) -> None:
         """Test/tool API: teleport the arm to joint angles q (6,) rad."""
     def set_object_pose(
@@ -418,6 +430,8 @@ class SimVecEnv:
         """actions (num_envs, act_dim) → (obs, reward, terminated, truncated, final_obs,
         has_final, picked, installed, fell); obs (num_envs, obs_dim), the rest (num_envs,)
         except final_obs (num_envs, obs_dim)."""
+    def last_placement(self, i: int) -> _Placement | None:
+        """``SimEnv.last_placement`` of env i (kept through the same-step reset)."""
     def snapshot(self, i: int) -> _Snapshot:
         """Snapshot of env i (see ``SimEnv.snapshot``)."""
 

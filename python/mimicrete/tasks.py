@@ -81,6 +81,7 @@ TABLE: dict[str, TaskSpec] = {
         _task("grip", "BlockGrip"),
         _task("screw", "Screw"),
         _task("row", "TileRow"),
+        _task("place", "TilePlace"),
     )
 }
 TASKS: tuple[str, ...] = tuple(TABLE)
@@ -94,6 +95,7 @@ _ALIASES: dict[str, str] = {
     "blockgripv0": "grip",
     "screwv0": "screw",
     "tilerowv0": "row",
+    "tileplacev0": "place",
     "gripping": "grip",
     "screwing": "screw",
 }

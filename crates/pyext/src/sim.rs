@@ -265,6 +265,17 @@ impl SimEnv {
         demo_log::frame_numbers(self.env.arm().name, &s.q, &tile, &row).map_err(demo_err)
     }
 
+    /// Where the object is now, as a tiler would check it (`tile_sim::Placement`: `held`,
+    /// `height_above_rest`, `xy_error` m, `yaw_error_deg`, `hold_gaps` m), or `None` (Screw).
+    fn placement<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        to_py(py, &self.env.placement())
+    }
+
+    /// `placement()` at the end of the last finished episode, or `None` before one finished.
+    fn last_placement<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
+        to_py(py, &self.env.last_placement())
+    }
+
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.
     fn set_joints(&mut self, q: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
         let v = nd_from_py(&q).into_shape(&[6], "q").map_err(demo_err)?;
@@ -473,6 +484,17 @@ impl SimVecEnv {
         let st = VecEnvState { base_seed, episodes, seeds, starts, actions };
         let venv = &mut self.venv;
         matrix(py, py.detach(|| venv.restore_owned(&st)).map_err(sim_err)?, self.obs_dim)
+    }
+
+    /// `SimEnv.last_placement` of env `i`: the placement its last finished episode ended with
+    /// (an env that ended in a step has been reset already; this is kept through the reset).
+    fn last_placement<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Any<'py>> {
+        let n = self.num_envs;
+        let env = self
+            .venv
+            .env(i)
+            .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))?;
+        to_py(py, &env.last_placement())
     }
 
     /// Snapshot of env `i` (see `SimEnv.snapshot`).
