@@ -7,6 +7,9 @@ Ids (registered when this module is imported; see :func:`register_envs`):
 * ``mimicrete/Screw-v0``: grip a nut and screw it down a bolt.
 * ``mimicrete/TileRow-v0``: install a row of three tiles, one after another, on a row of three
   pads with the suction head (issue 26 §2; ``crates/tile-sim/tasks/tile_row.toml``).
+* ``mimicrete/TilePlace-v0``: the tile installation under rules a real cell keeps (a cup holds
+  only sealed on the face, the held tile still collides, success = placed square within 5 mm;
+  issue 46, ``crates/tile-sim/tasks/tile_place.toml``).
 * ``mimicrete/Task-v0``: the task a spec file describes, ``gym.make("mimicrete/Task-v0",
   spec="my_task.toml")`` (tile-sim's task spec, version 1: ``crates/tile-sim/tasks/*.toml`` are the
   four above); its spaces are the sizes of the env the spec builds. ``make_vec("Task-v0", n,
@@ -279,6 +282,11 @@ class TileRowEnv(MimicreteEnv):
         super().__init__("TileRow", render_mode)
 
 
+class TilePlaceEnv(MimicreteEnv):
+    def __init__(self, render_mode: str | None = None) -> None:
+        super().__init__("TilePlace", render_mode)
+
+
 class TaskEnv(MimicreteEnv):
     """``mimicrete/Task-v0``: the task the spec file ``spec`` describes."""
 
@@ -470,6 +478,7 @@ make_tile_suction_vec = _vector_entry("TileSuction")
 make_block_grip_vec = _vector_entry("BlockGrip")
 make_screw_vec = _vector_entry("Screw")
 make_tile_row_vec = _vector_entry("TileRow")
+make_tile_place_vec = _vector_entry("TilePlace")
 
 
 def make_task_file_vec(
@@ -484,12 +493,13 @@ def make_task_file_vec(
 
 
 def register_envs() -> None:
-    """Register the four tasks' ids and ``mimicrete/Task-v0`` with gymnasium (idempotent)."""
+    """Register the five tasks' ids and ``mimicrete/Task-v0`` with gymnasium (idempotent)."""
     entries = {
         "TileSuction": ("TileSuctionEnv", "make_tile_suction_vec"),
         "BlockGrip": ("BlockGripEnv", "make_block_grip_vec"),
         "Screw": ("ScrewEnv", "make_screw_vec"),
         "TileRow": ("TileRowEnv", "make_tile_row_vec"),
+        "TilePlace": ("TilePlaceEnv", "make_tile_place_vec"),
         "Task": ("TaskEnv", "make_task_file_vec"),
     }
     for task, (cls, vec) in entries.items():
