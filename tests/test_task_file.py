@@ -187,7 +187,7 @@ def test_the_task_table_reads_the_builtin_specs() -> None:
         assert (t.obs_dim, t.act_dim) == (sim.obs_dim, sim.act_dim)
         assert t.obs_frame_dim == sim.obs_frame_dim
     effectors = [t.effector for t in tasks.TABLE.values()]
-    assert effectors == ["suction", "gripper", "gripper", "suction"]
+    assert effectors == ["suction", "gripper", "gripper", "suction", "suction"]
     # the shared default, 750 steps, is the three single-object tasks'; the row's is its own
     assert [t.max_steps for t in tasks.TABLE.values()] == [tasks.MAX_EPISODE_STEPS] * 3 + [2000]
 
