@@ -5,7 +5,10 @@
 //! configuration). Prints one line per (task, threads) and a machine-readable `RESULT` line,
 //! then TileSuction per arm model (UR3, UR3e, UR5e, UR10e: the built-in spec with its model
 //! swapped for the UR3e, `tasks/tile_suction_ur5e.toml`, `..._ur10e.toml`), 2 threads, each
-//! beside the UR3 as a ratio (printed, never asserted).
+//! beside the UR3 as a ratio (printed, never asserted). Last, the scripted expert's episodes of
+//! TileSuction and TilePlace, one thread, one env after another (random actions seldom pick a
+//! tile, and TilePlace's held tile runs the solver every step: this is the steps/s a training's
+//! successful episodes cost), TilePlace beside TileSuction as a ratio.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -63,6 +66,32 @@ fn run_spec(spec: Arc<TaskSpec>, n: usize, threads: usize, seconds: f64) -> (f64
     (rate, episodes, skipped as f64 / total as f64)
 }
 
+/// Env-steps/s of the scripted expert's episodes of `task` (one env, one thread), for `seconds`;
+/// also the share of episodes that succeeded.
+fn run_expert(task: Task, seconds: f64) -> (f64, f64) {
+    let mut env = tile_sim::Env::new(task, 0);
+    let mut ex = tile_sim::expert::Expert::new(task);
+    let mut obs = vec![0.0; task.obs_dim()];
+    let mut a = vec![0.0; task.act_dim()];
+    let (mut steps, mut episodes, mut wins) = (0u64, 0u64, 0u64);
+    let mut seed = 0u64;
+    env.reset(Some(seed), &mut obs).expect("reset");
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < seconds {
+        ex.act(&env.snapshot(), &mut a);
+        let out = env.step(&a, &mut obs).expect("step");
+        steps += 1;
+        if out.terminated || out.truncated {
+            episodes += 1;
+            wins += u64::from(out.installed);
+            seed += 1;
+            ex.reset();
+            env.reset(Some(seed), &mut obs).expect("reset");
+        }
+    }
+    (steps as f64 / t0.elapsed().as_secs_f64(), wins as f64 / episodes.max(1) as f64)
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().filter(|a| !a.starts_with("--")).collect();
     let n: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(64);
@@ -90,6 +119,20 @@ fn main() {
             line.push_str(&format!(" threads{threads}={sps:.0}"));
         }
         println!("{line}");
+    }
+    if only_task.is_none() {
+        println!(
+            "Scripted expert episodes, 1 thread, env-steps/s (TilePlace: ratio to TileSuction in this run)"
+        );
+        let (suction, ws) = run_expert(Task::TileSuction, secs);
+        let (place, wp) = run_expert(Task::TilePlace, secs);
+        println!("  TileSuction  {suction:>10.0} env-steps/s  ({:.0} % installed)", 100.0 * ws);
+        println!(
+            "  TilePlace    {place:>10.0} env-steps/s  x{:.2} of TileSuction  ({:.0} % placed)",
+            place / suction,
+            100.0 * wp
+        );
+        println!("RESULT expert TileSuction={suction:.0} TilePlace={place:.0}");
     }
     if only_task.is_some_and(|t| t != Task::TileSuction) {
         return;
