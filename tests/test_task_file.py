@@ -324,6 +324,31 @@ def test_a_bad_task_file_is_one_line_and_exit_2(tmp_path: Path, edit, says) -> N
     assert not out.exists()
 
 
+BAD_PLACE_SPECS = [
+    # (edit of tile_place.toml, what the one line must say)
+    (("gap = 0.003", "gap = 0.06"), ["effector.seal.gap = 0.06", "below 0.05 m"]),
+    (("vacuum_kpa = 60.0", "vacuum_kpa = 120.0"),
+     ["effector.seal.vacuum_kpa = 120.0", "below the atmosphere's pressure"]),
+    (("safety_factor = 1.5", "safety_factor = 0.5"),
+     ["effector.seal.safety_factor = 0.5", "must be a finite number >= 1"]),
+    (("success_yaw_deg = 2.0", "success_yaw_deg = 50.0"),
+     ["thresholds.success_yaw_deg = 50.0", "an angle in (0, 45) degrees"]),
+    (("rest_steps = 3", "rest_steps = 0"), ["thresholds.rest_steps = 0", "1 to 100 steps"]),
+    (('rule = "placed"   ', 'rule = "paper"   '),
+     ["effector.seal = ", 'the seal runs with thresholds.rule = \"placed\"']),
+    (('rule = "placed"   ', 'rule = "placd"   '), ['(rule = "placd")', "unknown variant `placd`"]),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("edit,says", BAD_PLACE_SPECS, ids=[s[1][0] for s in BAD_PLACE_SPECS])
+def test_a_bad_placed_rule_or_seal_is_one_line_and_exit_2(tmp_path: Path, edit, says) -> None:
+    bad = spec_copy(tmp_path, "TilePlace", edit)
+    out = tmp_path / "out"
+    r = run_cli("synth-hands", "--task-file", str(bad), "--episodes", "1", "--out", str(out))
+    one_error_line(r, f"{bad}: ", *says)
+    assert not out.exists()
+
+
 def test_a_task_file_that_is_no_file_or_another_task_is_refused(tmp_path: Path) -> None:
     out = str(tmp_path / "out")
     missing = tmp_path / "missing.toml"

@@ -200,3 +200,29 @@ fn a_weak_hold_keeps_a_gently_carried_tile_and_drops_a_hard_swung_one() {
         assert!(out.held, "step {k}: the full vacuum lost the tile");
     }
 }
+
+#[test]
+fn the_placed_rule_needs_the_seal_and_a_suction_head_without_a_row() {
+    let text = TaskSpec::builtin_toml(T);
+    let start = text.find("\n[effector.seal]\n").unwrap() + 1;
+    let end = text[start..].find("\n[object]\n").unwrap() + start + 1;
+    let no_seal = format!("{}{}", &text[..start], &text[end..]);
+    let e = TaskSpec::from_toml(&no_seal, "no_seal.toml").unwrap_err();
+    assert_eq!(e.field(), Some("effector.seal"), "{e}");
+    assert!(e.to_string().contains("holds a tile by its sealed cups"), "{e}");
+    // The row's spec with the placed rule: refused, not built yet.
+    let row =
+        TaskSpec::builtin_toml(Task::TileRow).replace("[thresholds]", "[thresholds]\nrule = \"placed\"");
+    let e = TaskSpec::from_toml(&row, "row.toml").unwrap_err();
+    assert_eq!(e.field(), Some("thresholds.rule"), "{e}");
+    // BlockGrip's spec with the placed rule: refused, the suction head only.
+    let grip =
+        TaskSpec::builtin_toml(Task::BlockGrip).replace("[thresholds]", "[thresholds]\nrule = \"placed\"");
+    let e = TaskSpec::from_toml(&grip, "grip.toml").unwrap_err();
+    assert_eq!(e.field(), Some("thresholds.rule"), "{e}");
+    assert!(e.to_string().contains("suction head only"), "{e}");
+    // The paper's rule written out is today's TileSuction.
+    let paper =
+        TaskSpec::builtin_toml(Task::TileSuction).replace("[thresholds]", "[thresholds]\nrule = \"paper\"");
+    assert_eq!(TaskSpec::from_toml(&paper, "paper.toml").unwrap().task(), Task::TileSuction);
+}
