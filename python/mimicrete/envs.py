@@ -54,7 +54,9 @@ documents the three. An explicit start: ``reset(options={"object_pose": [x, y, y
 "target_offset": [dx, dy]})`` (m, rad, Base frame; the pad moves with the target), on the vector
 env one list per env. A start off the table, on the pad or out of reach is refused with a
 ``ValueError`` naming the field. ``info["start"]`` (single env) and ``sim.start(i)`` say where an
-episode started.
+episode started; ``sim.last_placement()`` (single env) and ``sim.last_placement(i)`` where its last
+finished episode left the object, as a tiler would check it (held, height above rest, xy and yaw
+error, the lip-to-face gap of each hold; None for Screw), kept through the same-step reset.
 """
 
 from __future__ import annotations

@@ -1,7 +1,10 @@
 """`mimicrete eval RUN_DIR --episodes 100 [--stochastic] [--starts training|robust|wide|FILE.jsonl]
-[--map] [--video N]`: the paper's Table 5 row for a trained run, written to ``RUN_DIR/eval.json``
-(``eval_stochastic.json`` for the sampled policy, ``eval_<starts>*.json`` from other starts; each
-episode's start and outcome under ``per_episode``), with ``--map`` a heat map of success over the
+[--map] [--video N]`: the paper's Table 5 row for a trained run and, for the simulator's tasks
+but Screw, the placement table (where the object ended: held, height, xy and yaw error, the
+lip-to-face gap of each hold, and the share the placed rule accepts), written to
+``RUN_DIR/eval.json`` (``eval_stochastic.json`` for the sampled policy, ``eval_<starts>*.json``
+from other starts; each episode's start, outcome and placement under ``per_episode``, the
+placements' summary under ``placement``), with ``--map`` a heat map of success over the
 table, and videos of the first N evaluation episodes in ``RUN_DIR/videos/``. Parses the flags and
 calls ``mimicrete.learn.evaluate_run`` and ``mimicrete.learn.video.record_run_videos``."""
 
@@ -98,6 +101,8 @@ def main(args: argparse.Namespace) -> int:
     except (PolicyFileError, video.VideoError, ValueError) as e:
         raise UsageError(str(e)) from None
     print(learn.format_row(run_dir.name, res))
+    if "placement" in res:  # the simulator's tasks but Screw
+        print(learn.evaluate.format_placement(res["placement"]))
     print(f"starts: {res['starts']}, {res['episodes']} episodes, {res['policy']} policy")
     written = run_dir / learn.evaluate.eval_file(args.stochastic, starts=starts)
     print(f"wrote {written}")

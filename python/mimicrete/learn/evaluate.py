@@ -16,17 +16,30 @@ or gives a :class:`~mimicrete.learn.starts.StartList` read from a file (one epis
 evenly over the envs and each env contributes exactly its first ``episodes / num_envs``
 episodes. ``evaluate_run`` writes ``eval.json`` into the run dir; every result says which
 starts it used.
+
+Beside the success rate, every simulator task but Screw reports where the object ended each
+episode as a tiler would check it (tile-sim's ``Placement``, read from the vector env in the step
+where the episode ended): ``placement`` summarises them (:func:`summarise_placements`, what both
+``eval.json`` and :func:`format_placement` show) and each ``per_episode`` record keeps its own.
+A success rate says whether the task's own rule was met (the paper's TileSuction: the centre
+within 3 cm, held or not, any yaw); the summary's ``placed_share`` says how many of the same
+episodes the placed rule of TilePlace would accept, so a policy judged by the paper's rule also
+shows how many of its installs a tiler would.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
 
+from mimicrete import _native
 from mimicrete._native import MimicreteError
 
 from .env import make_env
@@ -38,10 +51,13 @@ from .starts import StartList, label
 __all__ = [
     "eval_file",
     "evaluate_run",
+    "format_placement",
     "format_row",
     "format_rows",
     "load_policy",
+    "placed_rule",
     "run_episodes",
+    "summarise_placements",
 ]
 
 
@@ -68,11 +84,20 @@ def _policy_action(actor: Actor, obs: np.ndarray, stochastic: bool) -> np.ndarra
     return actor.deterministic(o).numpy()
 
 
-Finished = tuple[dict[str, Any] | None, EpisodeResult]  # (where it started, what it came to)
+Placement = dict[str, Any]  # tile-sim's Placement: held, height_above_rest, xy_error, ...
+
+
+class Finished(NamedTuple):
+    """One evaluation episode: where it started and where the object ended (None off the
+    simulator; the placement also None for Screw), and what it came to."""
+
+    start: dict[str, Any] | None
+    outcome: EpisodeResult
+    placement: Placement | None
 
 
 def _stats(finished: list[Finished], per_episode: bool) -> dict[str, Any]:
-    st = EpisodeStats.of([ep for _, ep in finished])
+    st = EpisodeStats.of([f.outcome for f in finished])
     res: dict[str, Any] = {
         "episodes": st.episodes,
         "picked_rate": st.picked_rate,
@@ -80,12 +105,88 @@ def _stats(finished: list[Finished], per_episode: bool) -> dict[str, Any]:
         "mean_episode_length": st.mean_length,
         "mean_cumulative_reward": st.mean_return,
     }
+    placements = [f.placement for f in finished if f.placement is not None]
+    if placements:
+        res["placement"] = summarise_placements(placements)
     if per_episode:
         res["per_episode"] = [
-            {**(start or {}), "picked": ep.picked, "installed": ep.installed, "length": ep.length}
-            for start, ep in finished
+            {
+                **(f.start or {}),
+                "picked": f.outcome.picked,
+                "installed": f.outcome.installed,
+                "length": f.outcome.length,
+                **({"placement": f.placement} if f.placement is not None else {}),
+            }
+            for f in finished
         ]
     return res
+
+
+@dataclass(frozen=True)
+class PlacedRule:
+    """The placed rule's tolerances on where an episode left the object (TilePlace's
+    ``thresholds``): released (not held), its centre within ``rest_height`` m of the target's
+    height, within ``success_dist`` m of it in x and y, its yaw within ``success_yaw_deg``. The
+    simulator's rule also asks the tile to have been let go low enough and to be at rest; a
+    placement records neither, so this is the rule's check of the end state."""
+
+    rest_height: float
+    success_dist: float
+    success_yaw_deg: float
+
+    def accepts(self, p: Placement) -> bool:
+        return (
+            not p["held"]
+            and abs(p["height_above_rest"]) <= self.rest_height
+            and p["xy_error"] <= self.success_dist
+            and abs(p["yaw_error_deg"]) <= self.success_yaw_deg
+        )
+
+
+@cache
+def placed_rule() -> PlacedRule:
+    """The placed rule's tolerances, read from the built-in TilePlace spec (so they follow it)."""
+    th = _native.task_spec("TilePlace")["thresholds"]
+    return PlacedRule(
+        rest_height=float(th["rest_height"]),
+        success_dist=float(th["success_dist"]),
+        success_yaw_deg=float(th["success_yaw_deg"]),
+    )
+
+
+#: the placement's signed end-of-episode measures, summarised as median and worst
+PLACEMENT_MEASURES = ("height_above_rest", "xy_error", "yaw_error_deg")
+
+
+def _median_worst(values: Sequence[float]) -> dict[str, float] | None:
+    """The median of ``values`` and the worst of them, the one of the largest absolute value
+    (its sign kept: a height's worst may be below the rest); None for no values."""
+    if not values:
+        return None
+    a = np.asarray(values, np.float64)
+    return {"median": float(np.median(a)), "worst": float(a[np.argmax(np.abs(a))])}
+
+
+def summarise_placements(placements: Sequence[Placement]) -> dict[str, Any]:
+    """What ``eval.json``'s ``placement`` holds and :func:`format_placement` prints, over the
+    episodes' placements: the share still held at the end and the share the placed rule
+    accepts (:func:`placed_rule`, its tolerances beside it as ``placed_rule``); the height above
+    rest, xy error (m) and yaw error (degrees) at the end, and the lip-to-face gap (m) when each
+    hold began (over every hold of every episode; None when no episode had a suction hold), each
+    as ``{"median", "worst"}``, worst the value of the largest absolute value."""
+    if not placements:
+        raise ValueError("no placements to summarise")
+    rule = placed_rule()
+    gaps = [float(g) for p in placements for g in p["hold_gaps"]]
+    return {
+        "episodes": len(placements),
+        "held_share": float(np.mean([bool(p["held"]) for p in placements])),
+        "placed_share": float(np.mean([rule.accepts(p) for p in placements])),
+        "placed_rule": asdict(rule),
+        **{k: _median_worst([float(p[k]) for p in placements]) for k in PLACEMENT_MEASURES},
+        "hold_gaps": _median_worst(gaps),
+        "holds": len(gaps),
+    }
 
 
 @torch.no_grad()
@@ -105,7 +206,9 @@ def run_episodes(
     named ``starts`` (``robust=True`` is ``starts="robust"``) or, for a :class:`StartList`, one
     episode from each of its starts (``episodes`` is then ignored). With ``per_episode``, also
     ``per_episode``: each episode's start (``object_pose``, ``target_offset``, ``pad_offset``;
-    the simulator's tasks) with its ``picked``, ``installed`` and ``length``, in finishing order.
+    the simulator's tasks) with its ``picked``, ``installed``, ``length`` and ``placement`` (the
+    simulator's tasks but Screw), in finishing order. ``placement``: the placements' summary
+    (:func:`summarise_placements`), where the episodes have them.
     ``task_file``: the task spec file a ``Task-v0`` policy runs in."""
     if episodes < 1:
         raise ValueError(f"episodes: at least 1, got {episodes}")
@@ -148,6 +251,7 @@ def _run_listed(
     repeat its first start and are not counted)."""
     todo = list(starts.starts)
     n = int(env.num_envs)
+    sim = getattr(env, "sim", None)
     results: list[Finished] = []
     for b in range(0, len(todo), n):
         batch = todo[b : b + n]
@@ -167,7 +271,7 @@ def _run_listed(
             r = np.asarray(r, np.float32)
             for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
                 if not done[i]:
-                    results.append((padded[i], ep))
+                    results.append(Finished(padded[i], ep, _placement_of(sim, i)))
                     done[i] = True
     env.close()
     return results
@@ -203,7 +307,7 @@ def _run_episodes(
         r = np.asarray(r, np.float32)
         for i, ep in tracker.step(infos, r, np.asarray(term, bool), np.asarray(trunc, bool)):
             if done_count[i] < per_env:
-                results.append((started[i], ep))
+                results.append(Finished(started[i], ep, _placement_of(sim, i)))
                 done_count[i] += 1
             started[i] = _start_of(sim, i)  # reset in the same step: its next episode's start
     env.close()
@@ -215,6 +319,12 @@ def _start_of(sim: Any, i: int) -> dict[str, list[float]] | None:
     if sim is None:
         return None
     return {k: [float(x) for x in v] for k, v in sim.start(i).items()}
+
+
+def _placement_of(sim: Any, i: int) -> Placement | None:
+    """Where env ``i``'s episode that ended in this step left the object (the simulator keeps it
+    through the same-step reset); None off the simulator and for Screw."""
+    return None if sim is None else sim.last_placement(i)
 
 
 def evaluate_run(
@@ -273,3 +383,33 @@ def format_rows(rows: list[tuple[str, dict]]) -> str:
 
 def format_row(name: str, res: dict) -> str:
     return format_rows([(name, res)])
+
+
+def format_placement(summary: dict[str, Any]) -> str:
+    """The placement table of a :func:`summarise_placements` summary (distances in mm)."""
+    w = 34
+    title = f"placement ({summary['episodes']} episodes)"
+    lines = [f"{title:<{w}} {'median':>8} {'worst':>8}  (worst: the largest |value|)"]
+    measures = [
+        ("height above rest at the end [mm]", "height_above_rest", 1e3),
+        ("xy error at the end [mm]", "xy_error", 1e3),
+        ("yaw error at the end [deg]", "yaw_error_deg", 1.0),
+        ("lip-to-face gap at each hold [mm]", "hold_gaps", 1e3),
+    ]
+    for name, key, scale in measures:
+        mw = summary[key]
+        if mw is None:  # hold gaps: grippers, or nothing was ever held
+            lines.append(f"{name:<{w}} {'-':>8} {'-':>8}  (no suction holds)")
+            continue
+        row = f"{name:<{w}} {mw['median'] * scale:>8.1f} {mw['worst'] * scale:>8.1f}"
+        lines.append(row + (f"  ({summary['holds']} holds)" if key == "hold_gaps" else ""))
+    lines.append(f"{'held at the end':<{w}} {summary['held_share']:>8.0%}")
+    rule = summary["placed_rule"]
+    tolerances = (
+        f"released, |height| <= {rule['rest_height'] * 1e3:g} mm, "
+        f"xy <= {rule['success_dist'] * 1e3:g} mm, |yaw| <= {rule['success_yaw_deg']:g} deg"
+    )
+    lines.append(
+        f"{'placed by the placed rule':<{w}} {summary['placed_share']:>8.0%}  ({tolerances})"
+    )
+    return "\n".join(lines)
