@@ -269,6 +269,7 @@ class _Start(TypedDict):
     object_pose: list[float]
     target_offset: list[float]
     pad_offset: list[float]
+    pad_yaw: NotRequired[float]  # rad, present when the pad is turned
 
 @final
 class SimEnv:
@@ -296,6 +297,7 @@ class SimEnv:
         object_pose: list[float] | None = None,
         target_offset: list[float] | None = None,
         pad_offset: list[float] | None = None,
+        pad_yaw: float | None = None,
     ) -> _F32:
         """Start an episode (None: next seed from the env's RNG) → obs (obs_dim,); at
         ``object_pose`` [x, y, yaw] with the target (and pad) moved by ``target_offset`` when
@@ -372,9 +374,9 @@ class SimVecEnv:
         """Reset the envs where mask (num_envs,) is true → obs (num_envs, obs_dim)."""
     def state(self) -> dict[str, Any]:
         """``{"base_seed": int, "episodes": uint64 (num_envs,), "seeds": uint64 (num_envs,),
-        "starts": float32 (num_envs, 7), "actions": [float32 (k_i, act_dim)]}``: the running
-        episodes' seeds, starts (x, y, yaw, target dx, dy, pad dx, dy) and actions, what
-        ``restore`` replays."""
+        "starts": float32 (num_envs, 8), "actions": [float32 (k_i, act_dim)]}``: the running
+        episodes' seeds, starts (x, y, yaw, target dx, dy, pad dx, dy, pad yaw; rows of 7 from an
+        older checkpoint restore with the pad square) and actions, what ``restore`` replays."""
     def restore(
         self,
         base_seed: int,
@@ -404,6 +406,7 @@ class SimVecEnv:
         object_poses: list[list[float]],
         target_offsets: list[list[float]] | None = None,
         pad_offsets: list[list[float]] | None = None,
+        pad_yaws: list[float] | None = None,
     ) -> _F32:
         """Reset every env with base seed ``seed``, env i at ``object_poses[i]`` [x, y, yaw] with
         its target (and pad) moved by ``target_offsets[i]`` → obs (num_envs, obs_dim). All starts
@@ -417,6 +420,7 @@ class SimVecEnv:
         object_pose: list[float] | None = None,
         target_offset: list[float] | None = None,
         pad_offset: list[float] | None = None,
+        pad_yaw: float | None = None,
     ) -> _F32:
         """Reset env i to episode ``seed`` (at ``object_pose`` when given, else the paper's start
         of ``seed``) and replay ``actions`` (k, act_dim) in it (a recorded episode's first k

@@ -126,12 +126,20 @@ def _count(value: Any, what: str) -> int:
     return n
 
 
-START_KEYS = ("object_pose", "target_offset", "pad_offset")
-_START_LENS = {"object_pose": 3, "target_offset": 2, "pad_offset": 2}
+START_KEYS = ("object_pose", "target_offset", "pad_offset", "pad_yaw")
+#: numbers per key (0: one number, not a list: the pad's yaw in rad)
+_START_LENS = {"object_pose": 3, "target_offset": 2, "pad_offset": 2, "pad_yaw": 0}
 
 
-def _numbers(value: Any, what: str, n: int) -> list[float]:
-    """``value`` as ``n`` finite floats, or a ValueError naming ``what``."""
+def _numbers(value: Any, what: str, n: int) -> list[float] | float:
+    """``value`` as ``n`` finite floats (``n == 0``: one float, not a list), or a ValueError
+    naming ``what``."""
+    if n == 0:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise ValueError(f"{what} must be a number, got {value!r}")
+        if not np.isfinite(value):
+            raise ValueError(f"{what} must be finite, got {value!r}")
+        return float(value)
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
@@ -145,13 +153,13 @@ def _numbers(value: Any, what: str, n: int) -> list[float]:
 
 def start_options(options: dict[str, Any] | None, num_envs: int | None = None) -> dict[str, Any]:
     """The explicit start in reset ``options`` as keyword arguments of the simulator's reset
-    (``object_pose``, ``target_offset``, ``pad_offset``; per env lists when ``num_envs`` is
-    given), ``{}`` when there is none. Shapes are checked here, naming the field; the
-    simulator checks the table, the pad and the reach."""
+    (``object_pose``, ``target_offset``, ``pad_offset``, ``pad_yaw``; per env lists when
+    ``num_envs`` is given), ``{}`` when there is none. Shapes are checked here, naming the
+    field; the simulator checks the table, the pad and the reach."""
     if not options or all(options.get(k) is None for k in START_KEYS):
         return {}
     if options.get("object_pose") is None:
-        raise ValueError("target_offset / pad_offset need an object_pose [x, y, yaw]")
+        raise ValueError("target_offset / pad_offset / pad_yaw need an object_pose [x, y, yaw]")
     out: dict[str, Any] = {}
     for key in START_KEYS:
         v = options.get(key)

@@ -66,11 +66,15 @@ fn start_of(
     object_pose: Option<[f32; 3]>,
     target_offset: Option<[f32; 2]>,
     pad_offset: Option<[f32; 2]>,
+    pad_yaw: Option<f32>,
 ) -> PyResult<Option<Start>> {
     match object_pose {
-        Some(o) => Ok(Some(Start::from_options(o, target_offset.unwrap_or([0.0; 2]), pad_offset))),
-        None if target_offset.is_some() || pad_offset.is_some() => {
-            Err(PyValueError::new_err("target_offset / pad_offset need an object_pose"))
+        Some(o) => Ok(Some(Start {
+            pad_yaw: pad_yaw.unwrap_or(0.0),
+            ..Start::from_options(o, target_offset.unwrap_or([0.0; 2]), pad_offset)
+        })),
+        None if target_offset.is_some() || pad_offset.is_some() || pad_yaw.is_some() => {
+            Err(PyValueError::new_err("target_offset / pad_offset / pad_yaw need an object_pose"))
         }
         None => Ok(None),
     }
@@ -187,8 +191,9 @@ impl SimEnv {
     }
 
     /// Start an episode (`seed=None`: next seed from the env's RNG) → obs `(obs_dim,)`; at
-    /// `object_pose` `[x, y, yaw]` with the target (and pad) moved by `target_offset` when given.
-    #[pyo3(signature = (seed = None, object_pose = None, target_offset = None, pad_offset = None))]
+    /// `object_pose` `[x, y, yaw]` with the target (and pad) moved by `target_offset` when given,
+    /// the pad turned by `pad_yaw` (rad).
+    #[pyo3(signature = (seed = None, object_pose = None, target_offset = None, pad_offset = None, pad_yaw = None))]
     fn reset<'py>(
         &mut self,
         py: Python<'py>,
@@ -196,8 +201,9 @@ impl SimEnv {
         object_pose: Option<[f32; 3]>,
         target_offset: Option<[f32; 2]>,
         pad_offset: Option<[f32; 2]>,
+        pad_yaw: Option<f32>,
     ) -> PyResult<F32s<'py>> {
-        match start_of(object_pose, target_offset, pad_offset)? {
+        match start_of(object_pose, target_offset, pad_offset, pad_yaw)? {
             None => Ok(vector(py, self.env.reset_owned(seed).map_err(sim_err)?)),
             Some(st) => {
                 let s = seed.unwrap_or_else(|| self.env.episode_seed().wrapping_add(1));
@@ -379,7 +385,7 @@ impl SimVecEnv {
 
     /// Reset every env with base seed `seed`, env i at `object_poses[i]` `[x, y, yaw]` with its
     /// target (and pad) moved by `target_offsets[i]` → obs (num_envs, obs_dim).
-    #[pyo3(signature = (seed, object_poses, target_offsets = None, pad_offsets = None))]
+    #[pyo3(signature = (seed, object_poses, target_offsets = None, pad_offsets = None, pad_yaws = None))]
     fn reset_starts<'py>(
         &mut self,
         py: Python<'py>,
@@ -387,6 +393,7 @@ impl SimVecEnv {
         object_poses: Vec<[f32; 3]>,
         target_offsets: Option<Vec<[f32; 2]>>,
         pad_offsets: Option<Vec<[f32; 2]>>,
+        pad_yaws: Option<Vec<f32>>,
     ) -> PyResult<Obs<'py>> {
         let n = self.num_envs;
         let count = |what: &str, len: usize| {
@@ -402,15 +409,21 @@ impl SimVecEnv {
         if let Some(p) = &pad_offsets {
             count("pad_offset", p.len())?;
         }
+        if let Some(p) = &pad_yaws {
+            count("pad_yaw", p.len())?;
+        }
         let starts: Vec<Start> = (0..n)
-            .map(|i| Start::from_options(object_poses[i], t[i], pad_offsets.as_ref().map(|p| p[i])))
+            .map(|i| Start {
+                pad_yaw: pad_yaws.as_ref().map_or(0.0, |p| p[i]),
+                ..Start::from_options(object_poses[i], t[i], pad_offsets.as_ref().map(|p| p[i]))
+            })
             .collect();
         matrix(py, self.venv.reset_starts_owned(seed, &starts).map_err(sim_err)?, self.obs_dim)
     }
 
     /// Reset env `i` to episode `seed` (at `object_pose` / `target_offset` when given, else the
     /// paper's start of `seed`, where demos are recorded) and replay `actions` (k, act_dim) → its obs.
-    #[pyo3(signature = (i, seed, actions, object_pose = None, target_offset = None, pad_offset = None))]
+    #[pyo3(signature = (i, seed, actions, object_pose = None, target_offset = None, pad_offset = None, pad_yaw = None))]
     #[allow(clippy::too_many_arguments)]
     fn reset_replay<'py>(
         &mut self,
@@ -421,9 +434,10 @@ impl SimVecEnv {
         object_pose: Option<[f32; 3]>,
         target_offset: Option<[f32; 2]>,
         pad_offset: Option<[f32; 2]>,
+        pad_yaw: Option<f32>,
     ) -> PyResult<F32s<'py>> {
         let acts = flat(&actions, self.act_dim, "actions")?;
-        let st = start_of(object_pose, target_offset, pad_offset)?;
+        let st = start_of(object_pose, target_offset, pad_offset, pad_yaw)?;
         Ok(vector(py, self.venv.reset_replay_owned(i, seed, st, &acts).map_err(sim_err)?))
     }
 
@@ -457,7 +471,7 @@ impl SimVecEnv {
             st.actions.into_iter().map(|a| matrix(py, a, self.act_dim)).collect::<PyResult<Vec<_>>>()?;
         let starts: Vec<f32> = st.starts.iter().flat_map(|s| s.to_row()).collect();
         Ok(dict!(py; "base_seed" => st.base_seed, "episodes" => vector(py, st.episodes),
-            "seeds" => vector(py, st.seeds), "starts" => matrix(py, starts, 7)?,
+            "seeds" => vector(py, st.seeds), "starts" => matrix(py, starts, 8)?,
             "actions" => PyList::new(py, acts)?))
     }
 
@@ -470,7 +484,7 @@ impl SimVecEnv {
         episodes: Vec<u64>,
         seeds: Vec<u64>,
         actions: Vec<Actions<'py>>,
-        starts: Option<Vec<[f32; 7]>>,
+        starts: Option<Vec<Vec<f32>>>,
     ) -> PyResult<Obs<'py>> {
         let actions = actions.iter().enumerate();
         let actions =
@@ -478,7 +492,7 @@ impl SimVecEnv {
         // A state saved before starts were recorded: every episode then began at the paper's start of its seed.
         let task = self.venv.task();
         let starts = match starts {
-            Some(rows) => rows.into_iter().map(Start::from_row).collect(),
+            Some(rows) => rows.iter().map(|r| Start::from_row(r)).collect(),
             None => seeds.iter().map(|&s| Variation::default().start(task, s)).collect(),
         };
         let st = VecEnvState { base_seed, episodes, seeds, starts, actions };

@@ -40,7 +40,8 @@ pub const MAX_TARGET_OFFSET: f32 = 0.04;
 pub const MAX_YAW: f32 = std::f32::consts::FRAC_PI_4;
 
 /// One episode's start (see the module docs). Serialized as the reset options name it:
-/// `{"object_pose": [x, y, yaw], "target_offset": [dx, dy], "pad_offset": [dx, dy]}`.
+/// `{"object_pose": [x, y, yaw], "target_offset": [dx, dy], "pad_offset": [dx, dy]}`, plus
+/// `"pad_yaw": rad` when the pad is turned (a spec's `pad_yaw_deg`; TilePlace's wide starts).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Start {
     /// The object's centre on the table (m, Base frame): x, y.
@@ -51,22 +52,29 @@ pub struct Start {
     pub target_offset: [f32; 2],
     /// The pad's offset from its nominal place (m). Screw: always 0.
     pub pad_offset: [f32; 2],
+    /// The pad's yaw about Base Z (rad), about its centre; the target (the object lying on the
+    /// pad) is turned with it. 0 unless the starts turn the pad.
+    pub pad_yaw: f32,
 }
 
 impl serde::Serialize for Start {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         use serde::ser::SerializeMap;
-        let mut m = s.serialize_map(Some(3))?;
+        let mut m = s.serialize_map(None)?;
         m.serialize_entry("object_pose", &[self.object_xy[0], self.object_xy[1], self.yaw])?;
         m.serialize_entry("target_offset", &self.target_offset)?;
         m.serialize_entry("pad_offset", &self.pad_offset)?;
+        if self.pad_yaw != 0.0 {
+            m.serialize_entry("pad_yaw", &self.pad_yaw)?;
+        }
         m.end()
     }
 }
 
 impl Start {
     /// The start the reset options name: the object at `object_pose` `[x, y, yaw]`, the target
-    /// moved by `target_offset` and the pad by `pad_offset` (default: with the target).
+    /// moved by `target_offset` and the pad by `pad_offset` (default: with the target), the pad
+    /// turned by `pad_yaw` (rad, default 0).
     pub fn from_options(
         object_pose: [f32; 3],
         target_offset: [f32; 2],
@@ -77,18 +85,27 @@ impl Start {
             yaw: object_pose[2],
             target_offset,
             pad_offset: pad_offset.unwrap_or(target_offset),
+            pad_yaw: 0.0,
         }
     }
 
-    /// As 7 numbers: x, y, yaw, target dx, dy, pad dx, dy (a checkpoint's row).
-    pub fn to_row(&self) -> [f32; 7] {
+    /// As 8 numbers: x, y, yaw, target dx, dy, pad dx, dy, pad yaw (a checkpoint's row).
+    pub fn to_row(&self) -> [f32; 8] {
         let (o, t, p) = (self.object_xy, self.target_offset, self.pad_offset);
-        [o[0], o[1], self.yaw, t[0], t[1], p[0], p[1]]
+        [o[0], o[1], self.yaw, t[0], t[1], p[0], p[1], self.pad_yaw]
     }
 
-    /// The inverse of [`Start::to_row`].
-    pub fn from_row(r: [f32; 7]) -> Start {
-        Start { object_xy: [r[0], r[1]], yaw: r[2], target_offset: [r[3], r[4]], pad_offset: [r[5], r[6]] }
+    /// The inverse of [`Start::to_row`]; a row of 7 (a checkpoint written before the pad could
+    /// turn) is a pad that is not turned.
+    pub fn from_row(r: &[f32]) -> Start {
+        let at = |i: usize| r.get(i).copied().unwrap_or(0.0);
+        Start {
+            object_xy: [at(0), at(1)],
+            yaw: at(2),
+            target_offset: [at(3), at(4)],
+            pad_offset: [at(5), at(6)],
+            pad_yaw: at(7),
+        }
     }
 }
 
@@ -107,6 +124,9 @@ pub struct Variation {
     pub target_jitter: f32,
     /// The pad moves with the target (else it stays: a 0.2 m pad holds a 0.15 m tile moved 2.5 cm).
     pub pad_follows: bool,
+    /// The pad's yaw (rad), turning the target with it; `[0, 0]`: square (every task but
+    /// TilePlace's wide starts).
+    pub pad_yaw: [f32; 2],
 }
 
 /// The paper's starts, as the built-in TileSuction spec gives them (`starts.paper`; the three
@@ -159,6 +179,7 @@ impl Variation {
             yaw: mix(a.yaw, b.yaw),
             target_jitter: s * b.target_jitter,
             pad_follows: s > 0.0,
+            pad_yaw: mix(a.pad_yaw, b.pad_yaw),
         }
     }
 
@@ -177,6 +198,7 @@ impl Variation {
             ("object_x", self.object_x, 0.3f32 * k),
             ("object_y", self.object_y, 0.5 * k),
             ("yaw", self.yaw, MAX_YAW),
+            ("pad_yaw", self.pad_yaw, MAX_YAW),
         ] {
             if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -lim || hi > lim {
                 return bad(format!("{name} [{lo}, {hi}] must be an ordered range within [-{lim}, {lim}]"));
@@ -190,8 +212,8 @@ impl Variation {
     }
 
     /// The start of episode `seed` of `task`. The draws come from one ChaCha8 stream in a fixed
-    /// order: x, then (if the target moves) dx and dy, then y and yaw where their ranges are
-    /// not a point; so the paper's variation draws exactly what it always drew.
+    /// order: x, then (if the target moves) dx and dy, then y, yaw and the pad's yaw where their
+    /// ranges are not a point; so the paper's variation draws exactly what it always drew.
     pub fn start(&self, task: Task, seed: u64) -> Start {
         let mut ep = ChaCha8Rng::seed_from_u64(seed);
         let x: f32 = ep.random_range(self.object_x[0]..=self.object_x[1]);
@@ -207,11 +229,17 @@ impl Variation {
         };
         let yaw = if drawn(self.yaw) { ep.random_range(self.yaw[0]..=self.yaw[1]) } else { self.yaw[0] };
         let yaw = if task == Task::Screw { 0.0 } else { yaw };
+        let pad_yaw = if drawn(self.pad_yaw) {
+            ep.random_range(self.pad_yaw[0]..=self.pad_yaw[1])
+        } else {
+            self.pad_yaw[0]
+        };
         Start {
             object_xy: [x, y],
             yaw,
             target_offset: offset,
             pad_offset: if self.pad_follows { offset } else { [0.0; 2] },
+            pad_yaw,
         }
     }
 }
@@ -372,6 +400,15 @@ impl Start {
         if self.yaw.abs() > MAX_YAW {
             return bad(format!("object_pose yaw {} rad is beyond ±{MAX_YAW:.4} rad (45°)", self.yaw));
         }
+        if !self.pad_yaw.is_finite() || self.pad_yaw.abs() > MAX_YAW {
+            return bad(format!(
+                "pad_yaw {} rad must be finite and within ±{MAX_YAW:.4} rad (45°)",
+                self.pad_yaw
+            ));
+        }
+        if self.pad_yaw != 0.0 && (task == Task::Screw || spec.row.is_some()) {
+            return bad("pad_yaw: only a single pad can be turned (not a bolt's plate, not a row)".into());
+        }
         let h = turned_half(footprint_half(spec), self.yaw);
         let table = spec.table.half_extents;
         let (tx, ty) = (table[0] - h[0], table[1] - h[1]);
@@ -391,6 +428,8 @@ impl Start {
                 ));
             }
             let TargetSpec::Pad { half_extents: pad_half, .. } = &spec.target else { continue };
+            // A turned pad's footprint: the box around it (a little conservative).
+            let pad_half = turned_half([pad_half[0], pad_half[1]], self.pad_yaw);
             for j in 0..n {
                 let pad = self.row_pad_xy(spec, j);
                 let gap_x = (x - pad[0]).abs() - h[0] - pad_half[0];

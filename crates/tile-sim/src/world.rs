@@ -166,6 +166,14 @@ fn push_pad_and_target_i(
         [t.x, t.y, t.z + marker_dz],
         [0.1, 0.8, 0.1, 0.4],
     ));
+    if start.pad_yaw != 0.0 {
+        // The pad and its target marker, turned about their centres.
+        let (h, c) = ((0.5 * start.pad_yaw).sin(), (0.5 * start.pad_yaw).cos());
+        let n = items.len();
+        for it in &mut items[n - 2..] {
+            it.rotation = [0.0, 0.0, h, c];
+        }
+    }
 }
 
 /// A spec's object name as the `&'static str` a [`SceneItem`] holds (each distinct name is
@@ -278,7 +286,10 @@ pub fn build_spec(spec: &TaskSpec, start: &Start) -> (PhysicsWorld, Handles) {
                 let pad = start.row_pad_xy(spec, i);
                 w.insert_collider(
                     ColliderBuilder::cuboid(h[0], h[1], h[2])
-                        .translation(Vector::new(pad[0], pad[1], top + h[2]))
+                        .position(Pose::from_parts(
+                            Vector::new(pad[0], pad[1], top + h[2]),
+                            Rotation::from_rotation_z(start.pad_yaw),
+                        ))
                         .friction(*friction)
                         .collision_groups(static_groups()),
                     Some(table),

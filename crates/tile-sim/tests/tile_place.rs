@@ -87,9 +87,13 @@ fn expert_episode(seed: u64, wide: bool) -> (StepOutcome, u32, Env) {
 
 #[test]
 fn the_expert_places_the_tile_square_on_the_paper_and_wide_starts() {
+    let mut turned = 0;
     for (wide, seeds) in [(false, 0..10u64), (true, 100..120)] {
         for seed in seeds {
             let (out, k, env) = expert_episode(seed, wide);
+            let pad_yaw = env.start().pad_yaw.to_degrees();
+            assert!(pad_yaw.abs() <= 15.0 && (wide || pad_yaw == 0.0), "pad turned {pad_yaw} deg");
+            turned += usize::from(pad_yaw.abs() > 5.0);
             let p = env.last_placement().expect("a tile task reports its placement").clone();
             assert!(out.installed && !out.fell, "seed {seed} (wide {wide}): not placed in {k} steps: {p:?}");
             assert!(!p.held && p.xy_error < 0.005 && p.yaw_error_deg.abs() < 2.0, "{p:?}");
@@ -98,6 +102,7 @@ fn the_expert_places_the_tile_square_on_the_paper_and_wide_starts() {
             assert!(p.hold_gaps[0].abs() <= 0.003, "the lips were on the face: {p:?}");
         }
     }
+    assert!(turned >= 5, "the wide starts turn the pad: {turned} of 20 by more than 5 deg");
 }
 
 #[test]

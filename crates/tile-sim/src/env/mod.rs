@@ -351,7 +351,8 @@ impl Env {
         self.s.h = h;
         self.episode_seed = seed;
         self.s.start = start;
-        self.s.target = Pose::from_translation(start.target(&self.s.spec));
+        self.s.target =
+            Pose::from_parts(start.target(&self.s.spec), Rotation::from_rotation_z(start.pad_yaw));
         self.step_idx = 0;
         self.done = false;
         self.s.held = false;

@@ -135,6 +135,15 @@ fn check_variation(field: &str, v: &VariationSpec, arm: &ur3_kin::UrModel) -> Re
             );
         }
     }
+    if let Some([lo, hi]) = v.pad_yaw_deg {
+        if !(lo.is_finite() && hi.is_finite()) || lo > hi || lo < -max_yaw_deg || hi > max_yaw_deg {
+            return invalid(
+                &format!("{field}.pad_yaw_deg"),
+                [lo, hi],
+                format!("must be an ordered range [lo, hi] within [-{max_yaw_deg}, {max_yaw_deg}]"),
+            );
+        }
+    }
     let max_jitter = if v.pad_follows { crate::MAX_TARGET_OFFSET } else { 0.025 };
     if !(v.target_jitter.is_finite() && (0.0..=max_jitter).contains(&v.target_jitter)) {
         let why = if v.pad_follows { "with the pad following" } else { "with the pad fixed" };
@@ -283,18 +292,26 @@ impl TaskSpec {
             false => vec![[0.0, 0.0]],
         };
         let yaws = if screw { vec![0.0] } else { grid(v.yaw_deg, 3) };
+        let pad_yaws = grid(v.pad_yaw_deg.unwrap_or([0.0; 2]), 3);
         for x in grid(v.object_x, 5) {
             for y in grid(v.object_y, 5) {
                 for &yaw_deg in &yaws {
                     for &off in &offsets {
-                        let pad = if v.pad_follows { off } else { [0.0; 2] };
-                        let st = Start::from_options([x, y, yaw_deg.to_radians()], off, Some(pad));
-                        if let Err(e) = st.check_in(self) {
-                            return invalid(
-                                field,
-                                format!("{{object ({x}, {y}), yaw {yaw_deg} deg, target moved {off:?}}}"),
-                                format!("a start of this distribution is refused: {e}"),
-                            );
+                        for &pad_yaw_deg in &pad_yaws {
+                            let pad = if v.pad_follows { off } else { [0.0; 2] };
+                            let st = Start {
+                                pad_yaw: pad_yaw_deg.to_radians(),
+                                ..Start::from_options([x, y, yaw_deg.to_radians()], off, Some(pad))
+                            };
+                            if let Err(e) = st.check_in(self) {
+                                return invalid(
+                                    field,
+                                    format!(
+                                        "{{object ({x}, {y}), yaw {yaw_deg} deg, target moved {off:?}, pad turned {pad_yaw_deg} deg}}"
+                                    ),
+                                    format!("a start of this distribution is refused: {e}"),
+                                );
+                            }
                         }
                     }
                 }

@@ -300,6 +300,10 @@ pub struct VariationSpec {
     pub target_jitter: f32,
     /// The pad moves with the target (else it stays).
     pub pad_follows: bool,
+    /// The pad's yaw about its centre (degrees), turning the target with it; absent: square.
+    /// A single pad only (not a row's, not a bolt's plate).
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "decimal")]
+    pub pad_yaw_deg: Option<[f32; 2]>,
 }
 
 /// Thresholds; each task logic requires the ones it reads (see [`SpecError`]).
@@ -598,6 +602,7 @@ impl VariationSpec {
             yaw: [self.yaw_deg[0].to_radians(), self.yaw_deg[1].to_radians()],
             target_jitter: self.target_jitter,
             pad_follows: self.pad_follows,
+            pad_yaw: self.pad_yaw_deg.map_or([0.0; 2], |[lo, hi]| [lo.to_radians(), hi.to_radians()]),
         }
     }
 }
