@@ -97,8 +97,9 @@ pub fn joint_action(q_ik: &[f64; 6], q: &[f64; 6], step: f64) -> [f64; 6] {
 /// probability of "drop" in carry states, and every such sample loses the tile). The gripper
 /// moves only while commanded, so its commands (and the screw's spin) stay as gestured.
 pub fn recorded_command(task: Task, cmd: f32, frame: &[f32]) -> f32 {
-    // TileRow's suction head latches as TileSuction's, and its frame[6] is the suction state too.
-    if !matches!(task, Task::TileSuction | Task::TileRow) {
+    // TileRow's and TilePlace's suction heads latch as TileSuction's, and their frame[6] is the
+    // suction switch too.
+    if !matches!(task, Task::TileSuction | Task::TileRow | Task::TilePlace) {
         return cmd;
     }
     let on = frame[6] > 0.0;
@@ -130,6 +131,11 @@ mod tests {
         assert_eq!(recorded_command(Task::TileSuction, 1.0, &frame), 0.0);
         assert_eq!(recorded_command(Task::TileSuction, -1.0, &frame), -1.0);
         assert_eq!(recorded_command(Task::BlockGrip, 1.0, &frame), 1.0);
+        // TilePlace's frame has TileSuction's suction switch at [6]
+        assert_eq!(recorded_command(Task::TilePlace, 1.0, &frame), 0.0);
+        assert_eq!(recorded_command(Task::TilePlace, -1.0, &frame), -1.0);
+        frame[6] = -1.0;
+        assert_eq!(recorded_command(Task::TilePlace, -1.0, &frame), 0.0);
     }
 
     #[test]
