@@ -3,14 +3,17 @@
 ``mimicrete synth-hands --task suction --episodes 60 --seed 0 --out DIR`` writes one hand log
 (JSON Lines, format ``mimicrete.handlog`` v1) per episode. The demonstrator sees what a person in
 the VR scene sees: where the robot's end effector, the object and the target are at the start of
-the episode (:func:`scene_from_env`, the one place scene positions come from). It never reads the
-simulator afterwards: every motion is planned once, open loop, like a person acting on what they
-see, with generous pauses for the robot to catch up.
+the episode (:func:`scene_from_env`, the one place scene positions come from). Every motion is
+planned once, open loop, like a person acting on what they see, with generous pauses for the
+robot to catch up; the one look after the start is a tile's set-down onto its pad (``place``),
+done by eye (:mod:`.look`).
 
 How a motion is made:
 
 1. Waypoints for the robot's TCP (cup centre / point between the fingers) in the robot Base frame,
-   tool pointing straight down, with the gesture to show at each (paper §3.2, Table 1).
+   tool pointing straight down, with the gesture to show at each (paper §3.2, Table 1). Where the
+   task asks for it (``place``) the wrist turns the tool about the vertical: the suction head
+   square to the tile on the way over it, the held tile square to its pad over the carry.
 2. A person's trajectory through them: minimum-jerk reaches at a per-episode speed, varied per
    reach; hesitations (a pause part-way); small overshoots past the goal and a correction back;
    physiological tremor (8-12 Hz, sub-millimetre) and slow sway; a slight wobble of the hand's
@@ -26,7 +29,8 @@ How a motion is made:
 
 Here: the episodes and their hand logs (:class:`SynthEpisode`, :func:`synth_episode`,
 :func:`synth_hands`); :mod:`.motion`, how the person moves (steps 2-3); :mod:`.scene`, what the
-person sees and the hand pose for a tool0 pose (steps 1 and 4).
+person sees and the hand pose for a tool0 pose (steps 1 and 4); :mod:`.look`, the look before
+a set-down by eye.
 """
 
 from __future__ import annotations
@@ -38,16 +42,19 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete import kin
 from mimicrete.hands import layouts
 from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
+from .look import BY_EYE, EYE_DEG, EYE_MM, offset_seen
 from .motion import (  # noqa: F401  (re-exported: the demonstrator's public names)
     TASKS,
     Person,
     _slow_noise,
     _tremor,
     check_task,
+    min_jerk,
     plan_task,
     tracked_hand,
 )
@@ -92,9 +99,12 @@ def synth_episode(
     calib: Calibration | None = None,
     handedness: str = "right",
     extra: dict[str, Any] | None = None,
+    task_file: str | None = None,
 ) -> SynthEpisode:
     """Synthesise one demonstration of ``scene``; the same ``(scene, seed)`` gives the same
-    episode. ``extra``: more header fields (the task spec file a scene came from)."""
+    episode. ``extra``: more header fields (the task spec file a scene came from);
+    ``task_file``: the task spec file the scene is an episode of (where a look runs, :mod:`.look`;
+    None: the task's built-in spec)."""
     layout = layouts.check_layout(layout)
     calib = calib or Calibration()
     rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
@@ -107,16 +117,18 @@ def synth_episode(
     )
     motion = plan_task(scene, rng, tool)
     tcp, shapes, phases, transport = motion.arrays()
+    turn = motion.yaws()
     gestures, changing = motion.gestures()
     n = len(tcp)
     dt = 1.0 / HAND_RATE_HZ
     tcp = tcp + _tremor(n, dt, rng, tool)
-    # tool orientation: straight down with a slight slow wobble (< ~1°) and a personal yaw bias
+    # tool orientation: straight down, turned as planned, with a slight slow wobble (< ~1°) and
+    # a personal yaw bias
     wob = np.radians(0.5) * _slow_noise(n, dt, rng, tau=0.6)
     yaw0 = rng.uniform(-0.05, 0.05)
     t = np.arange(n) * dt
     rot = (
-        _rot_batch(2, yaw0 + wob[:, 2]) @ _rot_batch(0, wob[:, 0]) @ _rot_batch(1, wob[:, 1])
+        _rot_batch(2, yaw0 + turn + wob[:, 2]) @ _rot_batch(0, wob[:, 0]) @ _rot_batch(1, wob[:, 1])
     ) @ TOOL_DOWN
     frames = np.zeros((n, 4, 4))
     frames[:, :3, :3] = rot
@@ -132,6 +144,11 @@ def synth_episode(
         tracked[k0 : k0 + length] = False
         joints[k0 : k0 + length] = joints[k0 - 1]  # the runtime repeats its last estimate
     out = layouts.to_layout(joints, layout)
+    look = None
+    if scene.task in BY_EYE:
+        look = _set_down_by_eye(
+            scene, phases, t, tracked, out, frames, layout, handedness, calib, rng, task_file
+        )
     header = handlog.header(
         layout,
         calib.space,
@@ -149,10 +166,67 @@ def synth_episode(
                 "tremor_mm": round(person.tremor_mm, 3),
             },
             "rate_hz": HAND_RATE_HZ,
+            **({"look": look} if look is not None else {}),
             **(extra or {}),
         },
     )
     return SynthEpisode(header, t, tracked, out, phases, frames, gestures, changing)
+
+
+def _set_down_by_eye(
+    scene: Scene,
+    phases: list[str],
+    t: np.ndarray,
+    tracked: np.ndarray,
+    joints: np.ndarray,
+    frames: np.ndarray,
+    layout: str,
+    handedness: str,
+    calib: Calibration,
+    rng: np.random.Generator,
+    task_file: str | None = None,
+) -> dict[str, Any]:
+    """The person looks at the held object as the set-down starts (:func:`.look.offset_seen`,
+    judged to within :data:`.look.EYE_MM` and :data:`.look.EYE_DEG`: drawn from ``rng``) and,
+    while setting it down, moves the hand by the object's offset from its target and turns it
+    about the TCP by the object's turn from square (min-jerk over the set-down, kept after it):
+    ``joints`` (headset space) and ``frames`` (tool0, Base) change in place. Returns what the
+    header records: the frame of the look and what it saw (mm, degrees)."""
+    down = np.flatnonzero(np.asarray(phases) == BY_EYE[scene.task])
+    k = int(down[0])
+    eye = rng.normal(scale=[EYE_MM / 1000.0, EYE_MM / 1000.0, np.radians(EYE_DEG)])
+    seen = eye + offset_seen(
+        scene.task,
+        scene.episode_seed,
+        t[:k],
+        tracked[:k],
+        joints[:k],
+        layout,
+        handedness,
+        calib,
+        task_file,
+    )
+    w = np.zeros(len(t))
+    w[down] = min_jerk(np.arange(1, len(down) + 1) / len(down))
+    w[down[-1] + 1 :] = 1.0
+    at = np.flatnonzero(w)
+    tcp = frames[at, :3, 3] + frames[at, :3, 2] * scene.tcp_z  # the planned TCP (Base)
+    turn = _rot_batch(2, w[at] * seen[2])
+    shift = w[at, None] * np.array([seen[0], seen[1], 0.0])
+
+    def moved(p: np.ndarray) -> np.ndarray:  # (m, j, 3) Base: turned about the TCP, shifted
+        return np.einsum("mij,mkj->mki", turn, p - tcp[:, None]) + (tcp + shift)[:, None]
+
+    shape = joints[at].shape
+    base = kin.points_to_base(joints[at].reshape(-1, 3), calib).reshape(shape)
+    joints[at] = points_from_base(moved(base), calib)
+    frames[at, :3, 3] = moved(frames[at, None, :3, 3])[:, 0]
+    frames[at, :3, :3] = turn @ frames[at, :3, :3]
+    return {
+        "frame": k,
+        "target_minus_object_mm": np.round(1000 * seen[:2], 2).tolist(),
+        "turn_to_square_deg": round(float(np.degrees(seen[2])), 3),
+    }
 
 
 def write_handlog(path: str | Path, ep: SynthEpisode) -> Path:
@@ -236,6 +310,7 @@ def synth_hands(
             calib=calib,
             handedness=handedness,
             extra=extra,
+            task_file=None if task_file is None else str(task_file),
         )
         paths.append(write_handlog(out / f"{task}_{i:04d}.handlog.jsonl", ep))
     return paths

@@ -177,7 +177,9 @@ def record_live(
     first = live.next_index
     for i in range(episodes):
         scene = scene_from_env(task, seed + first + i, task_file)
-        ep = synth_episode(scene, seed * 1_000_003 + first + i, layout="webxr", calib=calib)
+        ep = synth_episode(
+            scene, seed * 1_000_003 + first + i, layout="webxr", calib=calib, task_file=task_file
+        )
         takes.append(quest_take(ep, rng))
     with ServerThread(TeleopServer(live)) as run:
         saved = asyncio.run(_drive(f"http://127.0.0.1:{run.port}/ws", takes, progress))

@@ -15,6 +15,7 @@ from .scene import (
     HAND_RATE_HZ,
     SHAPE_OF,
     Scene,
+    square_turn,
 )
 
 # ----------------------------------------------------------------------------------------------
@@ -56,7 +57,8 @@ class Person:
 
 
 class Motion:
-    """Accumulates a TCP path (Base), a gesture-shape track and keyframes at 90 Hz."""
+    """Accumulates a TCP path (Base), the tool's turn about Base Z, a gesture-shape track and
+    keyframes at 90 Hz."""
 
     def __init__(
         self,
@@ -70,6 +72,9 @@ class Motion:
         self.rng = rng
         self.person = person
         self.pos: list[np.ndarray] = [np.asarray(start, dtype=np.float64)]
+        #: how far the person has turned the tool about Base Z from straight down (rad): the
+        #: wrist turns only where a task asks for it (the head square to a tile, ``place``)
+        self.yaw: list[float] = [0.0]
         self.shape: list[np.ndarray] = [np.asarray(shape, dtype=np.float64)]
         self.phase: list[str] = ["start"]
         self.transport: list[bool] = [False]
@@ -89,8 +94,10 @@ class Motion:
         phase: str,
         transport: bool,
         labels: list[str] | None = None,
+        yaw: np.ndarray | None = None,
     ) -> None:
         self.pos.extend(pos)
+        self.yaw.extend([self.yaw[-1]] * len(pos) if yaw is None else yaw)
         self.shape.extend(shapes)
         self.phase.extend([phase] * len(pos))
         self.transport.extend([transport] * len(pos))
@@ -121,19 +128,38 @@ class Motion:
         labels = [label if label is not None and wk >= 0.5 else before for wk in w[:, 0]]
         self._append(np.repeat(self.here[None], n, 0), (1 - w) * a + w * b, phase, False, labels)
 
-    def _leg(self, goal: np.ndarray, seconds: float, phase: str, transport: bool) -> None:
+    def _leg(
+        self,
+        goal: np.ndarray,
+        seconds: float,
+        phase: str,
+        transport: bool,
+        yaw: float | None = None,
+    ) -> None:
+        """A min-jerk leg to ``goal``, the wrist turning to ``yaw`` on the way (None: as it is)."""
         n = max(2, int(round(seconds / self.dt)))
         s = min_jerk(np.arange(1, n + 1) / n)[:, None]
-        start = self.here
+        start, yaw0 = self.here, self.yaw[-1]
+        turn = None if yaw is None else yaw0 + s[:, 0] * (yaw - yaw0)
         self._append(
-            start + s * (goal - start), np.repeat(self.shape[-1][None], n, 0), phase, transport
+            start + s * (goal - start),
+            np.repeat(self.shape[-1][None], n, 0),
+            phase,
+            transport,
+            yaw=turn,
         )
 
     def reach(
-        self, goal: np.ndarray, phase: str, precise: bool = False, transport: bool = True
+        self,
+        goal: np.ndarray,
+        phase: str,
+        precise: bool = False,
+        transport: bool = True,
+        yaw: float | None = None,
     ) -> None:
         """A human reach: min-jerk, maybe a hesitation part-way, maybe an overshoot + correction.
-        ``precise`` reaches (the last centimetres to a grasp) are slower and overshoot less."""
+        ``precise`` reaches (the last centimetres to a grasp) are slower and overshoot less.
+        ``yaw``: the wrist turns the tool to it about Base Z over the reach (None: it stays)."""
         goal = np.asarray(goal, dtype=np.float64)
         rng, p = self.rng, self.person
         d = float(np.linalg.norm(goal - self.here))
@@ -144,20 +170,31 @@ class Motion:
         if rng.random() < p.hesitancy and d > 0.05:
             frac = rng.uniform(0.4, 0.7)
             mid = self.here + frac * (goal - self.here) + rng.normal(scale=0.004, size=3)
-            self._leg(mid, seconds * frac, phase, transport)
+            turn = None if yaw is None else self.yaw[-1] + frac * (yaw - self.yaw[-1])
+            self._leg(mid, seconds * frac, phase, transport, turn)
             self.hold(rng.uniform(0.1, 0.45), phase)
             seconds *= 1.0 - frac
         over = p.overshoot * (0.3 if precise else 1.0) * rng.uniform(0.3, 1.5)
         if d > 0.03 and over > 0.0:
             direction = (goal - self.here) / max(np.linalg.norm(goal - self.here), 1e-9)
             past = goal + direction * min(over * d, 0.012) + rng.normal(scale=0.0015, size=3)
-            self._leg(past, seconds, phase, transport)
+            self._leg(past, seconds, phase, transport, yaw)
             self._leg(goal, rng.uniform(0.2, 0.4), phase + "_correct", False)
         else:
-            self._leg(goal, seconds, phase, transport)
+            self._leg(goal, seconds, phase, transport, yaw)
+
+    def set_down(self, goal: np.ndarray, phase: str) -> None:
+        """The last centimetre or two onto a surface (the cups onto a tile, a held tile onto its
+        pad): slow and straight, no hesitation and no overshoot, as a person feels for a contact
+        they must not press through."""
+        self._leg(goal, self.rng.uniform(0.6, 1.0), phase, False)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, list[str], np.ndarray]:
         return np.array(self.pos), np.array(self.shape), self.phase, np.array(self.transport)
+
+    def yaws(self) -> np.ndarray:
+        """Per frame: the tool's planned turn about Base Z from straight down (rad)."""
+        return np.array(self.yaw)
 
     def gestures(self) -> tuple[list[str], np.ndarray]:
         """Per frame: the gesture class shown, and whether the frame is part of a change."""
@@ -219,14 +256,21 @@ def _approach_and_grasp(
     close: hm.HandShape,
     grasp: tuple[float, float],
     close_label: str | None = None,
+    touch: tuple[float, float] | None = None,
+    yaw: float | None = None,
 ) -> None:
     """Reach ``approach`` (m, uniform range) above ``above``, settle, descend precisely to
     ``grasp_at()`` (called only then, so its draws come after the settle's), settle, close the
-    hand, hold ``grasp`` seconds while the end effector closes. Ranges are drawn from ``m.rng``."""
+    hand, hold ``grasp`` seconds while the end effector closes. Ranges are drawn from ``m.rng``.
+    ``touch`` (m): from there, set the end effector down onto ``above`` (a surface: the tile's
+    face) to that range above it (:meth:`Motion.set_down`); ``yaw``: turn the tool to it (rad
+    about Base Z) on the way over."""
     rng = m.rng
-    m.reach(above + _UP * rng.uniform(*approach), "approach")
+    m.reach(above + _UP * rng.uniform(*approach), "approach", yaw=yaw)
     m.hold(rng.uniform(*settle), "settle")
     m.reach(grasp_at(), "descend", precise=True)
+    if touch is not None:
+        m.set_down(above + _UP * rng.uniform(*touch), "touch")
     m.hold(rng.uniform(*settled), "settle")
     m.gesture(close, rng.uniform(0.2, 0.5), "close", close_label)
     m.hold(rng.uniform(*grasp), "grasp")
@@ -242,15 +286,23 @@ def _carry_and_place(
     release_shape: hm.HandShape,
     release: tuple[float, float],
     release_label: str | None = None,
+    set_down: tuple[float, float] | None = None,
+    yaw: float | None = None,
 ) -> None:
     """Lift, carry to ``carry`` above ``target`` (plus ``held_below``, how far the object's
     centre hangs below the TCP), settle, lower precisely to ``lower`` above it, place, open the
-    hand, hold ``release`` seconds, retreat upwards."""
+    hand, hold ``release`` seconds, retreat upwards. ``set_down`` (m): from ``lower``, look at
+    the object over the target for a moment, then set it down to that range above the target
+    (:meth:`Motion.set_down`; what the look shows moves the hand then: :mod:`.look`); ``yaw``:
+    turn the tool, and the object with it, to it (rad about Base Z) over the carry."""
     rng = m.rng
     m.reach(m.here + _UP * rng.uniform(0.08, 0.12), "lift")
-    m.reach(target + _UP * (held_below + rng.uniform(*carry)), "carry")
+    m.reach(target + _UP * (held_below + rng.uniform(*carry)), "carry", yaw=yaw)
     m.hold(rng.uniform(0.3, 0.6), "settle")
     m.reach(target + _UP * (held_below + rng.uniform(*lower)), "lower", precise=True)
+    if set_down is not None:  # a look at the object over the target first (.look)
+        m.hold(rng.uniform(0.2, 0.4), "look")
+        m.set_down(target + _UP * (held_below + rng.uniform(*set_down)), "set_down")
     m.hold(rng.uniform(0.5, 0.9), "place")
     m.gesture(release_shape, rng.uniform(0.2, 0.5), "release", release_label)
     m.hold(rng.uniform(*release), "release")
@@ -281,6 +333,11 @@ _GRASP: dict[str, dict[str, tuple[float, float]]] = {
 }
 # the row's person handles each tile as TileSuction's (the same suction head and tile)
 _GRASP["row"] = _GRASP["suction"]
+# TilePlace's cups seal only with their lips within 3 mm of the face: the person comes down to
+# 12-20 mm above it, then sets the cups down to 1-2 mm above it (the hand's tremor and sway,
+# about +-2 mm, keep the lips off the face's far side and out of it), and holds still with the
+# suction shown until the vacuum has built up (0.1 s, tile_place.toml)
+_GRASP["place"] = {**_GRASP["suction"], "touch": (0.001, 0.002)}
 #: The tasks the scripted person demonstrates: one grasp, then (but for the screw) one place;
 #: the row (``TileRow``) three of them in one episode, tile ``i`` onto pad ``i``.
 TASKS: tuple[str, ...] = tuple(_GRASP)
@@ -288,8 +345,22 @@ TASKS: tuple[str, ...] = tuple(_GRASP)
 _PLACE: dict[str, dict[str, tuple[float, float]]] = {
     "suction": {"carry": (0.06, 0.10), "lower": (0.0, 0.006), "release": (0.3, 0.6)},
     "grip": {"carry": (0.07, 0.10), "lower": (0.002, 0.006), "release": (0.6, 1.0)},
+    # TilePlace: let go at most 5 mm above where the tile comes to rest, and never press the
+    # cups more than 3 mm into the held tile's face (a protective stop): lowered to 12-20 mm,
+    # then set down to 1.5-3 mm above its resting height (the hand's +-2 mm keep it in the
+    # 8 mm between the two)
+    "place": {
+        "carry": (0.06, 0.10),
+        "lower": (0.012, 0.02),
+        "set_down": (0.0015, 0.003),
+        "release": (0.3, 0.6),
+    },
 }
 _PLACE["row"] = _PLACE["suction"]
+#: The tasks whose person squares the suction head to the tile (its four cups repeat every
+#: 90°: turned square, every lip lands on the face) and the held tile to its pad (the success
+#: asks for its edges within 2° of the pad's): TilePlace.
+_SQUARE: tuple[str, ...] = ("place",)
 
 
 def check_task(task: str) -> None:
@@ -317,7 +388,8 @@ def plan_task(scene: Scene, rng: np.random.Generator, person: Person) -> Motion:
     for k, (obj, tgt) in enumerate(scene.picks()):
         if k:  # between a row's tiles: a look at the next one
             m.hold(rng.uniform(0.2, 0.5), "next")
-        _pick_and_place(m, task, obj, tgt, shp, cls_open, cls_close)
+        yaws = (scene.object_yaw, scene.target_yaw) if scene.objects is None else (0.0, 0.0)
+        _pick_and_place(m, task, obj, tgt, shp, cls_open, cls_close, yaws)
     m.hold(rng.uniform(0.3, 0.6), "end")
     return m
 
@@ -330,10 +402,16 @@ def _pick_and_place(
     shp: dict[str, hm.HandShape],
     cls_open: str,
     cls_close: str,
+    yaws: tuple[float, float] = (0.0, 0.0),
 ) -> None:
-    """One object of ``task`` from ``obj`` to ``tgt`` (the screw: tightened down to ``tgt``)."""
+    """One object of ``task`` from ``obj`` to ``tgt`` (the screw: tightened down to ``tgt``);
+    ``yaws``: how the object and the target are turned (rad about Base Z)."""
     rng, up = m.rng, _UP
     above, held_below = obj, 0.0  # where the grasp is; how far the object hangs below the TCP
+    head = over_target = None  # the tool's yaw over the object, over the target (None: as is)
+    if task in _SQUARE:
+        head = m.yaw[-1] + square_turn(m.yaw[-1], yaws[0])
+        over_target = head + square_turn(yaws[0], yaws[1])
     if task in ("suction", "row"):
         above = obj + up * obj[2]  # tile centre sits half a thickness above the table (z = 0)
         clearance = rng.uniform(0.008, 0.016)
@@ -341,6 +419,12 @@ def _pick_and_place(
 
         def grasp_at() -> np.ndarray:
             return above + up * clearance
+    elif task == "place":
+        above = obj + up * obj[2]  # the tile's face
+        held_below = obj[2]  # the hold draws the face onto the lips: the centre hangs below
+
+        def grasp_at() -> np.ndarray:  # where the cups are set down from (_GRASP's touch)
+            return above + up * rng.uniform(0.012, 0.02)
     elif task == "grip":
 
         def grasp_at() -> np.ndarray:
@@ -352,7 +436,13 @@ def _pick_and_place(
     else:  # pragma: no cover - check_task refused it
         raise ValueError(f"unknown task {task!r}; known: {TASKS}")
     _approach_and_grasp(
-        m, above, grasp_at=grasp_at, close=shp[cls_close], close_label=cls_close, **_GRASP[task]
+        m,
+        above,
+        grasp_at=grasp_at,
+        close=shp[cls_close],
+        close_label=cls_close,
+        yaw=head,
+        **_GRASP[task],
     )
     if task in _PLACE:
         _carry_and_place(
@@ -361,6 +451,7 @@ def _pick_and_place(
             held_below=held_below,
             release_shape=shp[cls_open],
             release_label=cls_open,
+            yaw=over_target,
             **_PLACE[task],
         )
     else:  # screw

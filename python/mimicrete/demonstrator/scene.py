@@ -97,6 +97,9 @@ class Scene:
         target: where the object's centre must end up.
         objects: the row's tiles' centres ``(n, 3)``, in row order (``None`` for one object).
         targets: where each of the row's tiles must end up ``(n, 3)`` (tile ``i`` on pad ``i``).
+        object_yaw: how the object is turned about Base Z (rad; the tile's edges, which a
+            person squares the suction head to where the task asks for it, ``place``).
+        target_yaw: how the target is turned about Base Z (rad; the pad's edges).
     """
 
     task: str
@@ -107,6 +110,8 @@ class Scene:
     target: np.ndarray
     objects: np.ndarray | None = None
     targets: np.ndarray | None = None
+    object_yaw: float = 0.0
+    target_yaw: float = 0.0
 
     def picks(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """The (object, target) pairs to carry, in the order a person does them: the row's
@@ -127,6 +132,11 @@ class Scene:
         if self.objects is not None and self.targets is not None:
             d["objects"] = np.round(self.objects, 6).tolist()
             d["targets"] = np.round(self.targets, 6).tolist()
+        # a turned object or target only (the paper's starts turn neither: their logs' headers
+        # stay as they were before the yaws were seen)
+        if self.object_yaw or self.target_yaw:
+            d["object_yaw"] = round(self.object_yaw, 6)
+            d["target_yaw"] = round(self.target_yaw, 6)
         return d
 
 
@@ -161,6 +171,21 @@ def scene_from_obs(
         f[lay["object"]],
         f[lay["target"]],
     )
+
+
+def yaw_of(quat: Any) -> float:
+    """The yaw about Base Z (rad) of a body whose orientation is the quaternion ``quat``
+    (``x, y, z, w``): the angle of its x axis in the Base x-y plane."""
+    r = kin.quat_matrix(quat)
+    return float(np.arctan2(r[1, 0], r[0, 0]))
+
+
+def square_turn(yaw_from: float, yaw_to: float) -> float:
+    """The least turn (rad, in ``[-45°, 45°)``) that takes a square thing at ``yaw_from`` to lie
+    square to one at ``yaw_to`` (their edges parallel; tile-sim's ``expert::square_to``): a
+    square tile, or the suction head, whose four cups repeat every 90°."""
+    q = 0.5 * np.pi
+    return float((yaw_to - yaw_from + 0.5 * q) % q - 0.5 * q)
 
 
 def have_simulator() -> bool:
@@ -200,4 +225,6 @@ def scene_from_env(task: str, seed: int, task_file: str | None = None) -> Scene:
         np.array(snap["target"]["t"], dtype=np.float64),
         np.array([r["object"]["t"] for r in row], dtype=np.float64) if row else None,
         np.array([r["target"]["t"] for r in row], dtype=np.float64) if row else None,
+        yaw_of(snap["object"]["q"]),
+        yaw_of(snap["target"]["q"]),
     )
