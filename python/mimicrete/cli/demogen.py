@@ -1,6 +1,7 @@
 """`mimicrete demogen`: a few recorded demos → many successful demos at new starts
 (:mod:`mimicrete.demogen`, object-centric generation as in MimicGen). The task (TileSuction,
-BlockGrip, Screw) is the source demos' own, read from their metadata; ``--task`` only checks it."""
+BlockGrip, Screw, TilePlace) is the source demos' own, read from their metadata; ``--task`` only
+checks it."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--task",
         default=None,
-        metavar="suction|grip|screw",
+        metavar="suction|grip|screw|place",
         help="the task the source demos must be of (default: theirs, from their metadata)",
     )
     parser.add_argument(

@@ -1,5 +1,6 @@
 """Object-centric demo generation (MimicGen, Mandlekar et al. 2023): a few recorded demos of
-TileSuction, BlockGrip or Screw → many successful demos at new starts (``mimicrete demogen``).
+TileSuction, BlockGrip, Screw or TilePlace → many successful demos at new starts (``mimicrete
+demogen``).
 
 :mod:`.segment` splits a demo at its effector switch (the suction on, the gripper closing) into an
 approach + grasp segment relative to the object and the rest relative to the target (one table,

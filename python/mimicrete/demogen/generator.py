@@ -1,10 +1,11 @@
 """Generate demos at new starts from a few source demos (MimicGen's loop) in the real simulator.
 
 For each attempt: draw a start (tile-sim's wide or training starts, or a starts file), reset the
-simulator there explicitly (``object_pose``, ``target_offset``), pick a source demo, carry each
-of its segments into the new tile / target frame (:mod:`.segment`), connect it to where the arm is
-by blending the offset out over the segment's first part (a min-jerk interpolation from the
-current pose onto the transformed path), and follow the poses with the project's IK, producing
+simulator there explicitly (``object_pose``, ``target_offset``, a turned pad's ``pad_yaw``), pick
+a source demo, carry each of its segments into the new tile / target frame (:mod:`.segment`),
+connect it to where the arm is by blending the offset out over the segment's first part (a
+min-jerk interpolation from the current pose onto the transformed path; the tool's turn about
+Base Z too where the frames turn, TilePlace), and follow the poses with the project's IK, producing
 the joint actions a teleoperated demo records (teleop-core's ``joint_action``:
 ``clip(wrap(q_ik − q) / joint_step, −1, 1)``, the IK warm-started at its last answer; the joint
 step is the simulator's, ``SimEnv.joint_step``: the demos' task spec's ``robot.joint_step``, else
@@ -30,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from mimicrete import IkError, MimicreteError, _native, kin, tasks
+from mimicrete.demonstrator.scene import square_turn
 
 from .segment import (
     SCREW_GRASP_TOL,
@@ -38,6 +40,7 @@ from .segment import (
     SourceDemo,
     TaskFrames,
     frame,
+    frame_yaws,
     task_frames,
 )
 
@@ -81,7 +84,8 @@ def draw_starts(
 ) -> list[dict[str, list[float]]]:
     """``n`` starts of ``task``'s tile-sim ``starts`` distribution (``wide``, ``training``,
     ``robust``; the spec file ``task_file``'s if given), drawn by the simulator itself from
-    episode seeds of ``seed``."""
+    episode seeds of ``seed``: ``object_pose``, ``target_offset``, and ``pad_yaw`` (rad) where
+    the start turns the pad (TilePlace's wide starts)."""
     sim = sim_env(task, task_file)
     if starts == "robust":
         sim.set_variation(robust=True)
@@ -92,12 +96,13 @@ def draw_starts(
     for s in rng.integers(0, 2**62, size=n):
         sim.reset(int(s))
         st = sim.start()
-        out.append(
-            {
-                "object_pose": [float(v) for v in st["object_pose"]],
-                "target_offset": [float(v) for v in st["target_offset"]],
-            }
-        )
+        start = {
+            "object_pose": [float(v) for v in st["object_pose"]],
+            "target_offset": [float(v) for v in st["target_offset"]],
+        }
+        if st.get("pad_yaw"):
+            start["pad_yaw"] = float(st["pad_yaw"])
+        out.append(start)
     return out
 
 
@@ -226,16 +231,34 @@ class _Abort(MimicreteError):
     counted in the report, never raised to a caller."""
 
 
-def _blended(poses: np.ndarray, start: np.ndarray, share: float) -> np.ndarray:
+def _blended(poses: np.ndarray, start: np.ndarray, share: float, turn: bool = False) -> np.ndarray:
     """``poses`` with the offset of their first position from ``start`` (4, 4) blended out over
     the first ``share`` of them (min-jerk): the path leaves from where the arm is and joins the
-    transformed segment."""
+    transformed segment. ``turn``: the offset of the tool's turn about Base Z too (the frames of
+    a ``square`` task turn, so consecutive segments meet at different turns; each pose turns
+    about its own origin, the flange, above the TCP of a tool pointing down)."""
     out = poses.copy()
     n = max(2, int(round(share * len(poses))))
     w = min_jerk(np.arange(1, len(poses) + 1) / n)
     offset = start[:3, 3] - poses[0, :3, 3]
     out[:, :3, 3] += (1.0 - w)[:, None] * offset
+    if turn:
+        yaw = wrap(_yaw(start) - _yaw(poses[0]))
+        out[:, :3, :3] = _rot_z((1.0 - w) * yaw) @ out[:, :3, :3]
     return out
+
+
+def _yaw(pose: np.ndarray) -> float:
+    """The turn about Base Z of a pose's x axis (rad)."""
+    return float(np.arctan2(pose[1, 0], pose[0, 0]))
+
+
+def _rot_z(angles: np.ndarray) -> np.ndarray:
+    """Rotations ``(n, 3, 3)`` about Base Z by ``angles`` (rad)."""
+    c, s = np.cos(angles), np.sin(angles)
+    r = np.zeros((len(angles), 3, 3))
+    r[:, 0, 0], r[:, 0, 1], r[:, 1, 0], r[:, 1, 1], r[:, 2, 2] = c, -s, s, c, 1.0
+    return r
 
 
 def generate_episode(
@@ -261,6 +284,12 @@ def generate_episode(
     the place), and neither BC nor a reverse curriculum over the demos shows a place that
     corrects for an off-centre block.
 
+    A task whose held object may slip across the effector (``follow_object``: TilePlace) steers
+    the object, not the TCP, along the source's path in the target-relative segment: while it is
+    held, each pose is moved sideways by the object's offset from the TCP in the source at that
+    step minus its offset now, so a tile that slid in the cups still lands where the source's
+    landed (MimicGen transforms the object's path; with a rigid grasp that is the effector's).
+
     ``action_noise`` (None: the task's :attr:`.segment.TaskFrames.action_noise`): the standard
     deviation of Gaussian noise added to every joint action (units of the env's joint step, clipped
     to ``[-1, 1]``; from ``seed``), as MimicGen adds it to the actions it plays (its
@@ -275,12 +304,17 @@ def generate_episode(
         int(seed),
         object_pose=start["object_pose"],
         target_offset=start.get("target_offset", [0.0, 0.0]),
+        pad_yaw=start.get("pad_yaw"),
     )
     f = np.asarray(obs, np.float64)[-spec.frame_dim :]
     yaw = float(start["object_pose"][2]) if rotate else 0.0
+    target_yaw = 0.0
+    if spec.square:  # turned by the least turn that squares the source's frames to the new ones
+        (src_o, src_t), (new_o, new_t) = src.yaws, frame_yaws(spec, f)
+        yaw, target_yaw = src_o + square_turn(src_o, new_o), src_t + square_turn(src_t, new_t)
     frames = {
         "object": frame(*f[spec.lay["object"]], yaw),
-        "target": frame(*f[spec.lay["target"]]),
+        "target": frame(*f[spec.lay["target"]], target_yaw),
     }
     run = _Runner(sim, ep, np.asarray(obs, np.float32), spec, noise)
     last = run.pose()
@@ -295,24 +329,30 @@ def generate_episode(
             elif grasp_jitter > 0:
                 x = moved[-1, :3, 0] * [1.0, 1.0, 0.0]
                 moved[:, :3, 3] += shift * x / max(float(np.linalg.norm(x)), 1e-9)
-            poses = _blended(moved, run.pose(), blend)
+            poses = _blended(moved, run.pose(), blend, turn=spec.square)
             relabel = spec.close_in_reach and seg.relative_to == "object"
             early = spec.screw_from_grasp and seg.relative_to == "object"
             commands = seg.commands
             if spec.screw_from_grasp and seg.relative_to == "target":
                 commands = _spin_from_start(commands)
+            follow = spec.follow_object and seg.relative_to == "target"
+            offsets = seg.object_offsets_in(frames[seg.relative_to]) if follow else None
+            steer = np.zeros(2)  # how far the TCP is moved so the object keeps the source's path
             closing = False
-            for p, c in zip(poses, commands, strict=True):
+            for k, (p, c) in enumerate(zip(poses, commands, strict=True)):
                 if relabel and (closing or _in_grasp_reach(run)):
                     closing = True  # "close" from the first step at the nut on
                     c = c.copy()
                     c[0] = 1.0
+                if offsets is not None:
+                    if run.held():  # the object slipped by this much since the source's step
+                        steer = offsets[k, :2] - _in_hand_offset(run)
+                    p = p.copy()
+                    p[:2, 3] += steer  # kept after the release: the head leaves straight up
                 run.step(p, c)
                 last = p
                 if early and run.held():
                     break  # gripped: the screwing starts here, not where the source's did
-            else:
-                last = poses[-1]
         _finish(run, spec, last, src.segments[-1].commands[-1])
         ep.why = "not installed"
     except _Abort as e:
@@ -403,6 +443,7 @@ def write_episode(
         "start": json.dumps(ep.start),
         "object_pose": json.dumps(ep.start["object_pose"]),
         "target_offset": json.dumps(ep.start.get("target_offset", [0.0, 0.0])),
+        **({"pad_yaw": json.dumps(ep.start["pad_yaw"])} if "pad_yaw" in ep.start else {}),
         **{k: (v if isinstance(v, str) else json.dumps(v)) for k, v in (extra or {}).items()},
     }
     meta = {

@@ -13,6 +13,11 @@ switch apply, the one table the generator reads (no copy of the generator per ta
 - Screw: the nut's centre; the nut's tightened centre on the bolt (the bolt plate: both frames
   move with it). The grasp segment ends at the source's grasp; the gripper's command and the
   spin (``a[7]``) as recorded.
+- TilePlace: TileSuction's frames and switch, each turned with its yaw (``square``): the head
+  was set square onto the tile and the tile square onto its pad, modulo 90°, so the grasp
+  segment turns with the tile and the rest with the pad (the yaws modulo 90° are in the
+  observation: ``cos 4ψ, sin 4ψ`` of each). A source that placed its tile square to its pad
+  places it square to the new pad, with the same grasp on the tile.
 
 Each segment is the sequence of tool0 (flange) poses the arm reached, one per recorded action:
 the pose after action ``k`` is forward kinematics of the joints in observation ``k + 1`` (the
@@ -23,7 +28,8 @@ For a new start, :func:`transform_poses` moves every pose of a segment rigidly w
 ``T_new · T_src⁻¹ · P``. Frames are ``(x, y, z, yaw)`` about Base Z. By default the generator
 keeps the source's yaw (``rotate=False``): tile-sim's pick and install are judged on the object's
 centre alone, and its yaw is not in the observation, so turning the tool with the object would
-make the recorded actions depend on something the policy cannot see.
+make the recorded actions depend on something the policy cannot see. TilePlace judges the yaw
+and observes it: its frames always turn (``TaskFrames.square``).
 """
 
 from __future__ import annotations
@@ -67,7 +73,12 @@ class TaskFrames:
     turns the nut from its first step on (the source held the nut still for some steps before it
     spun it: with the grasp made earlier, a cloned policy held it, drifted 1 cm and slipped off);
     ``action_noise``: the default standard deviation of the noise added to the played joint
-    actions (:func:`.generator.generate_episode`; 0: none)."""
+    actions (:func:`.generator.generate_episode`; 0: none); ``square``: the object and the
+    target are square things whose yaws (modulo 90°) the task judges and observes
+    (``lay["object_yaw"]``, ``lay["target_yaw"]``: ``cos 4ψ, sin 4ψ``): both frames turn with
+    them (:func:`frame_yaws`); ``follow_object``: the held object may slip across the effector
+    (TilePlace's cups hold it by friction), so the target-relative segment steers the object,
+    not the TCP, along the source's path (:func:`.generator.generate_episode`)."""
 
     sim: str
     frame_dim: int
@@ -80,6 +91,8 @@ class TaskFrames:
     close_in_reach: bool = False
     screw_from_grasp: bool = False
     action_noise: float = 0.0
+    square: bool = False
+    follow_object: bool = False
 
     @property
     def commands(self) -> slice:
@@ -90,6 +103,8 @@ class TaskFrames:
 def _lay(task: str) -> dict[str, slice]:
     lay = dict(obs_layout(task))
     lay["ee"] = slice(6, 7)  # suction state (+1 on / −1 off) or the finger gap
+    if task == "place":  # tile-sim Task::obs_frame_dim: cos 4ψ, sin 4ψ of the tile, the target
+        lay["object_yaw"], lay["target_yaw"] = slice(24, 26), slice(26, 28)
     return lay
 
 
@@ -97,6 +112,10 @@ TASKS: dict[str, TaskFrames] = {
     "TileSuction": TaskFrames("TileSuction", 16, 7, _lay("suction"), 6, False, True, "carry"),
     "BlockGrip": TaskFrames("BlockGrip", 16, 7, _lay("grip"), 6, True, False, "none"),
     "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold", True, True),
+    # placed is judged resting after the source's release: the last pose is held until it rests
+    "TilePlace": TaskFrames(
+        "TilePlace", 28, 7, _lay("place"), 6, False, True, "hold", square=True, follow_object=True
+    ),
 }
 
 #: Screw's grasp tolerance, tile-sim's ``nut_contact`` (crates/tile-sim/src/task/screw.rs): the
@@ -118,6 +137,16 @@ def task_frames(task: str) -> TaskFrames:
     if sim not in TASKS:
         raise tasks.not_built("demogen", task, list(TASKS))
     return TASKS[sim]
+
+
+def frame_yaws(spec: TaskFrames, f: np.ndarray) -> tuple[float, float]:
+    """The object's and the target's yaws (rad, modulo 90°: in ``(-45°, 45°]``) in observation
+    frame ``f`` of a ``square`` task, read from their ``cos 4ψ, sin 4ψ``; ``(0, 0)`` for the
+    other tasks (their frames do not turn)."""
+    if not spec.square:
+        return 0.0, 0.0
+    o, t = f[spec.lay["object_yaw"]], f[spec.lay["target_yaw"]]
+    return float(np.arctan2(o[1], o[0])) / 4.0, float(np.arctan2(t[1], t[0])) / 4.0
 
 
 def frame(x: float, y: float, z: float, yaw: float = 0.0) -> np.ndarray:
@@ -142,12 +171,14 @@ class Segment:
 
     ``poses`` (n, 4, 4): tool0 after each of its actions; ``commands`` (n, c): the recorded
     end-effector command of each (``a[6:]``: one column, Screw two: the gripper and the spin);
-    ``relative_to``: ``"object"`` or ``"target"``; ``src``: the frame it was recorded in (4, 4)."""
+    ``relative_to``: ``"object"`` or ``"target"``; ``src``: the frame it was recorded in (4, 4);
+    ``object_offsets`` (n, 3): the object's centre minus the TCP after each action (Base)."""
 
     poses: np.ndarray
     commands: np.ndarray
     relative_to: str
     src: np.ndarray
+    object_offsets: np.ndarray
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -155,6 +186,11 @@ class Segment:
     def moved_to(self, dst: np.ndarray) -> np.ndarray:
         """This segment's poses in frame ``dst`` (:func:`transform_poses`)."""
         return transform_poses(self.poses, self.src, dst)
+
+    def object_offsets_in(self, dst: np.ndarray) -> np.ndarray:
+        """:attr:`object_offsets` turned as the segment is carried to frame ``dst``."""
+        rel = dst[:3, :3] @ self.src[:3, :3].T
+        return self.object_offsets @ rel.T
 
 
 @dataclass
@@ -167,6 +203,9 @@ class SourceDemo:
     segments: list[Segment] = field(default_factory=list)
     meta: dict[str, str] = field(default_factory=dict)
     task: str = TASK  # tile-sim's name
+    #: the object's and the target's yaws its segments' frames turn with (rad; 0 but for a
+    #: ``square`` task: :func:`frame_yaws`)
+    yaws: tuple[float, float] = (0.0, 0.0)
 
     @property
     def task_file(self) -> str | None:
@@ -229,13 +268,17 @@ def segment_episode(
     step = joint_step_of(meta)
     q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * step])
     poses = kin.fk_batch(q_after, model=(meta or {}).get("robot_model") or "ur3")
+    # the object's offset from the TCP after each action (the last one's: as after the one before)
+    after = np.vstack([f[1:], f[-1:]])
+    offsets = after[:, lay["object"]] - after[:, lay["tcp"]]
     obj, target = f[0, lay["object"]], f[0, lay["target"]]
+    yaws = frame_yaws(spec, f[0])
     cmds = actions[:, spec.commands].astype(np.float64)
     segs = [
-        Segment(poses[:k], cmds[:k], "object", frame(*obj)),
-        Segment(poses[k:], cmds[k:], "target", frame(*target)),
+        Segment(poses[:k], cmds[:k], "object", frame(*obj, yaws[0]), offsets[:k]),
+        Segment(poses[k:], cmds[k:], "target", frame(*target, yaws[1]), offsets[k:]),
     ]
-    return SourceDemo(name, obj.copy(), target.copy(), segs, dict(meta or {}), spec.sim)
+    return SourceDemo(name, obj.copy(), target.copy(), segs, dict(meta or {}), spec.sim, yaws)
 
 
 def joint_step_of(meta: dict[str, str] | None) -> float:
