@@ -118,12 +118,18 @@ def main(args: argparse.Namespace) -> int:
     demos = args.demos or cfg.demo_path
     compare = _compare_source(args.compare, cfg.env_settings.env_id, cfg.env_settings.task_file)
     bc = cfg.behavior.behavioral_cloning
+    # the demos --make-demos makes are the config's task's (the scripted person's, built in)
+    demo_task = _demo_task(cfg.env_settings.env_id)
     if args.make_demos and demos and bc is not None and bc.generate_from and not args.demos:
         learn.ensure_generated_demos(
-            Path(demos), bc.generate_count or 0, Path(bc.generate_from), bc.generate_sources or 0
+            Path(demos),
+            bc.generate_count or 0,
+            Path(bc.generate_from),
+            bc.generate_sources or 0,
+            task=demo_task,
         )
     elif args.make_demos and demos:
-        learn.ensure_demos(Path(demos), cfg.behavior.demo_episodes or 1)
+        learn.ensure_demos(Path(demos), cfg.behavior.demo_episodes or 1, task=demo_task)
     t0 = time.perf_counter()
     try:
         tr = learn.train(
@@ -152,6 +158,18 @@ def main(args: argparse.Namespace) -> int:
         compared = _compare_dir(run_dir, compare)
         print(_eval_rows(run_dir, args.eval_episodes, Path(cfg_path).stem, compared))
     return 0
+
+
+def _demo_task(env_id: str) -> str:
+    """The task (``suction``, ``place`` …) whose demos ``--make-demos`` makes for a config of
+    ``env_id``: its built-in task, else (the toy env, a spec file's ``Task-v0``) ``suction``, as
+    before configs of other tasks made their own."""
+    from mimicrete import tasks
+
+    try:
+        return tasks.get(env_id).name
+    except ValueError:
+        return "suction"
 
 
 def _check_config_task(

@@ -66,8 +66,9 @@ class DemoTrack:
 
     seed: int
     actions: np.ndarray  # (L, act_dim) float32, idle steps included (replay needs them all)
-    #: an explicit start (``object_pose``, ``target_offset``: a generated demo's, ``mimicrete
-    #: demogen``), replayed there instead of at the paper's start of ``seed``
+    #: an explicit start (``object_pose``, ``target_offset``, a turned pad's ``pad_yaw``: a
+    #: generated demo's, ``mimicrete demogen``), replayed there instead of at the paper's start
+    #: of ``seed``
     start: dict[str, list[float]] | None = None
 
     @property
@@ -101,7 +102,8 @@ def _explicit_start(meta: dict[str, str]) -> dict[str, list[float]] | None:
         return None
     import json
 
-    return {k: json.loads(meta[k]) for k in ("object_pose", "target_offset") if k in meta}
+    keys = ("object_pose", "target_offset", "pad_yaw")
+    return {k: json.loads(meta[k]) for k in keys if k in meta}
 
 
 def start_schedule(length: int, step_fraction: float) -> list[int]:
