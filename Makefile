@@ -8,7 +8,7 @@ STAMP := $(VENV)/.requirements.stamp
 NATIVE_STAMP := $(VENV)/.native.stamp
 RUST_SRC := $(shell find crates -name '*.rs' -o -name Cargo.toml -o -path '*/tasks/*.toml' 2>/dev/null) Cargo.toml Cargo.lock pyproject.toml
 
-.PHONY: help setup native web demos demos-row experiments train test test-rs test-py figures bench lint fmt experiments clean export-venv
+.PHONY: help setup native web demos demos-row demos-place demos-gen-place experiments train test test-rs test-py figures bench lint fmt experiments clean export-venv
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | column -t -s $$'\t'
@@ -66,6 +66,23 @@ $(ROW_DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/demonstrator/*.p
 	touch $@
 
 demos-row: $(ROW_DEMOS)/.done ## 5 scripted rows of tiles (TileRow) -> MCAP demos in demos/row (configs/row_fewdemo.yaml)
+
+PLACE_HANDS := data/hands/place
+PLACE_DEMOS := demos/place
+PLACE_GEN := demos/gen_place5
+
+$(PLACE_DEMOS)/.done: $(NATIVE_STAMP) $(wildcard python/mimicrete/demonstrator/*.py python/mimicrete/teleop/*.py python/mimicrete/gestures/*.py python/mimicrete/hands/*.py)
+	$(VENV)/bin/mimicrete synth-hands --task place --episodes 60 --seed 0 --out $(PLACE_HANDS)
+	$(VENV)/bin/mimicrete convert $(PLACE_HANDS) --task place --out $(PLACE_DEMOS) --overwrite
+	touch $@
+
+demos-place: $(PLACE_DEMOS)/.done ## 60 scripted tiles set down square (TilePlace) -> MCAP demos in demos/place
+
+$(PLACE_GEN)/.done: $(PLACE_DEMOS)/.done $(wildcard python/mimicrete/demogen/*.py)
+	$(VENV)/bin/mimicrete demogen --demos $(PLACE_DEMOS) --source-count 5 --count 500 --starts wide --seed 0 --out $(PLACE_GEN) --overwrite
+	touch $@
+
+demos-gen-place: $(PLACE_GEN)/.done ## 500 TilePlace demos at the wide starts from the first 5 of demos/place (demogen) in demos/gen_place5
 
 train: $(DEMOS)/.done ## the main job end to end: synthetic hands -> demos -> train -> eval -> plots
 	$(PY) train.py
