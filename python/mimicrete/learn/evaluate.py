@@ -314,11 +314,14 @@ def _run_episodes(
     return results
 
 
-def _start_of(sim: Any, i: int) -> dict[str, list[float]] | None:
-    """Where env ``i``'s running episode started, as the eval file holds it (lists of floats)."""
+def _start_of(sim: Any, i: int) -> dict[str, list[float] | float] | None:
+    """Where env ``i``'s running episode started, as the eval file holds it (lists of floats; a
+    turned pad's ``pad_yaw`` one float)."""
     if sim is None:
         return None
-    return {k: [float(x) for x in v] for k, v in sim.start(i).items()}
+    return {
+        k: float(v) if np.isscalar(v) else [float(x) for x in v] for k, v in sim.start(i).items()
+    }
 
 
 def _placement_of(sim: Any, i: int) -> Placement | None:

@@ -44,9 +44,11 @@ use crate::env::StepOutcome;
 use crate::spec::{EffectorSpec, SealSpec, TaskSpec};
 use rapier3d::prelude::*;
 
-/// The lips' drag on the tile's sliding, per kg (or kg·m² in yaw), 1/s: large enough to stop a
-/// relative slide within a step whenever the friction cap allows (a stiff Coulomb friction).
-const DRAG: f32 = 1000.0;
+/// How far (m) the lips give across the face before the tile slides on them, and how far (rad)
+/// in yaw: the hold's springs across the face reach the friction cap there, and a tile pushed
+/// further has slid (the hold is re-anchored where it is: stick and slip, no creep back).
+const SLIP: f32 = 0.0005;
+const SLIP_ANG: f32 = 0.5 * std::f32::consts::PI / 180.0;
 
 /// The force (N) one cup pushes back with when pressed onto the face (its lip's and bellows'
 /// stiffness; a flat Ø30 mm cup gives a few newtons over its stroke). A held tile pressed against
@@ -59,6 +61,10 @@ const CUP_PUSH: f32 = 5.0;
 pub(crate) struct SealState {
     /// The joint holding the tile (while a cup is sealed).
     pub(crate) joint: Option<ImpulseJointHandle>,
+    /// The joint of a hold just let go, with no force left: it only keeps the cups' colliders
+    /// from striking the face they were sealed on until the lips have left it (a lip peels off;
+    /// it does not kick the tile). Removed once the lips are `seal.gap` off the face.
+    pub(crate) parting: Option<ImpulseJointHandle>,
     /// Cups sealed after the last step.
     pub(crate) sealed: u8,
     /// Vacuum built up, 0 … 1 of `seal.vacuum_kpa`.
@@ -125,6 +131,29 @@ fn sealed_cups(spec: &TaskSpec, tool0: &Pose, tile: &Pose, half: [f32; 3]) -> u8
     k
 }
 
+/// The hold's anchor on the tile (`frame2`, world) moved back to within [`SLIP`] of the cups'
+/// (`frame1`, world) across the face and within [`SLIP_ANG`] in yaw: what has slid further than
+/// the lips give stays slid.
+fn slipped(frame1: &Pose, frame2: &Pose) -> Pose {
+    let d = frame1.rotation.inverse() * (frame2.translation - frame1.translation);
+    let across = (d.x * d.x + d.y * d.y).sqrt();
+    let mut t = frame2.translation;
+    if across > SLIP {
+        let back = Vector::new(d.x, d.y, 0.0) * (1.0 - SLIP / across);
+        t -= frame1.rotation * back;
+    }
+    // The twist of frame2 against frame1 about the cups' axis (swing-twist: the z part).
+    let r = frame1.rotation.inverse() * frame2.rotation;
+    let twist = 2.0 * r.z.atan2(r.w);
+    let twist = (twist + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+    let mut rot = frame2.rotation;
+    if twist.abs() > SLIP_ANG {
+        let back = twist - SLIP_ANG.copysign(twist);
+        rot = frame1.rotation * Rotation::from_rotation_z(-back) * r;
+    }
+    Pose::from_parts(t, rot)
+}
+
 /// The hold's force cap (N) along the cups' axis with `cups` sealed at vacuum `level` (0 … 1).
 fn peel_force(spec: &TaskSpec, cups: u8, level: f32) -> f32 {
     let (_, r, _, seal) = head(spec);
@@ -157,12 +186,48 @@ impl State {
         wrap(target - tile, period)
     }
 
-    /// Let go of a sealed tile (no hold afterwards; the vacuum falls).
+    /// Remove the hold at once, and any parting one (a teleport of the tile: tools.rs).
     pub(crate) fn drop_hold(&mut self) {
-        if let Some(j) = self.seal.joint.take() {
+        for j in [self.seal.joint.take(), self.seal.parting.take()].into_iter().flatten() {
             self.world.impulse_joints.remove(j, true);
         }
         self.held = false;
+    }
+
+    /// Let go of the held tile: the vacuum falls, the hold's forces go to zero, and its joint
+    /// parts once the lips are off the face ([`SealState::parting`]).
+    fn let_go(&mut self) {
+        self.released();
+        self.held = false;
+        let Some(h) = self.seal.joint.take() else { return };
+        if let Some(j) = self.world.impulse_joints.get_mut(h, true) {
+            for axis in [
+                JointAxis::LinX,
+                JointAxis::LinY,
+                JointAxis::LinZ,
+                JointAxis::AngX,
+                JointAxis::AngY,
+                JointAxis::AngZ,
+            ] {
+                j.data.set_motor_max_force(axis, 0.0);
+            }
+        }
+        self.seal.parting = Some(h);
+    }
+
+    /// Remove the parting joint once the lips are `seal.gap` off the face, or the cups' centre
+    /// is off the tile's outline (or a new hold begins: `now`).
+    fn part(&mut self, now: bool) {
+        let Some(h) = self.seal.parting else { return };
+        let (_, _, tcp_z, seal) = head(&self.spec);
+        let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
+        let (tile, half) = (self.object_pose(), self.tile_half());
+        let local = tile.inverse() * tcp;
+        let off_face = local.x.abs() > half[0] || local.y.abs() > half[1];
+        if now || off_face || lip_gap(tcp, &tile, half[2]) > seal.gap {
+            self.world.impulse_joints.remove(h, true);
+            self.seal.parting = None;
+        }
     }
 
     /// Make the joint that holds the tile, drawing its face onto the lips (as the vacuum does).
@@ -204,21 +269,25 @@ impl State {
         let c_ang = 2.0 * (k_ang * inertia).sqrt();
         // Along the cups' axis and in tilt: springs to the pose the hold began with (the cups'
         // elasticity), capped at the peel force and torque. Across the face and in yaw: the lips'
-        // friction, a drag on the relative velocity capped at `lip_friction` times the peel force
-        // (and that times `cup_offset` in yaw), so an overload slides the tile for good.
+        // friction, stiff springs that reach `lip_friction` times the peel force (and that times
+        // `cup_offset` in yaw) within SLIP; beyond it the tile has slid, for good.
         let slide = seal.lip_friction * f;
+        let (k_slide, k_twist) = (slide / SLIP, slide * off / SLIP_ANG);
         let (_, _, tcp_z, _) = head(&self.spec);
-        let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
-        let pressed = lip_gap(tcp, &self.object_pose(), half[2]) < 0.0;
+        let tile = self.object_pose();
+        let frame1 = self.tool0 * Pose::from_translation(Vector::new(0.0, 0.0, tcp_z));
+        let pressed = lip_gap(frame1.translation, &tile, half[2]) < 0.0;
         let axial = if pressed { CUP_PUSH * f32::from(self.seal.sealed) } else { f };
         let Some(j) = self.world.impulse_joints.get_mut(h, true) else { return };
+        let frame2 = slipped(&frame1, &(tile * j.data.local_frame2));
+        j.data.set_local_frame2(tile.inverse() * frame2);
         for (axis, k, c, cap) in [
             (JointAxis::LinZ, k_lin, c_lin, axial),
             (JointAxis::AngX, k_ang, c_ang, torque),
             (JointAxis::AngY, k_ang, c_ang, torque),
-            (JointAxis::LinX, 0.0, DRAG * mass, slide),
-            (JointAxis::LinY, 0.0, DRAG * mass, slide),
-            (JointAxis::AngZ, 0.0, DRAG * inertia, slide * off),
+            (JointAxis::LinX, k_slide, 2.0 * (k_slide * mass).sqrt(), slide),
+            (JointAxis::LinY, k_slide, 2.0 * (k_slide * mass).sqrt(), slide),
+            (JointAxis::AngZ, k_twist, 2.0 * (k_twist * inertia).sqrt(), slide * off),
         ] {
             j.data.set_motor_model(axis, MotorModel::ForceBased);
             j.data.set_motor(axis, 0.0, 0.0, k, c);
@@ -230,7 +299,7 @@ impl State {
     fn update_seal(&mut self, out: &mut StepOutcome) {
         self.seal.broke = false;
         let (_, _, tcp_z, seal) = head(&self.spec);
-        if self.seal.joint.is_some() {
+        if self.seal.joint.is_some() || self.seal.parting.is_some() {
             let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
             self.seal.pressed = lip_gap(tcp, &self.object_pose(), self.tile_half()[2]) < -seal.gap;
         }
@@ -244,14 +313,15 @@ impl State {
             self.seal.level = 0.0;
             if self.seal.joint.is_some() {
                 self.seal.broke = true;
-                self.released();
-                self.drop_hold();
+                self.let_go();
             }
+            self.part(false);
             return;
         }
         let ramp = if seal.time > 0.0 { CONTROL_DT / seal.time } else { 1.0 };
         self.seal.level = (self.seal.level + ramp).min(1.0);
         if self.seal.joint.is_none() {
+            self.part(true);
             self.make_hold();
             let reward = self.spec.rewards.pick;
             self.first_pick(out, reward);
@@ -301,8 +371,7 @@ impl TaskLogic for TilePlace {
             s.seal.level = 0.0;
             s.seal.sealed = 0;
             if s.seal.joint.is_some() {
-                s.released();
-                s.drop_hold();
+                s.let_go();
             }
         }
     }
