@@ -10,6 +10,8 @@
 //! * One env step = [`CONTROL_DT`] = 0.04 s of simulated time (25 Hz control), simulated by one
 //!   Rapier step with `dt = CONTROL_DT` and [`PHYSICS_SUBSTEPS`] = 2 solver substeps (20 ms each; 1, 2 and 4 substeps were measured at
 //!   35k, 37k and 41k instructions per TileSuction step: two keep resting and pushed contacts stable).
+//!   A TilePlace world runs [`world::PLACE_SUBSTEPS`] = 8 (a released tile landing on the pad needs
+//!   them; `world::physics_substeps`).
 //! * At `|a_i| = 1` a joint moves [`MAX_JOINT_STEP`] = 0.04 rad per step, i.e. 1 rad/s (the UR3's
 //!   rated joint speed is 3.14 rad/s; 1 rad/s keeps the flange under ~0.5 m/s, a safe teaching speed).
 //!   A move of 1 rad takes 25 steps (1 s); an episode of [`MAX_EPISODE_STEPS`] = 750 steps lasts 30 s.
@@ -48,6 +50,8 @@
 //!   0.085 m; gap 0–0.085 m at a constant 0.1 m/s. Block: 4 cm wooden cube (45 g).
 //! * Screw: M12 bolt (pitch 1.75 mm) on a plate at `(x, 0.32)`, `x ~ U[0, 0.15]`; the nut rides the
 //!   thread (kinematic), spun at 1 turn/s while gripped with the flange within ~20° of vertical.
+//! * TilePlace: TileSuction's scene; the held tile stays dynamic, held by a force-limited joint
+//!   while a cup is sealed on its face (`src/task/tile_place.rs`); the wide starts turn the pad.
 //! * TileRow: three TileSuction tiles in a row along x at `y = 0.40` (tile 0's centre at
 //!   `x ~ U[−0.20, −0.14]`, 0.17 m between centres) and three touching pads in a row along x at
 //!   `y = 0.18` (centres at x = −0.2, 0, 0.2); tile `i` goes on pad `i`

@@ -244,7 +244,7 @@ fn constants_record_is_unchanged() {
     let row = c.tasks.remove("TileRow").expect("the record lists TileRow");
     assert_eq!((row.obs_frame_dim, row.obs_dim, row.act_dim), (43, 215, 7));
     let place = c.tasks.remove("TilePlace").expect("the record lists TilePlace");
-    assert_eq!((place.obs_frame_dim, place.obs_dim, place.act_dim), (28, 140, 7));
+    assert_eq!((place.obs_frame_dim, place.obs_dim, place.act_dim), (32, 160, 7));
     let mut h = Fnv::new();
     h.bytes(format!("{c:?}").as_bytes());
     assert_eq!(h.0, 0x9665706803e23574, "constants digest now {:#018x}", h.0);

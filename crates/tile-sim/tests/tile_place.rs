@@ -117,7 +117,7 @@ fn suction_on_with_the_lips_10_mm_above_the_face_takes_nothing() {
             let out = env.step(&act([0.0; 6], 1.0), &mut o).unwrap();
             assert!(!out.held && !out.picked && out.reward == 0.0, "seed {seed}: held from 10 mm");
         }
-        assert_eq!(o[o.len() - 28 + 16], 0.0, "the vacuum switch reads nothing");
+        assert_eq!(o[o.len() - T.obs_frame_dim() + 16], 0.0, "the vacuum switch reads nothing");
         let t = env.snapshot().object.t;
         assert!((t[2] - t0[2]).abs() < 0.002, "the tile was not pulled up: {t:?} vs {t0:?}");
         // 2 mm above the face, the lips seal: held, +1 once.

@@ -114,7 +114,7 @@ TASKS: dict[str, TaskFrames] = {
     "Screw": TaskFrames("Screw", 18, 8, _lay("screw"), 6, True, False, "hold", True, True),
     # placed is judged resting after the source's release: the last pose is held until it rests
     "TilePlace": TaskFrames(
-        "TilePlace", 28, 7, _lay("place"), 6, False, True, "hold", square=True, follow_object=True
+        "TilePlace", 32, 7, _lay("place"), 6, False, True, "hold", square=True, follow_object=True
     ),
 }
 

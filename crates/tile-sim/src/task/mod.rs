@@ -125,11 +125,14 @@ impl Task {
     ///   order: `target_i[3]` m (tile `i`'s centre installed on pad `i`), `tile_centre_i[3]` m,
     ///   `installed_i` (1 installed / 0 not). A spec's row of two leaves the third tile's seven
     ///   floats zero.
-    /// * TilePlace (28): TileSuction's 16, then `vacuum` (the vacuum switch: 0 … 1, the sealed
+    /// * TilePlace (32): TileSuction's 16, then `vacuum` (the vacuum switch: 0 … 1, the sealed
     ///   cups' share times the built-up vacuum), `tile_centre − cup_centre[3]`, `target −
     ///   tile_centre[3]`, `yaw_error` (rad, the target's yaw minus the tile's, wrapped to ±45° for
     ///   a square tile), `cos 4ψ, sin 4ψ` of the tile's yaw ψ and of the target's (a square tile's
-    ///   yaw is known modulo 90°: 4ψ is what a camera sees).
+    ///   yaw is known modulo 90°: 4ψ is what a camera sees), then the fine gauge:
+    ///   `tanh((target − tile_centre) / 1 cm)[3]` and `tanh(yaw_error / 2°)` (a policy's
+    ///   normaliser scales each float by its spread over whole episodes, decimetres for the
+    ///   differences: the last millimetres of a placement would be noise without it).
     ///
     /// All positions in the Base frame.
     pub fn obs_frame_dim(self) -> usize {

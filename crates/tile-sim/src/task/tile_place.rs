@@ -1,7 +1,8 @@
 //! TilePlace (issue 46): TileSuction's scene under rules a real cell keeps. Nothing is held
 //! without contact, nothing passes through anything, and a success is a tile a tiler would
-//! accept. Frame (28 floats): TileSuction's 16, the vacuum switch, tile − cup, target − tile, the
-//! yaw error and the yaws as `cos 4ψ, sin 4ψ` ([`Task::obs_frame_dim`](crate::Task::obs_frame_dim)).
+//! accept. Frame (32 floats): TileSuction's 16, the vacuum switch, tile − cup, target − tile, the
+//! yaw error, the yaws as `cos 4ψ, sin 4ψ` and a fine gauge of the last millimetres
+//! ([`Task::obs_frame_dim`](crate::Task::obs_frame_dim)).
 //!
 //! # The hold
 //! * **Seal, per cup.** With the suction on, a cup seals when its lip lies on the tile's face:
@@ -14,16 +15,26 @@
 //!   off. The observation's vacuum switch is that level times the sealed cups' share.
 //! * **Hold.** While a cup is sealed the tile is held by a joint between the last link and the
 //!   tile, never by moving the tile: the tile stays a dynamic body, so it collides with the
-//!   table, the pad and the arm like any other. The joint pulls the tile's face
-//!   [`PRELOAD`] past the lips, so the cups' colliders press on the face as the vacuum does, and
-//!   each of its six axes is a spring-damper motor whose force is capped: along the cups' axis
-//!   (peel) at `vacuum · π · cup_radius² · sealed cups / safety_factor`, across it (shear) at
-//!   `lip_friction` times that, and about each axis at that force times `cup_offset`. A load the
-//!   cups cannot hold (the tile's weight and inertia when swung, a push against the table)
-//!   therefore moves the tile away from the lips, and once no lip is within `seal.gap` of the
-//!   face the hold is gone (the grip broke: the tile falls or stays where it was pushed).
-//! * **Release.** The suction command off removes the joint; the tile's height at that moment is
-//!   kept to judge the drop.
+//!   table, the pad and the arm like any other (but the cups: the joint is their contact with
+//!   the sealed face, their compliance). The joint draws the face onto the lips when the hold
+//!   begins (as the vacuum does), and each of its six axes is a spring-damper motor whose force
+//!   is capped: along the cups' axis (peel) at `vacuum · π · cup_radius² · sealed cups /
+//!   safety_factor`, in tilt at that force times `cup_offset`, across the face at `lip_friction`
+//!   times that force and in yaw at that times `cup_offset`. Across the face and in yaw the lips
+//!   stick and slip: stiff springs reach the friction cap within [`SLIP`] / [`SLIP_ANG`], and a
+//!   tile pushed further has slid for good (the hold is re-anchored where it is). A load the
+//!   cups cannot hold (the tile's weight and inertia when swung, a push against the table) moves
+//!   the tile away from the lips, and once no lip is within `seal.gap` of the face the hold is
+//!   gone (the grip broke: the tile falls or stays where it was pushed). Pressed onto a tile
+//!   that rests on something, the cups push back with at most [`CUP_PUSH`] each and give up to
+//!   `seal.gap`; pressed further, the arm stops (a protective stop, as a real arm stops on its
+//!   force limit): the episode fails.
+//! * **Release.** The suction command off takes the hold's forces away; its joint stays, force
+//!   free, until the lips are `seal.gap` off the face ([`SealState::parting`]: a lip peels off,
+//!   it does not kick). The tile's height at that moment is kept to judge the drop.
+//! * **Solver.** A TilePlace world runs [`PLACE_SUBSTEPS`](crate::world::PLACE_SUBSTEPS) solver
+//!   substeps per env step: with the default two, a tile let go 2 mm above the pad sank into it
+//!   and was kicked sideways by millimetres.
 //!
 //! # Rules
 //! * **Pick** (+1 once, `rewards.pick`): the first hold of the episode.
@@ -338,7 +349,7 @@ impl State {
 
 impl TaskLogic for TilePlace {
     fn obs_frame_dim(&self) -> usize {
-        28
+        32
     }
 
     fn act_dim(&self) -> usize {
@@ -415,5 +426,14 @@ impl TaskLogic for TilePlace {
         let m = std::f32::consts::TAU / period;
         f[k + 7] = wrap(yg - yt, period);
         f[k + 8..k + 12].copy_from_slice(&[(m * yt).cos(), (m * yt).sin(), (m * yg).cos(), (m * yg).sin()]);
+        // The fine gauge: target − tile and the yaw error squashed at 1 cm and 2°.
+        let g = |x: f32, scale: f32| (x / scale).tanh();
+        let yaw = wrap(yg - yt, period);
+        f[k + 12..k + 16].copy_from_slice(&[
+            g(b.x, 0.01),
+            g(b.y, 0.01),
+            g(b.z, 0.01),
+            g(yaw, 2f32.to_radians()),
+        ]);
     }
 }
