@@ -18,9 +18,7 @@ from mimicrete.tasks import TASKS
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Flags of ``mimicrete synth-hands``."""
-    parser.add_argument(
-        "--task", choices=TASKS, default=None, help="task to demonstrate (suction)"
-    )
+    parser.add_argument("--task", choices=TASKS, default=None, help="task to demonstrate (suction)")
     parser.add_argument(
         "--task-file",
         metavar="SPEC.toml",
@@ -63,6 +61,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run ``mimicrete synth-hands``."""
     from mimicrete.demonstrator import check_task, synth_hands
+    from mimicrete.teleop.look import offset_seen
 
     if args.episodes < 1:
         raise UsageError(f"--episodes must be >= 1, got {args.episodes}")
@@ -101,6 +100,7 @@ def main(args: argparse.Namespace) -> int:
         handedness=args.handedness,
         progress=True,
         task_file=args.task_file,
+        see=offset_seen,
     )
     print(f"wrote {len(paths)} hand logs to {args.out}")
     return 0

@@ -47,7 +47,7 @@ from mimicrete.hands import layouts
 from mimicrete.hands import log as handlog
 from mimicrete.kin import Calibration
 
-from .look import BY_EYE, EYE_DEG, EYE_MM, offset_seen
+from .look import BY_EYE, EYE_DEG, EYE_MM, Seer
 from .motion import (  # noqa: F401  (re-exported: the demonstrator's public names)
     TASKS,
     Person,
@@ -100,11 +100,13 @@ def synth_episode(
     handedness: str = "right",
     extra: dict[str, Any] | None = None,
     task_file: str | None = None,
+    see: Seer | None = None,
 ) -> SynthEpisode:
     """Synthesise one demonstration of ``scene``; the same ``(scene, seed)`` gives the same
     episode. ``extra``: more header fields (the task spec file a scene came from);
     ``task_file``: the task spec file the scene is an episode of (where a look runs, :mod:`.look`;
-    None: the task's built-in spec)."""
+    None: the task's built-in spec); ``see``: what the person sees when it looks
+    (:data:`.look.Seer`; None: a task set down by eye is set down without looking)."""
     layout = layouts.check_layout(layout)
     calib = calib or Calibration()
     rng = np.random.default_rng([seed, scene.episode_seed & 0xFFFFFFFF, 0x5E17])
@@ -145,9 +147,9 @@ def synth_episode(
         joints[k0 : k0 + length] = joints[k0 - 1]  # the runtime repeats its last estimate
     out = layouts.to_layout(joints, layout)
     look = None
-    if scene.task in BY_EYE:
+    if scene.task in BY_EYE and see is not None:
         look = _set_down_by_eye(
-            scene, phases, t, tracked, out, frames, layout, handedness, calib, rng, task_file
+            scene, phases, t, tracked, out, frames, layout, handedness, calib, rng, see, task_file
         )
     header = handlog.header(
         layout,
@@ -184,9 +186,10 @@ def _set_down_by_eye(
     handedness: str,
     calib: Calibration,
     rng: np.random.Generator,
+    see: Seer,
     task_file: str | None = None,
 ) -> dict[str, Any]:
-    """The person looks at the held object as the set-down starts (:func:`.look.offset_seen`,
+    """The person looks at the held object as the set-down starts (``see``,
     judged to within :data:`.look.EYE_MM` and :data:`.look.EYE_DEG`: drawn from ``rng``) and,
     while setting it down, moves the hand by the object's offset from its target and turns it
     about the TCP by the object's turn from square (min-jerk over the set-down, kept after it):
@@ -195,7 +198,7 @@ def _set_down_by_eye(
     down = np.flatnonzero(np.asarray(phases) == BY_EYE[scene.task])
     k = int(down[0])
     eye = rng.normal(scale=[EYE_MM / 1000.0, EYE_MM / 1000.0, np.radians(EYE_DEG)])
-    seen = eye + offset_seen(
+    seen = eye + see(
         scene.task,
         scene.episode_seed,
         t[:k],
@@ -264,6 +267,7 @@ def synth_hands(
     scene_fn: Any = None,
     progress: bool = False,
     task_file: str | Path | None = None,
+    see: Seer | None = None,
 ) -> list[Path]:
     """Write ``episodes`` hand logs for ``task`` into ``out``; returns their paths.
 
@@ -311,6 +315,7 @@ def synth_hands(
             handedness=handedness,
             extra=extra,
             task_file=None if task_file is None else str(task_file),
+            see=see,
         )
         paths.append(write_handlog(out / f"{task}_{i:04d}.handlog.jsonl", ep))
     return paths

@@ -61,12 +61,29 @@ FRAME_NAMES["row"] = [
     ),
 ]
 
+#: The placed tile's (TilePlace, tile-sim ``task/tile_place.rs``): the suction task's, the vacuum
+#: switch, the two differences, the yaw error, the yaws as cos/sin of four times the angle, and the
+#: fine gauge of the last millimetres.
+FRAME_NAMES["place"] = [
+    *FRAME_NAMES["suction"],
+    "vacuum",
+    *_ROW_REL,
+    "yaw_error",
+    "tile_cos4yaw",
+    "tile_sin4yaw",
+    "target_cos4yaw",
+    "target_sin4yaw",
+    *(f"target_from_tile_fine_{a}" for a in _XYZ),
+    "yaw_error_fine",
+]
+
 #: Names of the action's entries per task.
 ACTION_NAMES: dict[str, list[str]] = {
     "suction": [*(f"dq{i}" for i in range(6)), "suction_command"],
     "grip": [*(f"dq{i}" for i in range(6)), "gripper_command"],
     "screw": [*(f"dq{i}" for i in range(6)), "gripper_command", "spin_command"],
     "row": [*(f"dq{i}" for i in range(6)), "suction_command"],
+    "place": [*(f"dq{i}" for i in range(6)), "suction_command"],
 }
 
 INFO_KEYS: tuple[str, ...] = ("picked", "held", "installed", "fell")

@@ -59,7 +59,6 @@ class LoadedDemos:
                     f"{path}; {len(self.tasks) - others} of {len(self.tasks)} files are {theirs})"
                 )
 
-
     def check_spec(self, sim: str, task_file: str | None, path: str | os.PathLike[str]) -> None:
         """:class:`DemoDataError` naming the first demo file recorded in another task spec than
         the run's (``task_file``'s spec, or ``sim``'s built-in one): a demo names the spec file it
@@ -325,8 +324,9 @@ def ensure_demos(
     )
     from mimicrete.demonstrator import synth_hands
     from mimicrete.teleop import convert as cv
+    from mimicrete.teleop.look import offset_seen
 
-    logs = synth_hands(task, n, seed, hand_dir, progress=True)
+    logs = synth_hands(task, n, seed, hand_dir, progress=True, see=offset_seen)
     plan = cv.plan_outputs(logs, demo_dir, overwrite=True)  # the same logs give the same demos
     for i, path in enumerate(logs):
         cv.convert_log(path, task, plan[path], episode_index=i)
