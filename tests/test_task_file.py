@@ -316,15 +316,6 @@ def one_error_line(r, *parts: str) -> str:
     return line
 
 
-@pytest.mark.parametrize("edit,says", BAD_SPECS, ids=[s[1][0] for s in BAD_SPECS])
-def test_a_bad_task_file_is_one_line_and_exit_2(tmp_path: Path, edit, says) -> None:
-    bad = spec_copy(tmp_path, "TileSuction", edit)
-    out = tmp_path / "out"
-    r = run_cli("synth-hands", "--task-file", str(bad), "--episodes", "1", "--out", str(out))
-    one_error_line(r, f"{bad}: ", *says)
-    assert not out.exists()
-
-
 BAD_PLACE_SPECS = [
     # (edit of tile_place.toml, what the one line must say)
     (("gap = 0.003", "gap = 0.06"), ["effector.seal.gap = 0.06", "below 0.05 m"]),
@@ -341,9 +332,14 @@ BAD_PLACE_SPECS = [
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize("edit,says", BAD_PLACE_SPECS, ids=[s[1][0] for s in BAD_PLACE_SPECS])
-def test_a_bad_placed_rule_or_seal_is_one_line_and_exit_2(tmp_path: Path, edit, says) -> None:
-    bad = spec_copy(tmp_path, "TilePlace", edit)
+#: (the built-in spec edited, the edit, what the one line must say)
+BAD_TASK_FILES = [("TileSuction", *b) for b in BAD_SPECS]
+BAD_TASK_FILES += [("TilePlace", *b) for b in BAD_PLACE_SPECS]
+
+
+@pytest.mark.parametrize("task,edit,says", BAD_TASK_FILES, ids=[b[2][0] for b in BAD_TASK_FILES])
+def test_a_bad_task_file_is_one_line_and_exit_2(tmp_path: Path, task, edit, says) -> None:
+    bad = spec_copy(tmp_path, task, edit)
     out = tmp_path / "out"
     r = run_cli("synth-hands", "--task-file", str(bad), "--episodes", "1", "--out", str(out))
     one_error_line(r, f"{bad}: ", *says)

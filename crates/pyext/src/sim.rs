@@ -311,6 +311,14 @@ pub struct SimVecEnv {
     act_dim: usize,
 }
 
+impl SimVecEnv {
+    /// Env `i`, or a ValueError naming the index and the range.
+    fn env_at(&self, i: usize) -> PyResult<&Env> {
+        let n = self.num_envs;
+        self.venv.env(i).ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))
+    }
+}
+
 type Obs<'py> = Bound<'py, PyArrayDyn<f32>>;
 type F32s<'py> = Bound<'py, PyArray1<f32>>;
 type Bools<'py> = Bound<'py, PyArray1<bool>>;
@@ -443,11 +451,7 @@ impl SimVecEnv {
 
     /// Where env `i`'s running episode started (see `SimEnv.start`).
     fn start<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Any<'py>> {
-        let n = self.num_envs;
-        let env = self
-            .venv
-            .env(i)
-            .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))?;
+        let env = self.env_at(i)?;
         to_py(py, &env.start())
     }
 
@@ -503,21 +507,13 @@ impl SimVecEnv {
     /// `SimEnv.last_placement` of env `i`: the placement its last finished episode ended with
     /// (an env that ended in a step has been reset already; this is kept through the reset).
     fn last_placement<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Any<'py>> {
-        let n = self.num_envs;
-        let env = self
-            .venv
-            .env(i)
-            .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))?;
+        let env = self.env_at(i)?;
         to_py(py, &env.last_placement())
     }
 
     /// Snapshot of env `i` (see `SimEnv.snapshot`).
     fn snapshot<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Any<'py>> {
-        let n = self.num_envs;
-        let env = self
-            .venv
-            .env(i)
-            .ok_or_else(|| PyValueError::new_err(format!("env index {i} out of range 0..{n}")))?;
+        let env = self.env_at(i)?;
         to_py(py, &env.record_state())
     }
 }
