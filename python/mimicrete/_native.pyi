@@ -662,6 +662,11 @@ class DemoWriter:
         (/teleop/stage_times): client clock capture_ms, sent_ms, page_recv_ms (None: the state
         was not acknowledged); server clock server_recv_ms, state_sent_ms (None: the episode ended
         on this frame, before its state went out)."""
+    def write_deploy_tick(self, tick: dict[str, Any]) -> None:
+        """Record one deployment tick (``/deploy/tick``, ``mimicrete.DeployTick.v1``): a dict of
+        every field of the schema and no other (step, t, robot_time, q_read, tcp_read,
+        safety_mode, digital_out, tile_pose, tile_source, raw_action, command_q, suction, gates,
+        sent, latency_ms); written after the tick's step."""
     @property
     def steps(self) -> int:
         """Steps written so far."""

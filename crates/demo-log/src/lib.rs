@@ -81,10 +81,10 @@ pub use salvage::{
 /// The URDF links' parent-to-child transforms (ur3-kin's; `/tf` publishes them).
 pub use ur3_kin::urdf::link_transforms;
 pub use writer::{
-    BASE_FRAME, DEMO_FORMAT, DEMO_FORMAT_VERSION, DemoWriter, EpisodeMeta, EpisodeSummary, LINK_FRAMES, Pose,
-    Primitive, ROW_FRAMES, SceneEntity, Shape, StageTimes, StepRecord, TILE_FRAME, TOPIC_EVENTS, TOPIC_HAND,
-    TOPIC_SCENE, TOPIC_STAGE_TIMES, TOPIC_STEP, TOPIC_TF, WriteStats, WriterOptions, foxglove_entity,
-    log_time_ns, robot_link_entities, sha256_hex,
+    BASE_FRAME, DEMO_FORMAT, DEMO_FORMAT_VERSION, DemoWriter, DeployTick, EpisodeMeta, EpisodeSummary,
+    LINK_FRAMES, Pose, Primitive, ROW_FRAMES, SceneEntity, Shape, StageTimes, StepRecord, TILE_FRAME,
+    TOPIC_DEPLOY_TICK, TOPIC_EVENTS, TOPIC_HAND, TOPIC_SCENE, TOPIC_STAGE_TIMES, TOPIC_STEP, TOPIC_TF,
+    WriteStats, WriterOptions, foxglove_entity, log_time_ns, robot_link_entities, sha256_hex,
 };
 
 /// Re-exported so that bindings can build the `extra` objects of hand-log headers.

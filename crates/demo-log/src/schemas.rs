@@ -11,6 +11,8 @@ pub const STEP_SCHEMA_NAME: &str = "mimicrete.DemoStep.v1";
 pub const HAND_SCHEMA_NAME: &str = "mimicrete.HandFrame.v1";
 /// Schema name of `/teleop/stage_times`.
 pub const STAGE_TIMES_SCHEMA_NAME: &str = "mimicrete.StageTimes.v1";
+/// Schema name of `/deploy/tick`.
+pub const DEPLOY_TICK_SCHEMA_NAME: &str = "mimicrete.DeployTick.v1";
 /// Schema name of `/tf`.
 pub const TF_SCHEMA_NAME: &str = "foxglove.FrameTransforms";
 /// Schema name of `/scene`.
@@ -194,6 +196,40 @@ pub fn stage_times_schema() -> String {
          to the socket; null when the episode ended on that frame) on the server's; page_recv_ms \
          (the client's clock) when the client acknowledged the state, else null. Written after the step, at the log time of the latest \
          message.",
+    )
+}
+
+/// `mimicrete.DeployTick.v1`: one control tick of `mimicrete deploy`.
+pub fn deploy_tick_schema() -> String {
+    let vec = |n: usize| format!(r#"{{"type":"array","items":{NUM},"minItems":{n},"maxItems":{n}}}"#);
+    let raw = r#"{"type":"array","items":{"type":["number","null"]}}"#;
+    let strs = format!(r#"{{"type":"array","items":{STR}}}"#);
+    let props: Vec<(&str, String)> = vec![
+        ("step", UINT.into()),
+        ("t", NUM.into()),
+        ("robot_time", NUM.into()),
+        ("q_read", vec(6)),
+        ("tcp_read", vec(6)),
+        ("safety_mode", r#"{"type":"integer"}"#.into()),
+        ("digital_out", UINT.into()),
+        ("tile_pose", vec(3)),
+        ("tile_source", STR.into()),
+        ("raw_action", raw.into()),
+        ("command_q", vec(6)),
+        ("suction", BOOL.into()),
+        ("gates", strs),
+        ("sent", BOOL.into()),
+        ("latency_ms", NUM.into()),
+    ];
+    let names: Vec<&str> = props.iter().map(|(k, _)| *k).collect();
+    let body = object(Some(DEPLOY_TICK_SCHEMA_NAME), &props, &names);
+    with_schema_header(
+        body,
+        "One control tick of a robot deployment: the joints (rad) and TCP (x, y, z, rotation vector) \
+         read, the safety mode and digital outputs read, the tile pose (x, y, yaw) put into the \
+         observation and its source, the policy's raw action (null where not finite), the joint \
+         target after the gates, the suction commanded, the gates that fired, whether the command \
+         was sent, and the time from the read to the command (ms).",
     )
 }
 

@@ -29,6 +29,8 @@ pub const TOPIC_SCENE: &str = "/scene";
 pub const TOPIC_EVENTS: &str = "/events";
 /// Topic of a live session's per-step stage times (only live demos carry it).
 pub const TOPIC_STAGE_TIMES: &str = "/teleop/stage_times";
+/// Topic of a robot deployment's per-tick record (only `mimicrete deploy` logs carry it).
+pub const TOPIC_DEPLOY_TICK: &str = "/deploy/tick";
 
 /// Name of the root frame (the UR controller's Base frame, Z up, metres).
 pub const BASE_FRAME: &str = urdf::LINKS[0];
@@ -533,6 +535,8 @@ struct Channels {
     events: u16,
     /// Added by the first [`DemoWriter::write_stage_times`], so other demos keep five channels.
     stage_times: Option<u16>,
+    /// Added by the first [`DemoWriter::write_deploy_tick`].
+    deploy_tick: Option<u16>,
 }
 
 /// When one control step's hand frame passed each stage of a live session
@@ -558,6 +562,46 @@ pub struct StageTimes {
     pub page_recv_ms: Option<f64>,
 }
 
+/// One control tick of a robot deployment (`mimicrete.DeployTick.v1`, topic
+/// [`TOPIC_DEPLOY_TICK`]): what was read from the robot, where the tile was and from which source,
+/// the policy's raw action, the joint command after the gates, which gates fired, whether the
+/// command was sent, and the time from the read to the command. Joint angles in rad, poses in the
+/// Base frame (m; the TCP as the controller reports it: x, y, z and a rotation vector).
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeployTick {
+    /// The control tick (its `/demo/step` number).
+    pub step: u64,
+    /// Seconds since the deployment started (host clock).
+    pub t: f64,
+    /// The robot's timestamp of the state read (s; the controller's clock).
+    pub robot_time: f64,
+    /// Joint angles read.
+    pub q_read: Vec<f64>,
+    /// TCP pose read: x, y, z, rx, ry, rz.
+    pub tcp_read: Vec<f64>,
+    /// The controller's safety mode (1 = normal).
+    pub safety_mode: i64,
+    /// The standard digital outputs read, as bits.
+    pub digital_out: u64,
+    /// The tile pose put into the observation: x, y, yaw.
+    pub tile_pose: Vec<f64>,
+    /// Where that pose came from (`fixed`, `file:PATH`, `held`: carried with the suction cups).
+    pub tile_source: String,
+    /// The policy's action as it came out of the policy (`None` where it was not finite).
+    pub raw_action: Vec<Option<f64>>,
+    /// The joint target after the gates (the read angles when a gate held the arm).
+    pub command_q: Vec<f64>,
+    /// The suction output commanded after this tick.
+    pub suction: bool,
+    /// The gates that fired on this tick (empty: none).
+    pub gates: Vec<String>,
+    /// The command went to the robot (false in shadow mode and on a stop).
+    pub sent: bool,
+    /// From the state read to the command handed on (ms).
+    pub latency_ms: f64,
+}
+
 /// Records one episode into an MCAP file.
 ///
 /// Writes go to `PATH.partial`; [`DemoWriter::finish`] writes the summary and renames the file to
@@ -572,7 +616,7 @@ pub struct DemoWriter {
     meta: EpisodeMeta,
     model: &'static UrModel,
     ch: Channels,
-    seq: [u32; 6],
+    seq: [u32; 7],
     last_log_time: u64,
     steps: u64,
     messages: u64,
@@ -690,6 +734,7 @@ impl DemoWriter {
             scene: w.add_channel(s_scene, TOPIC_SCENE, "json", &none).map_err(&me)?,
             events: w.add_channel(s_ev, TOPIC_EVENTS, "json", &none).map_err(&me)?,
             stage_times: None,
+            deploy_tick: None,
         };
         Ok(DemoWriter {
             w,
@@ -698,7 +743,7 @@ impl DemoWriter {
             meta: meta.clone(),
             model,
             ch,
-            seq: [0; 6],
+            seq: [0; 7],
             last_log_time: 0,
             steps: 0,
             messages: 0,
@@ -741,8 +786,9 @@ impl DemoWriter {
 
     fn put(&mut self, which: usize, log_time: u64, data: &[u8]) -> Result<(), DemoError> {
         let stage = self.ch.stage_times.unwrap_or(0);
+        let tick = self.ch.deploy_tick.unwrap_or(0);
         let channel_id =
-            [self.ch.step, self.ch.hand, self.ch.tf, self.ch.scene, self.ch.events, stage][which];
+            [self.ch.step, self.ch.hand, self.ch.tf, self.ch.scene, self.ch.events, stage, tick][which];
         let sequence = self.seq[which];
         self.seq[which] = sequence.wrapping_add(1);
         self.w
@@ -1001,6 +1047,55 @@ impl DemoWriter {
         }
         let bytes = serde_json::to_vec(st).map_err(|e| DemoError::Invalid(e.to_string()))?;
         self.put(5, self.last_log_time, &bytes)
+    }
+
+    /// Record one deployment tick on [`TOPIC_DEPLOY_TICK`] at the log time of the latest message
+    /// (written after the tick's step).
+    ///
+    /// # Errors
+    /// [`DemoError::Invalid`] for a tick whose step is not yet written, a non-finite number or a
+    /// vector of the wrong length.
+    pub fn write_deploy_tick(&mut self, tick: &DeployTick) -> Result<(), DemoError> {
+        if tick.step >= self.steps {
+            return Err(DemoError::Invalid(format!(
+                "deploy tick {}: only {} steps written",
+                tick.step, self.steps
+            )));
+        }
+        let lens = [
+            ("q_read", tick.q_read.len(), 6),
+            ("tcp_read", tick.tcp_read.len(), 6),
+            ("tile_pose", tick.tile_pose.len(), 3),
+            ("command_q", tick.command_q.len(), 6),
+        ];
+        if let Some((name, got, want)) = lens.iter().find(|(_, got, want)| got != want) {
+            return Err(DemoError::Invalid(format!(
+                "deploy tick {}: {name} has {got} numbers, expected {want}",
+                tick.step
+            )));
+        }
+        let numbers = [tick.t, tick.robot_time, tick.latency_ms];
+        let all = numbers
+            .iter()
+            .chain(&tick.q_read)
+            .chain(&tick.tcp_read)
+            .chain(&tick.tile_pose)
+            .chain(&tick.command_q);
+        if all.clone().any(|x| !x.is_finite()) {
+            return Err(DemoError::Invalid(format!("deploy tick {}: a non-finite number", tick.step)));
+        }
+        if self.ch.deploy_tick.is_none() {
+            let me = mcap_err(&self.partial);
+            let schema = schemas::deploy_tick_schema();
+            let sid = self
+                .w
+                .add_schema(schemas::DEPLOY_TICK_SCHEMA_NAME, "jsonschema", schema.as_bytes())
+                .map_err(&me)?;
+            self.ch.deploy_tick =
+                Some(self.w.add_channel(sid, TOPIC_DEPLOY_TICK, "json", &BTreeMap::new()).map_err(&me)?);
+        }
+        let bytes = serde_json::to_vec(tick).map_err(|e| DemoError::Invalid(e.to_string()))?;
+        self.put(6, self.last_log_time, &bytes)
     }
 
     /// Record a raw hand frame on `/hand/joints` at log time `t` (episode seconds; the frame keeps

@@ -223,6 +223,16 @@ impl PyDemoWriter {
         self.open()?.write_stage_times(&st).map_err(demo_err)
     }
 
+    /// Record one deployment tick (`/deploy/tick`, ``mimicrete.DeployTick.v1``) from a dict of
+    /// its fields (every field, no other; see the schema); written after the tick's step.
+    fn write_deploy_tick(&mut self, tick: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = from_py(tick)
+            .map_err(|e| PyValueError::new_err(format!("deploy tick: {}", e.value(tick.py()))))?;
+        let tick: demo_log::DeployTick = demo_log::serde_json::from_value(v)
+            .map_err(|e| PyValueError::new_err(format!("deploy tick: {e}")))?;
+        self.open()?.write_deploy_tick(&tick).map_err(demo_err)
+    }
+
     /// Steps written so far.
     #[getter]
     fn steps(&self) -> u64 {
