@@ -16,7 +16,7 @@ help: ## list the targets
 $(PY):
 	python3 -m venv $(VENV)
 
-$(STAMP): $(PY) requirements/base.txt requirements/dev.txt requirements/constraints.txt
+$(STAMP): $(PY) requirements/base.txt requirements/dev.txt requirements/robot.txt requirements/constraints.txt
 	$(PIP) install --quiet --upgrade pip
 	$(PIP) install --quiet -r requirements/dev.txt -c requirements/constraints.txt
 	touch $@

@@ -38,6 +38,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demogen": ("demogen", "generate installing demos at new starts from a few (MimicGen)"),
     "inspect": ("inspect", "show what is in an MCAP demo and check it"),
     "export": ("export", "MCAP demos -> a LeRobot v3.0 or Minari dataset (one task per dataset)"),
+    "deploy": (
+        "deploy",
+        "a trained policy on a robot: --sim, --shadow (reads a UR, sends nothing) or --live",
+    ),
 }
 
 

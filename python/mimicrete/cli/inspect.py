@@ -45,6 +45,33 @@ def _print_report(info: dict[str, Any]) -> None:
             print(f"    {name:<{width}}  {d['p50']:>8.2f}  {d['p99']:>8.2f}  {d['n']:>6}")
 
 
+def _deploy_summary(f: str, info: dict[str, Any] | None) -> dict[str, Any] | None:
+    """A ``mimicrete deploy`` log's tick summary (gates, latency), None for other demos."""
+    if info is None or not any(c["topic"] == "/deploy/tick" for c in info["channels"]):
+        return None
+    from mimicrete.robot.deploy import summary
+
+    return summary(f)
+
+
+def _print_deploy(d: dict[str, Any]) -> None:
+    print(
+        f"  deploy: {d['ticks']} ticks, {d['sent']} commands sent, "
+        f"{d['gated_ticks']} ticks with a gate fired"
+    )
+    gates = ", ".join(f"{g} {n}" for g, n in sorted(d["gates"].items())) or "none fired"
+    print(f"    gates: {gates}")
+    srcs = ", ".join(f"{s} {n}" for s, n in sorted(d["tile_sources"].items()))
+    print(f"    tile pose from: {srcs}")
+    lat = d["latency_ms"]
+    if lat:
+        print(
+            f"    read -> command latency (ms): p50 {lat['p50']:.2f}, p99 {lat['p99']:.2f}, "
+            f"max {lat['max']:.2f}"
+        )
+    print(f"    stopped: {d['stop_reason'] or 'unknown (the log was not finished)'}")
+
+
 def _print_integrity(f: str, rep: dict[str, Any]) -> None:
     chunks = rep["chunks"]
     if rep["ok"]:
@@ -94,14 +121,19 @@ def main(args: argparse.Namespace) -> int:
             error = str(e)
         if error is not None or (rep is not None and not rep["ok"]):
             status = 1
+        deploy = _deploy_summary(f, info)
         if args.json:
             out = dict(info) if info is not None else {"path": str(f), "error": error}
             if rep is not None:
                 out["integrity"] = rep
+            if deploy is not None:
+                out["deploy"] = deploy
             print(json.dumps(out, sort_keys=True))
             continue
         if info is not None:
             _print_report(info)
+            if deploy is not None:
+                _print_deploy(deploy)
         elif rep is None or rep["ok"]:  # a sound MCAP file that is not a demo, ...
             print(f"error: {error}")
         else:
