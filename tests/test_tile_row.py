@@ -287,7 +287,7 @@ def test_a_row_exports_to_lerobot_with_each_tiles_fields(row_demos: Path, tmp_pa
         "t.installed0",
     ]  # fmt: skip
     assert names[-1] == "t.installed2"
-    assert info["features"]["action"]["names"][-1] == "suction_command"
+    assert info["features"]["action"]["names"][-1] == "suction_level"
     d = demos.load(row_demos)
     state = np.stack(pq.read_table(out / "data/chunk-000/file-000.parquet")
                      .column("observation.state").to_pylist())  # fmt: skip

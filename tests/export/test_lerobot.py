@@ -18,6 +18,8 @@ from mimicrete import demos, tasks
 from mimicrete.cli import main as cli_main
 from mimicrete.export import lerobot as lr
 
+from ._levels import expected_actions
+
 REPO = Path(__file__).resolve().parents[2]
 PROBE = Path(__file__).with_name("lerobot_probe.py")
 LEROBOT_PY = Path(os.environ.get("MIMICRETE_LEROBOT_PYTHON", REPO / ".venv-export/bin/python"))
@@ -45,7 +47,9 @@ def test_files_match_the_demos(demos3, tmp_path):
     state = np.stack(data.column("observation.state").to_pylist()).astype(np.float32)
     action = np.stack(data.column("action").to_pylist()).astype(np.float32)
     np.testing.assert_array_equal(state, d.obs)
-    np.testing.assert_array_equal(action, d.actions)
+    # the demo's actions, the suction command as a level (its switches held)
+    np.testing.assert_array_equal(action, expected_actions(d))
+    assert info["features"]["action"]["names"][-1] == "suction_level"
     np.testing.assert_array_equal(data.column("next.reward").to_numpy(), d.rewards)
     np.testing.assert_array_equal(data.column("episode_index").to_numpy(), d.episode)
     np.testing.assert_array_equal(data.column("index").to_numpy(), np.arange(len(d)))
@@ -67,7 +71,7 @@ def test_files_match_the_demos(demos3, tmp_path):
     assert eps[0]["tasks"] == [tasks.get("suction").instruction]
     assert eps[1]["dataset_from_index"] == eps[0]["dataset_to_index"]
     n0 = eps[0]["length"]
-    mean0 = d.actions[:n0].astype(np.float64).mean(0)
+    mean0 = expected_actions(d)[:n0].astype(np.float64).mean(0)
     np.testing.assert_allclose(eps[0]["stats/action/mean"], mean0)
 
     stats = json.loads((out / "meta/stats.json").read_text())
@@ -103,12 +107,13 @@ def test_lerobot_loads_60_demos(demos60, tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     got = json.loads(r.stdout.strip().splitlines()[-1])
     slices = d.episode_slices()
+    actions = expected_actions(d)  # the suction command as a level
     assert got["codebase_version"] == "v3.0"
     assert got["num_frames"] == len(d) == sum(s.stop - s.start for s in slices)
     assert got["num_episodes"] == 60
     assert got["fps"] == 25
-    np.testing.assert_array_equal(np.float32(got["first_action"]), d.actions[0])
-    np.testing.assert_array_equal(np.float32(got["last_action"]), d.actions[-1])
+    np.testing.assert_array_equal(np.float32(got["first_action"]), actions[0])
+    np.testing.assert_array_equal(np.float32(got["last_action"]), actions[-1])
     np.testing.assert_array_equal(np.float32(got["first_state"]), d.obs[0])
     assert got["first_task"] == tasks.get("suction").instruction
     last_len = slices[-1].stop - slices[-1].start
@@ -121,10 +126,10 @@ def test_lerobot_loads_60_demos(demos60, tmp_path):
     assert got["episode0_source_demo"] == Path(d.files[0]).name
     # at an episode's last frame the two later actions are padding, not the next episode's
     assert got["chunk_at_end_pad"] == [False, True, True]
-    end0 = d.actions[slices[0].stop - 1]
+    end0 = actions[slices[0].stop - 1]
     np.testing.assert_array_equal(np.float32(got["chunk_at_end_action0"]), end0)
     np.testing.assert_allclose(
-        got["stats_action_mean"], d.actions.astype(np.float64).mean(0), rtol=1e-9, atol=1e-12
+        got["stats_action_mean"], actions.astype(np.float64).mean(0), rtol=1e-9, atol=1e-12
     )
     assert sys.executable != str(LEROBOT_PY)
 

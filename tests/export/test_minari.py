@@ -11,6 +11,8 @@ import pytest
 from mimicrete import _native, demos
 from mimicrete.cli import main as cli_main
 
+from ._levels import expected_actions
+
 
 def _load(root, monkeypatch, dataset_id="mimicrete/TileSuction/demos-v0"):
     import minari
@@ -41,8 +43,11 @@ def _check(ds, d, env_replay_episodes):
     assert ds.spec.env_spec.id == "mimicrete/TileSuction-v0"
     assert ds.observation_space.shape == (80,) and ds.action_space.shape == (7,)
     eps = list(ds.iterate_episodes())
-    np.testing.assert_array_equal(eps[0].actions[0], d.actions[0])
-    np.testing.assert_array_equal(eps[-1].actions[-1], d.actions[-1])
+    actions = expected_actions(d)  # the suction command as a level
+    np.testing.assert_array_equal(eps[0].actions[0], actions[0])
+    np.testing.assert_array_equal(eps[-1].actions[-1], actions[-1])
+    assert ds.storage.metadata["mimicrete_action_layout"] == "level"
+    assert ds.storage.metadata["mimicrete_action_names"][6] == "suction_level"
     metas = list(ds.storage.get_episode_metadata(range(len(slices))))
     env = ds.recover_environment()
     assert type(env.unwrapped).__name__ == "TileSuctionEnv"
@@ -50,7 +55,7 @@ def _check(ds, d, env_replay_episodes):
         n = s.stop - s.start
         assert len(ep) == n and ep.observations.shape == (n + 1, 80)
         np.testing.assert_array_equal(ep.observations[:n], d.obs[s])
-        np.testing.assert_array_equal(ep.actions, d.actions[s])
+        np.testing.assert_array_equal(ep.actions, actions[s])
         np.testing.assert_array_equal(ep.rewards, d.rewards[s])
         np.testing.assert_array_equal(ep.terminations, d.terminated[s])
         assert meta["options"] == {"episode_seed": int(m["seed"])}

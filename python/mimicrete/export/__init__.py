@@ -7,7 +7,9 @@
 One task per dataset (the tasks' action sizes differ). The input is read and checked once by
 :func:`mimicrete.export.source.read_demo_dir` (every episode is replayed in the simulator);
 :mod:`mimicrete.export.lerobot` writes the LeRobot files with pyarrow (no lerobot needed),
-:mod:`mimicrete.export.minari` goes through ``minari.create_dataset_from_buffers``.
+:mod:`mimicrete.export.minari` goes through ``minari.create_dataset_from_buffers``. Both write
+the action with its effector command as a level, +1 / -1 held until the next command
+(:mod:`mimicrete.export.levels`; the layout: docs/formats.md section 4).
 """
 
 from __future__ import annotations

@@ -9,7 +9,10 @@ Layout (what ``lerobot.datasets.lerobot_dataset.LeRobotDataset(repo_id, root=OUT
     OUT/data/chunk-000/file-000.parquet           one row per step (a new file every ~100 MB)
 
 Frame features: ``observation.state`` (float32, the env's observation vector: 5 stacked frames,
-oldest first), ``action`` (float32, what the env received), ``next.reward`` (float32),
+oldest first), ``action`` (float32: the six joint motions the env received and the effector
+command as a level, ``suction_level`` / ``gripper_level`` = +1 / -1 held until the next command,
+not the demo's one-step switch; :mod:`mimicrete.export.levels`, docs/formats.md section 4; the
+env takes it as it is), ``next.reward`` (float32),
 ``next.done`` (the episode ended after this step: true on each episode's last frame),
 ``next.terminated`` / ``next.truncated`` (gymnasium's flags of the step), ``next.success`` (the
 task was achieved after this step: tile-sim's ``installed`` / placed / screwed flag, from the

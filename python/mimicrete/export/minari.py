@@ -7,14 +7,18 @@
 
 Each episode holds T + 1 observations: the T recorded ones (the observation each action was chosen
 from) and the observation after the last step, which the demo file does not store and which comes
-from replaying the episode (:func:`mimicrete.export.source.read_demo_dir`). Actions, rewards,
-terminations and truncations are the recorded ones; ``infos`` hold the simulator's ``picked`` /
-``held`` / ``installed`` / ``fell`` flags (row 0: the reset, all false; row k + 1: after step k).
+from replaying the episode (:func:`mimicrete.export.source.read_demo_dir`). Rewards,
+terminations and truncations are the recorded ones; actions too, except the effector command,
+which is a level (+1 / -1 held until the next command, not the demo's one-step switch:
+:mod:`mimicrete.export.levels`, docs/formats.md section 4; the dataset's metadata names the
+columns, ``mimicrete_action_names``, and the layout, ``mimicrete_action_layout`` = ``level``);
+``infos`` hold the simulator's ``picked`` / ``held`` / ``installed`` / ``fell`` flags (row 0: the
+reset, all false; row k + 1: after step k).
 
 The dataset records the gymnasium env spec (``mimicrete/TileSuction-v0``...), so
 ``dataset.recover_environment()`` makes our env. An episode's metadata holds
 ``options = {"episode_seed": SEED}``: ``env.reset(options=...)`` starts that very episode, and
-stepping the recorded actions gives back the recorded observations. The episode's ``seed`` (the
+stepping the dataset's actions gives back the recorded observations. The episode's ``seed`` (the
 gymnasium reset seed) is left out: the demos were not started from one. The metadata also holds
 ``success``, ``source_demo``, ``source_handlog`` and ``source_handlog_sha256``.
 """
@@ -32,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from mimicrete.export.source import INFO_KEYS, DemoSet, check_new_output
+from mimicrete.export import levels
+from mimicrete.export.source import ACTION_NAMES, INFO_KEYS, DemoSet, check_new_output
 
 
 def default_dataset_id(ds: DemoSet) -> str:
@@ -134,6 +139,12 @@ def write(
                     for ep in ds.episodes
                 ],
                 [ep.index for ep in ds.episodes],
+            )
+            dataset.storage.update_metadata(
+                {
+                    "mimicrete_action_layout": levels.LEVEL_LAYOUT,
+                    "mimicrete_action_names": ACTION_NAMES[ds.task],
+                }
             )
         os.replace(tmp, out)
     except BaseException:

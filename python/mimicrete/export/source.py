@@ -9,6 +9,11 @@ deterministic; on the 60 converted demos of the tests the difference is 0.0), an
 demo file does not store: the observation after the last step (Minari keeps N + 1 observations
 per episode) and the per-step ``picked`` / ``held`` / ``installed`` / ``fell`` flags (LeRobot's
 ``next.success`` is ``installed`` after the step).
+
+The exported action carries the effector command as a level (:mod:`mimicrete.export.levels`,
+docs/formats.md section 4), not as the demo's one-step switch; the replay steps the simulator with
+the levels (as :func:`mimicrete.export.levels.to_env` hands them to the env), so every exported
+episode is checked to give back its demo step for step.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np
 
 from mimicrete import tasks
 from mimicrete._native import MimicreteError
+from mimicrete.export import levels
 
 #: Names of one observation frame's floats per task (tile-sim's ``Task::obs_frame_dim`` layout).
 _JOINTS = [f"q{i}" for i in range(6)]
@@ -77,13 +83,15 @@ FRAME_NAMES["place"] = [
     "yaw_error_fine",
 ]
 
-#: Names of the action's entries per task.
+#: Names of the exported action's entries per task: the effector command as a level
+#: (:mod:`mimicrete.export.levels`; the layout before it named these ``suction_command`` /
+#: ``gripper_command`` and held the demo's one-step switch).
 ACTION_NAMES: dict[str, list[str]] = {
-    "suction": [*(f"dq{i}" for i in range(6)), "suction_command"],
-    "grip": [*(f"dq{i}" for i in range(6)), "gripper_command"],
-    "screw": [*(f"dq{i}" for i in range(6)), "gripper_command", "spin_command"],
-    "row": [*(f"dq{i}" for i in range(6)), "suction_command"],
-    "place": [*(f"dq{i}" for i in range(6)), "suction_command"],
+    "suction": [*(f"dq{i}" for i in range(6)), "suction_level"],
+    "grip": [*(f"dq{i}" for i in range(6)), "gripper_level"],
+    "screw": [*(f"dq{i}" for i in range(6)), "gripper_level", "spin_command"],
+    "row": [*(f"dq{i}" for i in range(6)), "suction_level"],
+    "place": [*(f"dq{i}" for i in range(6)), "suction_level"],
 }
 
 INFO_KEYS: tuple[str, ...] = ("picked", "held", "installed", "fell")
@@ -100,7 +108,7 @@ class DemoEpisode:
     file: str
     index: int  # position in the dataset (0, 1, ...)
     obs: np.ndarray  # (T, obs_dim) float32: the observation each action was chosen from
-    actions: np.ndarray  # (T, act_dim) float32
+    actions: np.ndarray  # (T, act_dim) float32, exported: the effector command as a level
     rewards: np.ndarray  # (T,) float32
     terminated: np.ndarray  # (T,) bool
     truncated: np.ndarray  # (T,) bool
@@ -109,6 +117,8 @@ class DemoEpisode:
     seed: int  # the simulator's episode seed (u64)
     success: bool
     meta: dict[str, str] = field(default_factory=dict)
+    #: (T, act_dim) float32: the actions as the demo recorded them (the effector's switches)
+    recorded_actions: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.rewards.shape[0])
@@ -217,13 +227,15 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
                 f"{spec.name} ({spec.obs_dim}/{spec.act_dim})"
             )
         seed = int(ep["meta"].get("seed", "0"))
-        final_obs, info = _replay(f, spec.sim, seed, obs, act, ep, task_file)
+        level = levels.to_levels(spec.name, act)
+        final_obs, info = _replay_levels(f, spec, seed, obs, act, level, ep, task_file)
         episodes.append(
             DemoEpisode(
                 file=str(f),
                 index=i,
                 obs=obs,
-                actions=act,
+                actions=level,
+                recorded_actions=act,
                 rewards=np.asarray(ep["rewards"], dtype=np.float32),
                 terminated=np.asarray(ep["terminated"], dtype=bool),
                 truncated=np.asarray(ep["truncated"], dtype=bool),
@@ -278,6 +290,31 @@ def _recorded_spec(
     if spec_task.name != task.name:
         raise ExportError(f"{f}: task file {path} runs {spec_task.name}, the demo is {task.name}")
     return path, spec["about"]
+
+
+def _replay_levels(
+    f: Path,
+    spec: Any,
+    seed: int,
+    obs: np.ndarray,
+    recorded: np.ndarray,
+    level: np.ndarray,
+    ep: dict[str, Any],
+    task_file: str | None,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """:func:`_replay` of the exported actions (the levels as the env takes them). Where they do
+    not give back the demo, the recorded actions are replayed too, to say which fails: the demo
+    (another simulator), or its level (the effector did not read its command as a latch)."""
+    try:
+        return _replay(f, spec.sim, seed, obs, levels.to_env(level, ACTION_NAMES[spec.name]), ep,
+                       task_file)  # fmt: skip
+    except ExportError as e:
+        _replay(f, spec.sim, seed, obs, recorded, ep, task_file)  # raises for a foreign demo
+        why = str(e).removeprefix(f"{f}: ")
+        raise ExportError(
+            f"{f}: its recorded actions replay, its effector command as a level does not "
+            f"(docs/formats.md section 4): {why}"
+        ) from None
 
 
 def _replay(
