@@ -93,6 +93,7 @@ def test_pipeline_end_to_end(one_demo, tmp_path):
         assert r["max_steps"] == 40
         assert r["train_wall_s"] > 0 and r["lerobot"] == "0.4.4"
         assert r["policy_type"] == r["method"]
+        assert r["action_layout"] == "level"  # trained and stepped on the suction level
         assert r["starts"] in f.name and r["eval_seed"] == 10_000 and r["seed"] == 0
     # a second run reuses everything (no training, no evaluation): no file is rewritten
     before = {f: f.stat().st_mtime_ns for f in (tmp_path / "act").rglob("*") if f.is_file()}

@@ -17,6 +17,12 @@ predicted chunk (``predict_action_chunk``), Diffusion keeps ``n_obs_steps`` obse
 ``n_action_steps`` actions from them with seeded noise. Episodes are split over
 ``n`` envs (the largest divisor of ``--episodes`` up to ``--max-envs``) and each env counts only
 its first ``episodes / n`` episodes, as ``mimicrete eval`` does.
+
+The policy's actions are in the dataset's layout (its ``info.json``'s action names): a dataset
+exported with the suction command as a level (``suction_level``, docs/formats.md section 4) gets
+its level mapped back to the env's command by :func:`mimicrete.export.levels.to_env` (its sign:
+on / off); a checkpoint trained on the old layout (``suction_command``, one-step switches) is
+stepped with its actions as they are, as before.
 """
 
 from __future__ import annotations
@@ -91,11 +97,15 @@ def main(argv: list[str] | None = None) -> int:
     policy.eval()
     pre, post = make_pre_post_processors(cfg, pretrained_path=str(ck))
     cols = _env_state_columns(ck, int(cfg.input_features[ENV_STATE].shape[0]))
+    action_names = _action_names(ck)
+    from mimicrete.export.levels import layout_of
+
     for starts in args.starts:
         t0 = time.perf_counter()
         res = run_episodes(policy, pre, post, cfg, cols, starts, args.episodes, args.seed,
-                           args.max_envs, args.max_steps)  # fmt: skip
+                           args.max_envs, args.max_steps, action_names)  # fmt: skip
         res.update(
+            action_layout=layout_of(action_names),
             policy_type=cfg.type,
             checkpoint=str(ck),
             eval_loop_s=round(time.perf_counter() - t0, 1),
@@ -118,8 +128,10 @@ def run_episodes(
     seed: int,
     max_envs: int,
     max_steps: int | None = None,
+    action_names: list[str] | None = None,
 ) -> dict[str, Any]:
-    """``episodes`` deterministic episodes of ``policy`` from ``starts`` → the mean statistics."""
+    """``episodes`` deterministic episodes of ``policy`` from ``starts`` → the mean statistics.
+    ``action_names``: the dataset's (None: the actions go to the env as they are)."""
     import numpy as np
     import torch
 
@@ -174,7 +186,7 @@ def run_episodes(
             chunk = post(chunk)
             for j, i in enumerate(need):
                 queues[i].extend(np.asarray(chunk[j].cpu().numpy(), np.float32))
-        act = np.clip(np.stack([queues[i].popleft() for i in range(n)]), -1.0, 1.0)
+        act = env_actions(np.stack([queues[i].popleft() for i in range(n)]), action_names)
         obs, r, term, trunc, infos = vec.step(act)
         ret += r
         length += 1
@@ -213,12 +225,36 @@ def run_episodes(
     }
 
 
+def env_actions(act: Any, action_names: list[str] | None) -> Any:
+    """A batch of the policy's actions (n, act_dim) as the env takes them: clipped to [-1, 1],
+    a suction level (``suction_level``) by its sign (:func:`mimicrete.export.levels.to_env`);
+    an old-layout or unnamed action only clipped."""
+    import numpy as np
+
+    act = np.clip(np.asarray(act, np.float32), -1.0, 1.0)
+    if action_names is None:
+        return act
+    from mimicrete.export.levels import to_env
+
+    return to_env(act, action_names)
+
+
+def _dataset_info(ck: Path) -> dict[str, Any]:
+    """The info.json of the dataset the checkpoint was trained on (through its training config)."""
+    cfg = json.loads((ck / "train_config.json").read_text())
+    return json.loads((Path(cfg["dataset"]["root"]) / "meta" / "info.json").read_text())
+
+
+def _action_names(ck: Path) -> list[str]:
+    """The action's names in the checkpoint's dataset: its layout (level or the old switch)."""
+    return list(_dataset_info(ck)["features"]["action"]["names"])
+
+
 def _env_state_columns(ck: Path, width: int) -> list[int]:
     """Where the policy's environment state sits in the env's observation: the dataset's names
     (``t.target_x`` ...) looked up among ``observation.state``'s (both from the dataset's
     info.json, found through the training config the checkpoint was saved with)."""
-    cfg = json.loads((ck / "train_config.json").read_text())
-    info = json.loads((Path(cfg["dataset"]["root"]) / "meta" / "info.json").read_text())
+    info = _dataset_info(ck)
     names = info["features"]["observation.state"]["names"]
     env = info["features"]["observation.environment_state"]["names"]
     if len(env) != width:

@@ -12,7 +12,11 @@ For each demo count N (the first N demos of ``--demos``, by file name) it
    ``observation.state``, get a floor (std >= 0.01, max - min >= 0.02; metres, radians): a
    feature that never varies in the demos (the target, the resting tile's height) has std 0,
    which LeRobot's normaliser divides by (plus 1e-8), so a target moved by 2 cm at test time
-   would reach the network as 2e6;
+   would reach the network as 2e6. The action is the exporter's: the suction command as a level
+   (``suction_level``, +1 / -1 held, docs/formats.md section 4), which the adapter maps back to
+   the env's command; a dataset, a training or a result of the old layout (``suction_command``,
+   the one-step switch) is not reused: an old dataset is refused naming its layout, an old
+   training is redone, an old result evaluated again;
 2. trains each method with lerobot's own training script (``lerobot.scripts.lerobot_train``) in
    the lerobot venv ``.venv-export`` (lerobot 0.4.4 and its torch; our venv's pins clash with
    them), CPU only, a fixed number of steps, one training at a time under ``nice``;
@@ -57,6 +61,7 @@ from typing import Any
 import numpy as np
 
 from mimicrete.console import show_messages
+from mimicrete.export import levels
 
 from . import peers_ours
 from .peers_report import FIGURE, STARTS, PeersError, report
@@ -165,12 +170,26 @@ def add_environment_state(root: Path) -> list[str]:
     return [names[i] for i in cols]
 
 
+def dataset_layout(root: Path) -> str:
+    """The action layout of the LeRobot dataset at ``root`` (:func:`levels.layout_of`)."""
+    info = json.loads((root / "meta" / "info.json").read_text())
+    try:
+        return levels.layout_of(info["features"]["action"]["names"])
+    except (KeyError, ValueError) as e:
+        raise PeersError(f"{root}: no action layout in meta/info.json ({e})") from None
+
+
 def make_dataset(demos_dir: Path, n: int, out: Path) -> Path:
     """The first ``n`` demos as a LeRobot dataset at ``out/datasets/suction-n<n>`` (made once)."""
     from mimicrete.export import export
 
     root = out / "datasets" / f"suction-n{n}"
     if (root / "meta" / "info.json").exists():
+        if dataset_layout(root) != levels.LEVEL_LAYOUT:
+            raise PeersError(
+                levels.old_layout_message(str(root))
+                + f" (delete {root}: the trainings and results on it are then redone too)"
+            )
         return root
     with tempfile.TemporaryDirectory(dir=out) as tmp:
         src = first_demos(demos_dir, n, Path(tmp) / "demos")
@@ -265,9 +284,11 @@ def train(
     """Train ``method`` on ``dataset`` into ``out/train/<method>-n<n>`` (once); its record."""
     train_dir = out / "train" / f"{method}-n{n}"
     record = train_dir.with_suffix(".json")
+    layout = dataset_layout(dataset)
     if record.exists():
         rec = json.loads(record.read_text())
-        if rec.get("steps") == steps and rec.get("batch_size") == batch:
+        same_data = rec.get("action_layout") == layout
+        if same_data and rec.get("steps") == steps and rec.get("batch_size") == batch:
             return rec
     if train_dir.exists():  # an unfinished or other-budget training: lerobot wants a new dir
         shutil.rmtree(train_dir)
@@ -284,6 +305,7 @@ def train(
         "epochs": round(steps * batch / _frames(dataset), 2),
         "frames": _frames(dataset),
         "seed": seed,
+        "action_layout": layout,
         "threads": threads,
         "train_wall_s": round(wall, 1),
         "train_cpu_s": round(cpu, 1),
@@ -376,7 +398,7 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
             todo = []
             for starts in args.starts:
                 path = result_path(out, method, n, starts)
-                if _fresh(path, steps, args.episodes):
+                if _fresh(path, steps, args.episodes, layout=rec["action_layout"]):
                     written.append(path)
                 else:
                     todo.append(starts)
@@ -396,11 +418,15 @@ def run_grid(args: argparse.Namespace) -> list[Path]:
     return written
 
 
-def _fresh(path: Path, steps: int, episodes: int, command: str | None = None) -> bool:
+def _fresh(
+    path: Path, steps: int, episodes: int, command: str | None = None, layout: str | None = None
+) -> bool:
     """Whether the result at ``path`` exists for this training budget and episode count (and,
-    given, the training ``command``: a training retrained another way is evaluated again)."""
+    given, the training ``command``: a training retrained another way is evaluated again; and the
+    dataset's action ``layout``: a result of an old-layout training is evaluated again)."""
     old = json.loads(path.read_text()) if path.exists() else {}
     same = command is None or old.get("train_command") == command
+    same = same and (layout is None or old.get("action_layout") == layout)
     return same and old.get("steps") == steps and old.get("episodes") == episodes
 
 
