@@ -1,0 +1,175 @@
+"""The live backend's command path against the simulated arm and a recording sink (no real arm
+has been driven: docs/deploy.md): the gated targets interpolated and streamed with servoJ under
+the speed cap, ur-rtde's watchdog armed and kicked, the suction output switched, the host-side
+deadline stopping the stream on its own, and a stop that is servoStop then stopScript."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from mimicrete.learn.run_files import load_policy
+from mimicrete.robot import deploy as dep
+from mimicrete.robot.gates import Limits
+from mimicrete.robot.rtde import WATCHDOG_HZ, LiveRobot
+from mimicrete.robot.sim import SimRobot
+from mimicrete.robot.tile_pose import FixedTilePose
+
+from .conftest import TILE
+
+STEP_TIME = 0.008  # a CB3's servo period (ur-rtde: getStepTime())
+SUCTION_OUT = 3
+
+
+class RecordingSink:
+    """Stands where RTDEControlInterface and RTDEIOInterface stand: records every call (time,
+    name, args) and moves the simulated arm to each servoJ setpoint."""
+
+    def __init__(self, sim: SimRobot, lock: threading.Lock) -> None:
+        self.sim, self.lock = sim, lock
+        self.calls: list[tuple[float, str, tuple]] = []
+
+    def _rec(self, name, *args):
+        self.calls.append((time.monotonic(), name, args))
+        return True
+
+    def servoJ(self, q, v, a, dt, lookahead, gain):
+        with self.lock:
+            self.sim.set_joints(np.asarray(q))
+        return self._rec("servoJ", list(q), v, a, dt, lookahead, gain)
+
+    def servoStop(self, a=10.0):
+        return self._rec("servoStop", a)
+
+    def stopScript(self):
+        return self._rec("stopScript")
+
+    def setWatchdog(self, hz):
+        return self._rec("setWatchdog", hz)
+
+    def kickWatchdog(self):
+        return self._rec("kickWatchdog")
+
+    def setStandardDigitalOut(self, n, on):
+        return self._rec("setStandardDigitalOut", n, on)
+
+    def names(self):
+        return [c[1] for c in self.calls]
+
+
+class LockedReader:
+    def __init__(self, sim, lock):
+        self.sim, self.lock = sim, lock
+
+    def read(self):
+        with self.lock:
+            return self.sim.read()
+
+    def close(self):
+        pass
+
+
+@pytest.fixture(scope="module")
+def policy_and_task(run_dir):
+    actor, cfg = load_policy(run_dir)
+    pol = dep.torch_policy(actor)
+    pol(np.zeros(80, np.float32))
+    return pol, dep.Task.of_run(cfg.env_settings.env_id, None, TILE)
+
+
+def _live(task, release_on_stop=False, speed_cap=None):
+    sim = SimRobot(task="TileSuction", tile_pose=TILE)
+    lock = threading.Lock()
+    sink = RecordingSink(sim, lock)
+    limits = Limits.from_spec(task.spec, task.joint_step, speed_cap=speed_cap)
+    robot = LiveRobot(
+        LockedReader(sim, lock), sink, sink, SUCTION_OUT, limits.period, limits.speed_cap,
+        limits.deadline, release_on_stop=release_on_stop, step_time=STEP_TIME,
+    )  # fmt: skip
+    return sim, sink, robot, limits
+
+
+def test_live_streams_gated_targets_with_servoj(policy_and_task, tmp_path):
+    policy, task = policy_and_task
+    sim, sink, robot, limits = _live(task, speed_cap=0.75)
+    o = dep.run(robot, policy, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
+                limits=limits, ticks=60)  # fmt: skip
+    assert o.kind == "ticks", o.reason
+    names = sink.names()
+    # the watchdog armed once (before the first servoJ), kicked by every command
+    assert names.index("setWatchdog") < names.index("servoJ")
+    assert [c[2] for c in sink.calls if c[1] == "setWatchdog"] == [(WATCHDOG_HZ,)]
+    assert names.count("kickWatchdog") == 60
+    # the stop: servoStop, then stopScript, and nothing streamed after it
+    assert names[-2:] == ["servoStop", "stopScript"]
+    servo = [c for c in sink.calls if c[1] == "servoJ"]
+    assert all(c[2][3] == STEP_TIME for c in servo)
+    # about one servoJ a servo period over the 60 ticks (2.4 s at 125 Hz: 300)
+    assert 200 <= len(servo) <= 330, len(servo)
+    qs = np.array([c[2][0] for c in servo])
+    steps = np.abs(np.diff(qs, axis=0))
+    assert steps.max() <= 0.75 * STEP_TIME + 1e-9  # the speed cap, per servo step
+    ticks = dep_ticks(o.path)
+    # each gated command moved at most the cap over a control period
+    for t in ticks:
+        assert np.abs(np.subtract(t["command_q"], t["q_read"])).max() <= 0.75 * 0.04 + 1e-9
+    assert sum("speed" in t["gates"] for t in ticks) > 10  # the cap bit: the policy asks 1 rad/s
+    assert all(t["sent"] for t in ticks)
+    # the arm went where it was sent: the last setpoint is the last command, nearly reached
+    last_cmd = np.asarray(ticks[-1]["command_q"])
+    assert np.abs(qs[-1] - last_cmd).max() <= 0.75 * 0.04 + 1e-9
+    assert np.abs(np.asarray(sim.read().q) - qs[-1]).max() < 1e-9
+    assert np.abs(last_cmd - np.asarray(ticks[0]["q_read"])).max() > 0.1  # it moved
+    # the suction output followed the command, and stays on at the stop (default: keep holding)
+    douts = [c[2] for c in sink.calls if c[1] == "setStandardDigitalOut"]
+    on = [t["suction"] for t in ticks]
+    assert (SUCTION_OUT, True) in douts and any(on)
+    assert douts[-1] == (SUCTION_OUT, on[-1])
+
+
+def test_release_on_stop_switches_the_suction_off_after_stopping(policy_and_task, tmp_path):
+    policy, task = policy_and_task
+    sim, sink, robot, limits = _live(task, release_on_stop=True)
+    o = dep.run(robot, policy, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
+                limits=limits, ticks=45)  # fmt: skip
+    ticks = dep_ticks(o.path)
+    assert ticks[-1]["suction"]  # holding when it stopped
+    assert sink.names()[-3:] == ["servoStop", "stopScript", "setStandardDigitalOut"]
+    assert sink.calls[-1][2] == (SUCTION_OUT, False)
+
+
+def test_the_streamer_stops_the_arm_on_its_own_when_commands_stop(policy_and_task, tmp_path):
+    policy, task = policy_and_task
+    sim, sink, robot, limits = _live(task)
+    calls = []
+
+    def stuck(obs):
+        calls.append(1)
+        if len(calls) == 10:
+            time.sleep(0.3)  # the policy hangs for 7 control periods
+        return policy(obs)
+
+    o = dep.run(robot, stuck, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
+                limits=limits, ticks=40)  # fmt: skip
+    assert o.kind == "deadline", o.reason
+    kicks = [c[0] for c in sink.calls if c[1] == "kickWatchdog"]
+    stops = [c[0] for c in sink.calls if c[1] == "servoStop"]
+    # the streamer's servoStop came within the deadline (+ a servo period or two) of the last
+    # command, while the policy still hung (before the control loop could notice)
+    assert stops and stops[0] - kicks[-1] <= limits.deadline + 3 * STEP_TIME + 0.02
+    assert stops[0] < kicks[-1] + 0.3
+    servo = [c[0] for c in sink.calls if c[1] == "servoJ"]
+    assert max(servo) < stops[0]  # nothing streamed after it
+    assert sink.names()[-1] == "stopScript"
+
+
+def dep_ticks(path):
+    import json
+
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(["/deploy/tick"])]
