@@ -545,3 +545,56 @@ fn a_rows_objects_get_frames_of_their_own_on_tf() {
     assert!(!f.contains_key(ROW_FRAMES[2]));
     assert!(frame_numbers("ur3", &q, &pose(0.0), &[pose(0.0); 9]).is_err());
 }
+
+/// A deploy log's ticks: their own channel (`/deploy/tick`, `mimicrete.DeployTick.v1`) after
+/// the steps, vectors of the wrong length and non-finite numbers refused, a raw action that was
+/// not finite kept as null; salvage recovers them and the demo still loads.
+#[test]
+fn deploy_ticks_get_their_own_channel_after_the_steps() {
+    let d = tmpdir("deploy-ticks");
+    let p = d.join("deploy.mcap");
+    let mut w = DemoWriter::create(&p, &meta(0)).unwrap();
+    let tick = |step: u64| DeployTick {
+        step,
+        t: 0.04 * step as f64,
+        robot_time: 100.0 + 0.04 * step as f64,
+        q_read: vec![0.1; 6],
+        tcp_read: vec![0.2; 6],
+        safety_mode: 1,
+        digital_out: 1,
+        tile_pose: vec![0.1, 0.32, 0.0],
+        tile_source: "fixed".into(),
+        raw_action: vec![Some(0.5), None, Some(-1.0), Some(0.0), Some(0.0), Some(0.0), Some(1.0)],
+        command_q: vec![0.12; 6],
+        suction: step > 1,
+        gates: if step == 2 { vec!["workspace".into()] } else { vec![] },
+        sent: false,
+        latency_ms: 1.5,
+    };
+    let err = w.write_deploy_tick(&tick(0)).unwrap_err().to_string();
+    assert!(err.contains("deploy tick 0: only 0 steps written"), "{err}");
+    for i in 0..4 {
+        w.write_step(&step(i, 4, 8, 7)).unwrap();
+        w.write_deploy_tick(&tick(i)).unwrap();
+    }
+    let short = DeployTick { command_q: vec![0.0; 5], ..tick(3) };
+    let err = w.write_deploy_tick(&short).unwrap_err().to_string();
+    assert!(err.contains("command_q has 5 numbers, expected 6"), "{err}");
+    let nan = DeployTick { latency_ms: f64::NAN, ..tick(3) };
+    assert!(w.write_deploy_tick(&nan).unwrap_err().to_string().contains("non-finite"));
+    w.finish(&EpisodeSummary::default()).unwrap();
+    assert_eq!(read_demo(&p).unwrap().len(), 4);
+    let (msgs, r) = salvage(&p).unwrap();
+    assert!(r.complete && r.messages_unattributed == 0);
+    let ticks: Vec<serde_json::Value> = msgs
+        .iter()
+        .filter(|m| m.topic == TOPIC_DEPLOY_TICK)
+        .map(|m| serde_json::from_slice(&m.data).unwrap())
+        .collect();
+    assert_eq!(ticks.len(), 4);
+    assert_eq!(ticks[2]["gates"][0], "workspace");
+    assert!(ticks[1]["raw_action"][1].is_null());
+    assert_eq!(ticks[3]["tile_source"], "fixed");
+    let back: DeployTick = serde_json::from_value(ticks[3].clone()).unwrap();
+    assert_eq!(back, tick(3));
+}
