@@ -233,6 +233,15 @@ def test_start_refused_in_a_protective_stop(run_dir, tmp_path):
     assert "start refused: safety mode is PROTECTIVE_STOP (3), not NORMAL" in r.stderr
 
 
+def test_a_controller_that_sends_no_data_is_refused(run_dir, tmp_path):
+    q = home_q()
+    with LoopbackRobot(q, tcp=tcp_of(q), stall=True) as c:
+        r = _deploy(run_dir, c.host, "--out", str(tmp_path))
+    assert r.returncode == 2
+    assert f"--host {c.host}: connected, but no data from the controller within 2 s" in r.stderr
+    assert not list(tmp_path.glob("*.mcap*"))
+
+
 def test_no_controller_at_the_host(run_dir, tmp_path):
     r = _deploy(run_dir, "127.254.254.254", "--out", str(tmp_path))
     assert r.returncode == 2

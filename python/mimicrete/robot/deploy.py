@@ -176,6 +176,20 @@ def _sigterm_stops() -> Iterator[None]:
         signal.signal(signal.SIGTERM, old)
 
 
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM ignored while the arm is stopped and the log closed (main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
 def run(
     robot: Any,
     policy: Callable[[np.ndarray], np.ndarray],
@@ -309,11 +323,14 @@ def run(
     finally:
         if not reason:  # an exception of our own: still stop and close, then let it through
             reason, kind = "internal error", "error"
-        robot.stop(reason)
-        outcome = Outcome(out, step, reason, kind, dict(gates.counts), latency_stats(log.latencies))
-        log.finish(outcome)
-        robot.close()
-        tile_source.close()
+        with _signals_held():  # a second Ctrl-C must not cut the stop or the log short
+            robot.stop(reason)
+            outcome = Outcome(
+                out, step, reason, kind, dict(gates.counts), latency_stats(log.latencies)
+            )
+            log.finish(outcome)
+            robot.close()
+            tile_source.close()
     return outcome
 
 

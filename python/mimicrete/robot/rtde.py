@@ -35,6 +35,8 @@ OUTPUTS = [
     "actual_digital_input_bits",
 ]
 
+#: how long to wait for the controller's first data package after connecting (s)
+FIRST_DATA_TIMEOUT = 2.0
 #: servoJ's look-ahead time (s) and gain: ur-rtde's documented defaults' middle ground
 SERVO_LOOKAHEAD = 0.1
 SERVO_GAIN = 300.0
@@ -64,6 +66,16 @@ class RtdeReader:
                 receive = rtde_receive.RTDEReceiveInterface(host, -1.0, OUTPUTS)
             except RuntimeError as e:
                 raise RobotError(f"--host {host}: cannot read the controller ({e})") from None
+            # the first data package: until it comes, the getters return zeros
+            end = time.monotonic() + FIRST_DATA_TIMEOUT
+            while receive.getTimestamp() <= 0.0:
+                if time.monotonic() > end:
+                    receive.disconnect()
+                    raise RobotError(
+                        f"--host {host}: connected, but no data from the controller within "
+                        f"{FIRST_DATA_TIMEOUT:.0f} s"
+                    )
+                time.sleep(0.002)
         self.receive = receive
 
     def read(self) -> RobotState:
