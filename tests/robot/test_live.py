@@ -92,10 +92,26 @@ def _live(task, release_on_stop=False, speed_cap=None):
     return sim, sink, robot, limits
 
 
+def suction_script(policy, on_from: int, off_from: int | None = None):
+    """The policy, with its suction command replaced: on from tick ``on_from``, off from
+    ``off_from`` (the switches happen whatever the arm's speed; this tests the output's path)."""
+    tick = []
+
+    def act(obs):
+        a = policy(obs)
+        k = len(tick)
+        tick.append(k)
+        a[6] = 1.0 if k >= on_from and (off_from is None or k < off_from) else -1.0
+        return a
+
+    return act
+
+
 def test_live_streams_gated_targets_with_servoj(policy_and_task, tmp_path):
     policy, task = policy_and_task
     sim, sink, robot, limits = _live(task, speed_cap=0.75)
-    o = dep.run(robot, policy, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
+    scripted = suction_script(policy, 30, 50)
+    o = dep.run(robot, scripted, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
                 limits=limits, ticks=60)  # fmt: skip
     assert o.kind == "ticks", o.reason
     names = sink.names()
@@ -107,8 +123,9 @@ def test_live_streams_gated_targets_with_servoj(policy_and_task, tmp_path):
     assert names[-2:] == ["servoStop", "stopScript"]
     servo = [c for c in sink.calls if c[1] == "servoJ"]
     assert all(c[2][3] == STEP_TIME for c in servo)
-    # about one servoJ a servo period over the 60 ticks (2.4 s at 125 Hz: 300)
-    assert 200 <= len(servo) <= 330, len(servo)
+    # about one servoJ a servo period over the 60 ticks (2.4 s at 125 Hz: 300; fewer when the
+    # machine is loaded: a late servo step is not made up)
+    assert 120 <= len(servo) <= 330, len(servo)
     qs = np.array([c[2][0] for c in servo])
     steps = np.abs(np.diff(qs, axis=0))
     assert steps.max() <= 0.75 * STEP_TIME + 1e-9  # the speed cap, per servo step
@@ -123,19 +140,21 @@ def test_live_streams_gated_targets_with_servoj(policy_and_task, tmp_path):
     assert np.abs(qs[-1] - last_cmd).max() <= 0.75 * 0.04 + 1e-9
     assert np.abs(np.asarray(sim.read().q) - qs[-1]).max() < 1e-9
     assert np.abs(last_cmd - np.asarray(ticks[0]["q_read"])).max() > 0.1  # it moved
-    # the suction output followed the command, and stays on at the stop (default: keep holding)
+    # the suction output switched with the command: on at tick 30, off at tick 50, one write
+    # each (the first command writes the output's state too); nothing more at the stop
     douts = [c[2] for c in sink.calls if c[1] == "setStandardDigitalOut"]
-    on = [t["suction"] for t in ticks]
-    assert (SUCTION_OUT, True) in douts and any(on)
-    assert douts[-1] == (SUCTION_OUT, on[-1])
+    assert douts == [(SUCTION_OUT, False), (SUCTION_OUT, True), (SUCTION_OUT, False)]
+    assert [t["suction"] for t in ticks] == [False] * 30 + [True] * 20 + [False] * 10
 
 
 def test_release_on_stop_switches_the_suction_off_after_stopping(policy_and_task, tmp_path):
     policy, task = policy_and_task
     sim, sink, robot, limits = _live(task, release_on_stop=True)
-    o = dep.run(robot, policy, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
-                limits=limits, ticks=45)  # fmt: skip
+    scripted = suction_script(policy, 10)
+    o = dep.run(robot, scripted, task, FixedTilePose(*TILE), tmp_path / "live.mcap",
+                limits=limits, ticks=20)  # fmt: skip
     ticks = dep_ticks(o.path)
+    assert o.kind == "ticks", o.reason
     assert ticks[-1]["suction"]  # holding when it stopped
     assert sink.names()[-3:] == ["servoStop", "stopScript", "setStandardDigitalOut"]
     assert sink.calls[-1][2] == (SUCTION_OUT, False)

@@ -3,6 +3,8 @@ simulator's own along a policy's episode, and the sim backend runs the policy to
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -76,6 +78,14 @@ def test_sim_backend_installs_through_the_deploy_loop(policy, tmp_path):
     s = dep.summary(o.path)
     assert s["ticks"] == o.ticks and s["sent"] == o.ticks
     assert s["tile_sources"].get("held", 0) > 10
+    # the log's commands replayed in a fresh simulator do what the sim backend did, exactly
+    from mimicrete.robot.replay import replay
+
+    r = replay(o.path)
+    assert r["replayed"] == o.ticks and r["ended"] == "installed" and r["installed"]
+    assert r["sim_to_command_rad"]["max"] < 1e-9
+    assert r["read_to_sim_rad"]["max"] < 1e-9
+    assert Path(r["replay"]).name == "sim_replay.mcap" and Path(r["replay"]).is_file()
 
 
 def test_other_tasks_are_refused():

@@ -91,6 +91,14 @@ def test_shadow_runs_the_policy_for_200_ticks_through_the_cli(run_dir, controlle
     assert "deploy: 200 ticks, 0 commands sent" in r.stdout
     assert "read -> command latency (ms): p50" in r.stdout
     print(r.stdout[r.stdout.index("deploy:") :])
+    # the commands replayed in the simulator: each is reached (one joint step from the arm the
+    # shadow read, which never moved), nothing picked
+    r = run_cli("deploy", "--replay", str(path), "--out", str(tmp_path / "replay.mcap"))
+    assert r.returncode == 0, r.stderr
+    assert "replayed 200 of 200 ticks" in r.stdout
+    assert "simulated arm to the command, largest joint: median 0.0000 rad" in r.stdout
+    assert "picked False" in r.stdout
+    assert demos.verify(tmp_path / "replay.mcap")["ok"]
 
 
 # --- faults --------------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 """`mimicrete deploy RUN_DIR --robot MODEL [--sim | --shadow --host IP | --live --host IP]
-[--tile-pose fixed:X,Y,YAW | file:PATH] [--out DIR] [--ticks N] [--speed-cap RAD_S]`: a trained
+[--tile-pose fixed:X,Y,YAW | file:PATH] [--out DIR] [--ticks N] [--speed-cap RAD_S]` (or
+`mimicrete deploy --replay LOG`: a log's commands replayed in the simulator): a trained
 run's policy at 25 Hz on a robot, every command through the gates (mimicrete.robot.gates),
 every tick logged as an MCAP demo in ``--out`` (``mimicrete inspect`` prints its gate counts and
 latency percentiles). ``--shadow`` (the default) reads a real UR controller and sends nothing;
@@ -19,10 +20,15 @@ from mimicrete.cli import UsageError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run_dir", help="a run directory written by `mimicrete train`")
+    parser.add_argument("run_dir", nargs="?", help="a run directory written by `mimicrete train`")
+    parser.add_argument(
+        "--replay",
+        metavar="LOG",
+        help="instead of a run: replay a deploy log's commands in the simulator and compare "
+        "(writes LOG's stem + _replay.mcap, or --out FILE.mcap)",
+    )
     parser.add_argument(
         "--robot",
-        required=True,
         help="the arm's model (ur3, ur3e, ur5, ur5e, ur10, ur10e); must be the one the run's task "
         "was trained on",
     )
@@ -85,6 +91,12 @@ def main(args: argparse.Namespace) -> int:
     from mimicrete.robot.observe import ObservationError
     from mimicrete.robot.tile_pose import TilePoseError, parse_source
 
+    if args.replay is not None:
+        return _replay(args)
+    if args.run_dir is None:
+        raise UsageError("RUN_DIR: a run directory (or --replay LOG)")
+    if args.robot is None:
+        raise UsageError("--robot: the arm's model (ur3, ur3e, ur5, ur5e, ur10, ur10e)")
     run_dir = Path(args.run_dir)
     if not run_dir.is_dir():
         raise UsageError(f"{run_dir}: no such run directory")
@@ -205,6 +217,24 @@ def main(args: argparse.Namespace) -> int:
     if outcome.fault:
         print(f"mimicrete deploy: stopped by a fault: {outcome.reason}", file=sys.stderr)
         return 1
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from mimicrete.robot.replay import ReplayError, format_summary, replay
+
+    if args.run_dir is not None or args.host or args.mode != "shadow" or args.tile_pose:
+        raise UsageError("--replay LOG takes no RUN_DIR, --host, mode or --tile-pose")
+    log = Path(args.replay)
+    if not log.is_file():
+        raise UsageError(f"--replay {log}: no such file")
+    if args.out is not None and not args.out.endswith(".mcap"):
+        raise UsageError(f"--out {args.out}: with --replay, the replay's file (FILE.mcap)")
+    try:
+        res = replay(log, args.out)
+    except ReplayError as e:
+        raise UsageError(f"--replay {e}") from None
+    print(format_summary(res))
     return 0
 
 

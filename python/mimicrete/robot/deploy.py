@@ -68,6 +68,7 @@ class Task:
     joint_step: float
     env: Any
     task_file: str | None
+    env_id: str = "TileSuction-v0"
 
     @classmethod
     def of_run(cls, env_id: str, task_file: str | None, tile: tuple[float, float, float]) -> Task:
@@ -78,7 +79,8 @@ class Task:
         else:
             env = _native.SimEnv(tasks.get(env_id).sim, 0)
         env.reset(0, object_pose=list(tile), target_offset=[0.0, 0.0])
-        return cls(env.spec()["name"], env.spec(), float(env.joint_step), env, task_file)
+        spec = env.spec()
+        return cls(spec["name"], spec, float(env.joint_step), env, task_file, env_id)
 
 
 def torch_policy(actor: Any) -> Callable[[np.ndarray], np.ndarray]:
@@ -221,6 +223,8 @@ def run(
             "tile_source": tile_source.label,
             "speed_cap": limits.speed_cap,
             "joint_step": limits.joint_step,
+            "env_id": task.env_id,
+            "task_file": task.task_file or "",
             **(meta_extra or {}),
         },
     }
