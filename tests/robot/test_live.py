@@ -192,3 +192,29 @@ def dep_ticks(path):
 
     with open(path, "rb") as f:
         return [json.loads(m.data) for _, _, m in make_reader(f).iter_messages(["/deploy/tick"])]
+
+
+def test_live_through_the_cli_refuses_a_controller_it_cannot_take_over(run_dir, tmp_path):
+    """The loopback controller serves RTDE only: ur-rtde's control interface finds no dashboard
+    server, and deploy says so in one line, exit 2, before anything is written or sent."""
+    import sys
+    from pathlib import Path
+
+    from ._rtde_server import LoopbackRobot
+    from .conftest import home_q, tcp_of
+
+    sys.path.insert(0, str(Path(__file__).parent.parent))
+    from _cli_run import run_cli
+
+    q = home_q()
+    with LoopbackRobot(q, tcp=tcp_of(q), version=(5, 21, 0, 0)) as c:
+        r = run_cli(
+            "deploy", str(run_dir), "--robot", "ur3", "--live", "--host", c.host,
+            "--tile-pose", "fixed:{},{},{}".format(*TILE), "--out", str(tmp_path),
+        )  # fmt: skip
+        log = c.log()["log"]
+    assert r.returncode == 2, r.stderr
+    assert f"--host {c.host}: cannot take control (" in r.stderr
+    assert "Traceback" not in r.stderr
+    assert not list(tmp_path.iterdir())
+    assert all(e[0] != "I" for e in log)  # no input recipe: nothing could have been sent
