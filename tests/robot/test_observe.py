@@ -95,3 +95,8 @@ def test_other_tasks_are_refused():
     place = _native.task_spec("TilePlace")
     with pytest.raises(ObservationError, match="TilePlace"):
         Observer(place, np.zeros(3))
+    # a suction task whose actions move the tool, not the joints
+    tool = _native.task_spec("TileSuction")
+    tool["robot"] = {**tool["robot"], "action": "tool"}
+    with pytest.raises(ObservationError, match=r"moves the tool \(robot.action = 'tool'\)"):
+        Observer(tool, np.zeros(3))

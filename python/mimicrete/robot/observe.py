@@ -38,6 +38,12 @@ class Observer:
                 f"deploy builds the observation of TileSuction-layout tasks (a suction head, "
                 f"{FRAME_DIM} floats a frame); this run's task {spec.get('name')!r} is not one"
             )
+        action = spec["robot"].get("action") or "joint"
+        if action != "joint":
+            raise ObservationError(
+                f"deploy drives policies whose actions are joint motions; this run's task "
+                f"{spec.get('name')!r} moves the tool (robot.action = {action!r})"
+            )
         self.model = str(spec["robot"]["model"])
         self.tcp_z = float(spec["effector"]["tcp_z"])
         self.top_z = float(spec["table"]["top_z"])
