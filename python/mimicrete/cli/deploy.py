@@ -55,9 +55,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--tile-pose",
         metavar="SOURCE",
-        help="where the tile is: fixed:X,Y,YAW (m, m, rad, Base frame) or file:PATH (JSON lines "
-        '{"x": .., "y": .., "yaw": ..}, the newest line counts); --sim: where the simulated tile '
-        "is put (default: the simulator's own tile, fixed:0.075,0.32,0)",
+        help="where the tile is: fixed:X,Y,YAW (m, m, rad, Base frame), file:PATH (JSON lines "
+        '{"x": .., "y": .., "yaw": ..}, the newest line counts) or aruco:CAMERA (a marker on the '
+        "tile, --camera-calibration); --sim: where the simulated tile is put (default: the "
+        "simulator's own tile, fixed:0.075,0.32,0)",
+    )
+    parser.add_argument(
+        "--camera-calibration",
+        metavar="FILE.json",
+        help="--tile-pose aruco:CAMERA: the camera's intrinsics, its pose in the robot's Base "
+        "frame and the marker (docs/deploy.md)",
     )
     parser.add_argument("--out", help="directory of the deploy logs (default: RUN_DIR/deploy)")
     parser.add_argument(
@@ -126,7 +133,7 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(str(e)) from None
     es = cfg.env_settings
     try:
-        source = parse_source(args.tile_pose or "fixed:0.075,0.32,0")
+        source = parse_source(args.tile_pose or "fixed:0.075,0.32,0", args.camera_calibration)
     except TilePoseError as e:
         raise UsageError(str(e)) from None
     tile0 = source.pose()

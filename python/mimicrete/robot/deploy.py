@@ -234,6 +234,7 @@ def run(
     reason, kind = "", ""
     t0 = time.monotonic()
     last_cmd_at: float | None = None
+    src: tuple[float, float, float] | None = None
     try:
         with _sigterm_stops():
             while True:
@@ -257,10 +258,11 @@ def run(
                         "deadline",
                     )
                 gates.check_state(state)
-                try:
-                    src = tile_source.pose()
-                except ValueError as e:
-                    raise Stop(f"tile pose: {e}", "tile_pose") from None
+                if not observer.held or src is None:  # a held tile: the cups hide it
+                    try:
+                        src = tile_source.pose()
+                    except ValueError as e:
+                        raise Stop(f"tile pose: {e}", "tile_pose") from None
                 T = observer.tool0(state.q)
                 tile_xyz, how = observer.tile_centre(T, suction, src, tile_source.version)
                 obs = observer.push(state.q, suction, tile_xyz, T)

@@ -1,7 +1,8 @@
 """Where the tile is, for the observation: ``fixed:X,Y,YAW`` (m, m, rad; the tile lies on the
-table there) or ``file:PATH`` (a JSON object a line, ``{"x": .., "y": .., "yaw": ..}``, appended by
+table there), ``file:PATH`` (a JSON object a line, ``{"x": .., "y": .., "yaw": ..}``, appended by
 whatever tracks the tile; the newest complete line counts; the file must hold one line when the
-run starts). A line that is not such an object stops the run naming the file, the line and why."""
+run starts; a line that is not such an object stops the run naming the file, the line and why)
+or ``aruco:CAMERA`` (a marker on the tile seen by a camera: :mod:`.aruco`)."""
 
 from __future__ import annotations
 
@@ -86,8 +87,9 @@ def parse_line(text: str, where: str) -> tuple[float, float, float]:
     return out[0], out[1], out[2]
 
 
-def parse_source(text: str):
-    """``fixed:X,Y,YAW`` or ``file:PATH`` -> a source (``TilePoseError`` naming the flag)."""
+def parse_source(text: str, calibration: str | None = None):
+    """``fixed:X,Y,YAW``, ``file:PATH`` or ``aruco:CAMERA`` (with ``calibration``, the camera's
+    calibration file: :mod:`.aruco`) -> a source (``TilePoseError`` naming the flag)."""
     kind, _, rest = text.partition(":")
     if kind == "fixed":
         parts = rest.split(",")
@@ -102,6 +104,8 @@ def parse_source(text: str):
         return FixedTilePose(x, y, yaw)
     if kind == "file" and rest:
         return FileTilePose(rest)
-    if kind == "aruco":
-        raise TilePoseError(f"--tile-pose {text}: aruco is not built yet (docs/deploy.md)")
-    raise TilePoseError(f"--tile-pose {text}: expected fixed:X,Y,YAW or file:PATH")
+    if kind == "aruco" and rest:
+        from .aruco import ArucoTilePose
+
+        return ArucoTilePose(rest, calibration)
+    raise TilePoseError(f"--tile-pose {text}: expected fixed:X,Y,YAW, file:PATH or aruco:CAMERA")
