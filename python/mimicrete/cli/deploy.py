@@ -188,6 +188,13 @@ def main(args: argparse.Namespace) -> int:
         source.close()
         raise UsageError(str(e)) from None
 
+    if args.mode == "live":
+        print(
+            f"LIVE on {args.host}: the arm will move (speed cap {limits.speed_cap:g} rad/s, "
+            f"suction on digital output {args.suction_output}); keep a hand on the emergency "
+            "stop; Ctrl-C stops it",
+            file=sys.stderr,
+        )
     policy = dep.torch_policy(actor)
     policy(dep.Observer(task.spec, [0.0, 0.0, 0.0]).frames.reshape(-1))  # warm up before timing
     out_dir = Path(args.out) if args.out else run_dir / "deploy"
