@@ -15,6 +15,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from mimicrete.cli import UsageError
 
@@ -161,7 +162,7 @@ def main(args: argparse.Namespace) -> int:
         source.close()
         raise UsageError(str(e)) from None
 
-    robot = None
+    robot: Any = None
     try:
         if args.mode == "sim":
             from mimicrete.robot.sim import SimRobot

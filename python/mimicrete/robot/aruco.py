@@ -192,7 +192,9 @@ class ArucoTilePose:
             time.sleep(0.01)
         if self._pose is None:
             self.close()
-            why = max(self.refused, key=self.refused.get) if self.refused else "no frames"
+            why = (
+                max(self.refused.items(), key=lambda kv: kv[1])[0] if self.refused else "no frames"
+            )
             raise TilePoseError(
                 f"--tile-pose aruco:{camera}: no accepted marker pose within "
                 f"{FIRST_POSE_TIMEOUT:.0f} s ({why})"

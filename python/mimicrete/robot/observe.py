@@ -32,7 +32,7 @@ class ObservationError(_native.MimicreteError, ValueError):
 
 
 class Observer:
-    def __init__(self, spec: dict[str, Any], target: np.ndarray) -> None:
+    def __init__(self, spec: dict[str, Any], target: Any) -> None:
         if spec["effector"]["kind"] != "suction" or "seal" in spec["effector"]:
             raise ObservationError(
                 f"deploy builds the observation of TileSuction-layout tasks (a suction head, "
@@ -53,7 +53,7 @@ class Observer:
         self.frames = np.zeros((FRAME_STACK, FRAME_DIM), np.float32)
         self.held = False
         self._offset = np.zeros(3)
-        self._tile = None  # last tile centre (m)
+        self._tile: np.ndarray | None = None  # last tile centre (m)
         self._released_at_version: int | None = None
 
     def tool0(self, q: np.ndarray) -> np.ndarray:
@@ -77,8 +77,9 @@ class Observer:
                 self.held = True
                 self._offset = R.T @ (tile - tcp)
         if self.held:
-            self._tile = tcp + R @ self._offset
-            return self._tile, "held"
+            carried = tcp + R @ self._offset
+            self._tile = carried
+            return carried, "held"
         tile = self._current(from_source, version)
         self._tile = tile
         return tile, ("released" if self._released_at_version is not None else "source")

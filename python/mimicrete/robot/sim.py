@@ -66,7 +66,7 @@ class SimRobot:
         return float(o["t"][0]), float(o["t"][1]), yaw
 
     def snapshot(self) -> dict[str, Any]:
-        return self.env.snapshot()
+        return dict(self.env.snapshot())
 
     def set_joints(self, q: np.ndarray) -> None:
         """Teleport the arm (the live backend's recording sink drives the sim arm with this)."""
