@@ -14,6 +14,7 @@ from mimicrete.robot import deploy as dep
 from mimicrete.robot.gates import Limits
 from mimicrete.robot.observe import ObservationError, Observer
 from mimicrete.robot.sim import SimRobot
+from mimicrete.robot.tile_pose import FixedTilePose
 
 from .conftest import TILE
 
@@ -100,3 +101,28 @@ def test_other_tasks_are_refused():
     tool["robot"] = {**tool["robot"], "action": "tool"}
     with pytest.raises(ObservationError, match=r"moves the tool \(robot.action = 'tool'\)"):
         Observer(tool, np.zeros(3))
+
+
+def test_a_robot_interface_that_raises_stops_the_run_with_a_valid_log(policy, tmp_path):
+    """ur-rtde raises RuntimeError when a call fails (a controller gone mid-command): the run
+    stops with the robot's message and the log is finished."""
+    task = dep.Task.of_run("TileSuction-v0", None, TILE)
+
+    class Failing(SimRobot):
+        sent = 0
+
+        def send_joint_target(self, q, suction):
+            self.sent += 1
+            if self.sent == 6:
+                raise RuntimeError("RTDE control script is not running")
+            super().send_joint_target(q, suction)
+
+    robot = Failing(task="TileSuction", tile_pose=TILE)
+    limits = Limits.from_spec(task.spec, task.joint_step)
+    o = dep.run(robot, policy, task, FixedTilePose(*TILE), tmp_path / "f.mcap", limits=limits,
+                ticks=50, realtime=False)  # fmt: skip
+    assert o.kind == "robot" and o.ticks == 5
+    assert o.reason == "robot error while commanding: RTDE control script is not running"
+    assert robot.stopped == o.reason
+    s = dep.summary(o.path)
+    assert s["ticks"] == 5 and s["stop_kind"] == "robot"

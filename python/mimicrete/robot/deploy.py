@@ -31,6 +31,7 @@ import numpy as np
 
 from mimicrete import _native
 
+from . import RobotError
 from .gates import Gates, Limits, Stop
 from .observe import Observer
 
@@ -48,7 +49,7 @@ class Outcome:
     reason: str
     #: ``ticks`` (ran what was asked), ``episode`` (the simulated episode ended), ``signal``
     #: (Ctrl-C, SIGTERM), or the kind of the :class:`Stop`: safety_mode, connection, stalled,
-    #: joint_jump, deadline, policy, tile_pose
+    #: joint_jump, deadline, policy, tile_pose, robot (the robot's interface raised)
     kind: str
     gate_counts: dict[str, int] = field(default_factory=dict)
     latency_ms: dict[str, float] = field(default_factory=dict)
@@ -250,7 +251,10 @@ def run(
                         "deadline: the servo stream had no new target for 2 control periods",
                         "deadline",
                     )
-                state = robot.read()
+                try:
+                    state = robot.read()
+                except (RuntimeError, RobotError) as e:  # ur-rtde's errors, the servo stream's
+                    raise Stop(f"robot error while reading: {e}", "robot") from None
                 if last_cmd_at is not None and state.read_at - last_cmd_at > limits.deadline:
                     raise Stop(
                         f"deadline: {1000 * (state.read_at - last_cmd_at):.0f} ms since the last "
@@ -278,7 +282,10 @@ def run(
                 if np.isfinite(cmd):
                     suction = True if cmd >= 0.5 else False if cmd <= -0.5 else suction
                 q_cmd, fired = gates.gate_command(state.q, state.q + raw[:6] * limits.joint_step)
-                robot.send_joint_target(q_cmd, suction)
+                try:
+                    robot.send_joint_target(q_cmd, suction)
+                except (RuntimeError, RobotError) as e:
+                    raise Stop(f"robot error while commanding: {e}", "robot") from None
                 now = time.monotonic()
                 latency = now - state.read_at
                 last_cmd_at = now
