@@ -332,6 +332,10 @@ class SimEnv:
         the target, xy and yaw error, the lip-to-face gap of each hold); None for Screw."""
     def last_placement(self) -> _Placement | None:
         """``placement()`` at the end of the last finished episode (None before one)."""
+    def action_toward(self, q_goal: ArrayLike) -> _F64:
+        """The action's first six numbers (6,) that move the arm towards joint angles q_goal (6,)
+        in one step, in the spec's action space (robot.action: joint motions or the TCP's motion
+        and turn)."""
     def set_joints(self, q: _F64) -> None:
         """Test/tool API: teleport the arm to joint angles q (6,) rad."""
     def set_object_pose(
@@ -450,6 +454,11 @@ class SimExpert:
 
 def sim_constants() -> _SimConstants:
     """Simulator constants and per-task dims."""
+
+def joint_motion(spec: dict[str, Any], q: ArrayLike, action: ArrayLike) -> _F64:
+    """The joint angles (6,) one step of ``action`` takes the arm to from ``q`` (6,) under the
+    task spec ``spec`` (a dict as ``load_task_spec`` gives it; a bad one raises
+    ``SimInputError``)."""
 
 def load_task_spec(path: str) -> dict[str, Any]:
     """Read and check a task spec file (TOML, version 1; crates/tile-sim/src/spec/mod.rs

@@ -21,12 +21,14 @@ Spaces (all float32): observation ``Box(-inf, inf, (obs_dim,))`` = 5 stacked fra
 zero-padded at episode start (TileSuction frame: 6 joint angles [rad], suction state ±1, cup centre
 [m], target [m], tile centre [m]; Base frame, Z up). Action ``Box(-1, 1, (act_dim,))``: six joint
 motions (× the joint step, clipped: ``MAX_JOINT_STEP`` = 0.04 rad per step, or a task spec's
-``robot.joint_step``, ``env.unwrapped.joint_step``) and the end-effector command (≥0.5 suction /
-close, ≤-0.5 drop / open, otherwise hold); Screw adds the spin command. Rewards are the paper's
-sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate). TileRow's frame
-holds, after the suction state and the cup centre, each tile's target, centre and installed flag
-(1 or 0); each tile's first pick and its install pay +1, the last install terminates, and
-``info["installed"]`` is that last install (the row complete).
+``robot.joint_step``, ``env.unwrapped.joint_step``), or in a spec with ``robot.action = "tool"``
+(TilePlace) the TCP's motion and turn in Base (× ``robot.tool_step`` m, ``robot.tool_turn`` rad;
+``SimEnv.action_toward`` gives the action towards joint angles), and the end-effector command
+(≥0.5 suction / close, ≤-0.5 drop / open, otherwise hold); Screw adds the spin command. Rewards
+are the paper's sparse rewards (+1 pick, +1 install and terminate, -0.5 fall and terminate).
+TileRow's frame holds, after the suction state and the cup centre, each tile's target, centre
+and installed flag (1 or 0); each tile's first pick and its install pay +1, the last install
+terminates, and ``info["installed"]`` is that last install (the row complete).
 
 Time limit: the simulator itself truncates at the spec's ``episode.max_steps`` (750 for
 TileSuction, BlockGrip and Screw, 2000 for TileRow) (``truncated=True``); the ids are

@@ -120,7 +120,6 @@ def test_played_actions_are_in_units_of_the_specs_joint_step(tmp_path):
     obs = sim.reset(0)
     ep = GeneratedEpisode("t", {"object_pose": list(sim.start()["object_pose"])}, 0)
     run = _Runner(sim, ep, np.asarray(obs, np.float32))
-    assert run.joint_step == 0.02
     pose = run.pose()
     for k in range(1, 6):  # 1 mm down a step: no joint needs a full step
         target = pose.copy()
@@ -130,8 +129,13 @@ def test_played_actions_are_in_units_of_the_specs_joint_step(tmp_path):
         assert np.max(np.abs(a)) < 1.0, a
         np.testing.assert_allclose(run.q, run.q_ik, atol=1e-6)
         np.testing.assert_allclose(run.pose()[:3, 3], target[:3, 3], atol=1e-6)
+    # a source's last action is read with the step of the spec it ran in
     meta = {"task_spec": json.dumps(sim.spec())}
-    assert dg.segment.joint_step_of(meta) == 0.02 and dg.segment.joint_step_of({}) == 0.04
+    q = np.asarray(sim.snapshot()["q"])
+    full = np.array([1.0, 0, 0, 0, 0, 0, 0], np.float32)
+    after = dg.segment.spec_of(meta, "suction"), dg.segment.spec_of({}, "suction")
+    moved = [_native.joint_motion(s, q, full)[0] - q[0] for s in after]
+    np.testing.assert_allclose(moved, [0.02, 0.04], atol=1e-12)
 
 
 def test_cli_bad_input_exits_2_naming_the_problem(source_dir, tmp_path):

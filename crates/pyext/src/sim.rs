@@ -30,6 +30,25 @@ fn load_task_spec<'py>(py: Python<'py>, path: &str) -> PyResult<Any<'py>> {
     to_py(py, &read_spec(path)?)
 }
 
+/// The joint angles (6,) one step of `action` (its first six numbers, clipped to [-1, 1]) takes
+/// the arm to from `q` (6,), under the task spec `spec` (a dict as `load_task_spec`, `task_spec`
+/// or `SimEnv.spec` give it; checked: a bad one raises `SimInputError`).
+#[pyfunction]
+fn joint_motion<'py>(
+    py: Python<'py>,
+    spec: &Bound<'py, PyAny>,
+    q: [f64; 6],
+    action: Vec<f32>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let spec: TaskSpec =
+        pythonize::depythonize(spec).map_err(|e| PyValueError::new_err(format!("spec: {e}")))?;
+    spec.check().map_err(spec_err)?;
+    if action.len() < 6 || action.iter().any(|x| !x.is_finite()) || q.iter().any(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err("q (6,) and action (at least 6) must be finite"));
+    }
+    Ok(vector(py, tile_sim::action::joint_motion(&spec, &q, &action).to_vec()))
+}
+
 /// The built-in spec of `task` as a dict (`as_toml=True`: the spec file's text).
 #[pyfunction]
 #[pyo3(signature = (task, as_toml = false))]
@@ -280,6 +299,21 @@ impl SimEnv {
     /// `placement()` at the end of the last finished episode, or `None` before one finished.
     fn last_placement<'py>(&self, py: Python<'py>) -> PyResult<Any<'py>> {
         to_py(py, &self.env.last_placement())
+    }
+
+    /// The action's first six numbers (6,) that move the arm from where it is towards joint
+    /// angles `q_goal` (6,) in one step, in the spec's action space (`robot.action`: joint
+    /// motions, or the TCP's motion and turn): what the expert, teleop and demogen record.
+    fn action_toward<'py>(
+        &self,
+        py: Python<'py>,
+        q_goal: PyReadonlyArrayDyn<'_, f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = nd_from_py(&q_goal).into_shape(&[6], "q_goal").map_err(demo_err)?;
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(PyValueError::new_err("q_goal must be finite"));
+        }
+        Ok(vector(py, self.env.action_toward(&std::array::from_fn(|i| v[i])).to_vec()))
     }
 
     /// Test/tool API: teleport the arm to joint angles `q` (6,) rad.
@@ -551,6 +585,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<SimEnv>()?;
     m.add_class::<SimVecEnv>()?;
     m.add_class::<SimExpert>()?;
-    add_functions!(m => sim_constants, scene_entities, scene_frames, load_task_spec, task_spec, hand_scale);
+    add_functions!(m => sim_constants, scene_entities, scene_frames, load_task_spec, task_spec, hand_scale, joint_motion);
     Ok(())
 }

@@ -82,13 +82,6 @@ pub fn wrap_to_pi(a: f64) -> f64 {
     m - PI
 }
 
-/// `clip(wrap(q_ik − q) / step, −1, 1)`: the shortest way round, at most one full step. `step` is
-/// the env's joint motion per step at full action (its spec's `TaskSpec::joint_step`,
-/// `tile_sim::MAX_JOINT_STEP` = 0.04 rad unless the spec sets `robot.joint_step`).
-pub fn joint_action(q_ik: &[f64; 6], q: &[f64; 6], step: f64) -> [f64; 6] {
-    std::array::from_fn(|i| (wrap_to_pi(q_ik[i] - q[i]) / step).clamp(-1.0, 1.0))
-}
-
 /// The end-effector command a demo step records and the env receives, given the newest
 /// observation frame. tile-sim's suction latches (on stays on until a drop), so a command that
 /// repeats the suction's state (`frame[6]`: +1 on, −1 off) is sent as "fixed" (0): the robot does
@@ -136,14 +129,5 @@ mod tests {
         assert_eq!(recorded_command(Task::TilePlace, -1.0, &frame), -1.0);
         frame[6] = -1.0;
         assert_eq!(recorded_command(Task::TilePlace, -1.0, &frame), 0.0);
-    }
-
-    #[test]
-    fn joint_actions_take_the_short_way_and_saturate() {
-        let q = [3.1, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let a = joint_action(&[-3.1, 0.02, -1.0, 0.0, 0.0, 0.0], &q, tile_sim::MAX_JOINT_STEP);
-        assert!(a[0] > 0.0 && a[0] <= 1.0, "crossing ±π goes forward: {}", a[0]);
-        assert!((a[1] - 0.5).abs() < 1e-12);
-        assert_eq!(a[2], -1.0);
     }
 }

@@ -2,7 +2,7 @@
 
 use crate::clutch::{Clutch, ClutchInput, Mapping};
 use crate::filter::OneEuro;
-use crate::{BRANCH_JUMP, TeleopError, command_of, joint_action, recorded_command, wrap_to_pi};
+use crate::{BRANCH_JUMP, TeleopError, command_of, recorded_command, wrap_to_pi};
 use demo_log::{DemoError, DemoWriter, HandFrame, Pose as RecPose, StepRecord};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -396,7 +396,7 @@ impl Session {
                         why = Some(w);
                     }
                 }
-                let ja = joint_action(&self.q_ik, &self.q, self.env.joint_step());
+                let ja = tile_sim::action::action_toward(self.env.spec(), &self.q, &self.q_ik);
                 for (ai, v) in a.iter_mut().zip(ja) {
                     *ai = v as f32;
                 }

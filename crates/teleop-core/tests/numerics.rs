@@ -1,31 +1,12 @@
-//! The loop's numerics over wide inputs: the joint action, the wrap, the One Euro filter.
+//! The loop's numerics over wide inputs: the wrap, the One Euro filter (the action the loop
+//! sends is tile-sim's `action::action_toward`, tested there).
 
 use proptest::prelude::*;
 use std::f64::consts::PI;
-use teleop_core::{OneEuro, joint_action, wrap_to_pi};
+use teleop_core::{OneEuro, wrap_to_pi};
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(500))]
-
-    #[test]
-    fn the_joint_action_takes_the_short_way_and_is_bounded(
-        q in prop::array::uniform6(-PI..PI),
-        dq in prop::array::uniform6(-10.0f64..10.0),
-    ) {
-        let target: [f64; 6] = std::array::from_fn(|i| q[i] + dq[i]);
-        let a = joint_action(&target, &q, 0.04);
-        for i in 0..6 {
-            prop_assert!(a[i].abs() <= 1.0);
-            let short = wrap_to_pi(dq[i]);
-            prop_assert!((-PI..PI).contains(&short));
-            if short.abs() < 0.04 {
-                prop_assert!((a[i] - short / 0.04).abs() < 1e-6, "{} vs {}", a[i], short / 0.04);
-            } else if (short.abs() - PI).abs() > 1e-9 {
-                // half a turn either way is equally short: only then may the sign differ
-                prop_assert_eq!(a[i].signum(), short.signum());
-            }
-        }
-    }
 
     #[test]
     fn wrapping_moves_by_whole_turns_only(a in -1e4f64..1e4) {

@@ -70,8 +70,8 @@ pub struct Expert {
     /// The TCP's offset along tool0 z and the grasp point's height above the object's centre (m).
     tcp_z: f64,
     grasp_dz: f64,
-    /// Joint motion per step at full action (the spec's [`TaskSpec::joint_step`]).
-    joint_step: f64,
+    /// The task's numbers: how an action moves the arm ([`crate::action::action_toward`]).
+    spec: std::sync::Arc<TaskSpec>,
     phase: u8,
     goal: Option<[f64; 6]>,
     /// Steps spent in the current phase.
@@ -97,7 +97,7 @@ impl Expert {
             arm: spec.arm(),
             tcp_z: spec.tcp_z() as f64,
             grasp_dz,
-            joint_step: spec.joint_step(),
+            spec: std::sync::Arc::new(spec.clone()),
             phase: 0,
             goal: None,
             ticks: 0,
@@ -141,8 +141,9 @@ impl Expert {
         }
         self.ticks += 1;
         if let Some(g) = self.goal {
+            let a = crate::action::action_toward(&self.spec, &s.q, &g);
             for i in 0..6 {
-                out[i] = ((g[i] - s.q[i]) / self.joint_step).clamp(-1.0, 1.0) as f32;
+                out[i] = a[i] as f32;
             }
         }
         self.command(s, out);

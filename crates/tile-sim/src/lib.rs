@@ -60,7 +60,8 @@
 //! # Action (f32, length [`Task::act_dim`])
 //! `a[0..6]` ∈ [-1, 1]: joint motion, `q_next = clamp(q + clip(a, -1, 1)·joint_step, -π, π)`
 //! (`joint_step`: the spec's [`TaskSpec::joint_step`], [`MAX_JOINT_STEP`] unless it sets one;
-//! clamped, not wrapped: the arm never jumps across ±π). `a[6]`: end-effector command,
+//! clamped, not wrapped: the arm never jumps across ±π). A spec with `robot.action = "tool"`
+//! (TilePlace) reads them as the TCP's motion and turn instead ([`action`]). `a[6]`: end-effector command,
 //! `≥ 0.5` → suction on / gripper close, `≤ -0.5` → drop / open, otherwise fixed (hold the state).
 //! Screw has `a[7]` = spin: `≥ 0.5` tighten, `≤ -0.5` loosen, otherwise stopped.
 //! A recorded human demonstration produces exactly this: joint part
@@ -84,6 +85,7 @@
 //! The files sit in the crate, not at the repository's top, because the crate compiles them in
 //! and owns what they mean (`cargo package` only ships what is inside the crate).
 
+pub mod action;
 pub mod arm;
 mod env;
 pub mod expert;

@@ -30,7 +30,7 @@ fn place_cups(env: &mut Env, tcp: [f64; 3]) {
     env.set_joints(q).unwrap();
 }
 
-/// The joint action that moves the cup centre by `d` (m) in one step (clipped to the joint step).
+/// The action that moves the cup centre by `d` (m) in one step (as far as a step goes).
 fn move_cups(env: &Env, d: [f64; 3]) -> [f32; 6] {
     let s = env.snapshot();
     let goal = Vector3::from(s.tcp.t) + Vector3::from(d);
@@ -39,8 +39,14 @@ fn move_cups(env: &Env, d: [f64; 3]) -> [f32; 6] {
         iso_rot(&s.tool0),
     );
     let q = ik_dls(&tool0, &s.q).expect("reachable");
-    let step = env.joint_step();
-    std::array::from_fn(|i| ((q[i] - s.q[i]) / step).clamp(-1.0, 1.0) as f32)
+    env.action_toward(&q).map(|v| v as f32)
+}
+
+/// The action (TilePlace commands the tool) that turns the base by `share` of a joint step.
+fn turn_base(env: &Env, share: f64) -> [f32; 6] {
+    let mut q = env.snapshot().q;
+    q[0] += share * env.joint_step();
+    env.action_toward(&q).map(|v| v as f32)
 }
 
 fn iso_rot(p: &tile_sim::PoseRec) -> nalgebra::UnitQuaternion<f64> {
@@ -176,7 +182,7 @@ fn a_weak_hold_keeps_a_gently_carried_tile_and_drops_a_hard_swung_one() {
     }
     for k in 0..40 {
         let dir = if k < 20 { 0.1 } else { -0.1 };
-        let out = env.step(&act([dir, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0), &mut o).unwrap();
+        let out = env.step(&act(turn_base(&env, dir), 0.0), &mut o).unwrap();
         assert!(out.held && !out.fell, "step {k}: a gentle carry lost the tile");
     }
     // Hard: the same at full speed, reversing every 5 steps.
@@ -187,7 +193,7 @@ fn a_weak_hold_keeps_a_gently_carried_tile_and_drops_a_hard_swung_one() {
     let mut lost = None;
     for k in 0..60 {
         let dir = if (k / 5) % 2 == 0 { 1.0 } else { -1.0 };
-        let out = env.step(&act([dir, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0), &mut o).unwrap();
+        let out = env.step(&act(turn_base(&env, dir), 0.0), &mut o).unwrap();
         if !out.held {
             lost = Some(k);
             break;
@@ -201,7 +207,7 @@ fn a_weak_hold_keeps_a_gently_carried_tile_and_drops_a_hard_swung_one() {
     }
     for k in 0..60 {
         let dir = if (k / 5) % 2 == 0 { 1.0 } else { -1.0 };
-        let out = env.step(&act([dir, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0), &mut o).unwrap();
+        let out = env.step(&act(turn_base(&env, dir), 0.0), &mut o).unwrap();
         assert!(out.held, "step {k}: the full vacuum lost the tile");
     }
 }

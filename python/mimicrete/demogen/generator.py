@@ -6,10 +6,10 @@ a source demo, carry each of its segments into the new tile / target frame (:mod
 connect it to where the arm is by blending the offset out over the segment's first part (a
 min-jerk interpolation from the current pose onto the transformed path; the tool's turn about
 Base Z too where the frames turn, TilePlace), and follow the poses with the project's IK, producing
-the joint actions a teleoperated demo records (teleop-core's ``joint_action``:
-``clip(wrap(q_ik − q) / joint_step, −1, 1)``, the IK warm-started at its last answer; the joint
-step is the simulator's, ``SimEnv.joint_step``: the demos' task spec's ``robot.joint_step``, else
-``MAX_JOINT_STEP``). The
+the actions a teleoperated demo records (the simulator's ``SimEnv.action_toward`` of the IK's
+answer, warm-started at its last one: ``clip(wrap(q_ik − q) / joint_step, −1, 1)`` in the joint
+space, the TCP's motion and turn towards the answer's in the tool space of a spec with
+``robot.action = "tool"``, TilePlace). The
 effector commands are the source's (the suction's only at its switch, once the cup is within
 reach of the grasp point; the gripper's and the spin as recorded, the gripper kept closing until
 it holds; Screw's gripper "close" from the first step within the grasp tolerance of the nut on,
@@ -44,7 +44,6 @@ from .segment import (
     task_frames,
 )
 
-MAX_JOINT_STEP = tasks.MAX_JOINT_STEP
 CONTROL_DT = tasks.CONTROL_DT
 MAX_STEPS = tasks.MAX_EPISODE_STEPS
 PICK_REACH = 0.03  # m: switch the suction on only with the cup this close to the grasp point
@@ -59,12 +58,6 @@ def min_jerk(s: np.ndarray) -> np.ndarray:
 
 def wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
-
-
-def joint_action(q_ik: np.ndarray, q: np.ndarray, step: float = MAX_JOINT_STEP) -> np.ndarray:
-    """teleop-core's ``joint_action``: the shortest way round, at most one full ``step`` (the
-    env's joint motion per step at full action, ``SimEnv.joint_step``)."""
-    return np.clip(wrap(q_ik - q) / step, -1.0, 1.0)
 
 
 def sim_env(task: str, task_file: str | None = None) -> Any:
@@ -163,8 +156,6 @@ class _Runner:
         self.q = np.asarray(snap["q"], np.float64)
         self.q_ik = self.q.copy()
         self.model = robot_model(sim)
-        #: rad per step at full action: the spec's ``robot.joint_step`` (else MAX_JOINT_STEP)
-        self.joint_step = float(sim.joint_step)
         self.done = False
 
     def pose(self) -> np.ndarray:
@@ -185,7 +176,7 @@ class _Runner:
         cmd = np.zeros(spec.act_dim - 6, np.float64)
         cmd[:] = np.atleast_1d(np.asarray(command, np.float64))[: len(cmd)]
         a = np.zeros(spec.act_dim, np.float32)
-        a[:6] = joint_action(self.q_ik, self.q, self.joint_step)
+        a[:6] = self.sim.action_toward(self.q_ik)
         if self.noise > 0:  # MimicGen's action noise: executed and recorded (see generate)
             a[:6] = np.clip(a[:6] + self.noise * self.rng.standard_normal(6), -1.0, 1.0)
         a[6:] = cmd

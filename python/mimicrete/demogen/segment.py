@@ -265,8 +265,9 @@ def segment_episode(
             f"{name}: the grasp segment ends at step {k} of {len(obs)}; a segment would be empty"
         )
     lay = spec.lay
-    step = joint_step_of(meta)
-    q_after = np.vstack([f[1:, lay["q"]], f[-1:, lay["q"]] + actions[-1:, :6] * step])
+    # the joints after each action: the next frame's; after the last one, the simulator's step
+    last = _native.joint_motion(spec_of(meta, spec.sim), f[-1, lay["q"]], actions[-1])
+    q_after = np.vstack([f[1:, lay["q"]], last[None]])
     poses = kin.fk_batch(q_after, model=(meta or {}).get("robot_model") or "ur3")
     # the object's offset from the TCP after each action (the last one's: as after the one before)
     after = np.vstack([f[1:], f[-1:]])
@@ -281,16 +282,13 @@ def segment_episode(
     return SourceDemo(name, obj.copy(), target.copy(), segs, dict(meta or {}), spec.sim, yaws)
 
 
-def joint_step_of(meta: dict[str, str] | None) -> float:
-    """The joint motion per step at full action (rad) of the env a demo ran in: its task spec's
-    ``robot.joint_step`` (the ``task_spec`` metadata of a demo recorded in a spec file), else
-    ``MAX_JOINT_STEP``."""
+def spec_of(meta: dict[str, str] | None, sim: str) -> dict[str, Any]:
+    """The task spec (a dict) of the env a demo ran in: its ``task_spec`` metadata (a demo
+    recorded in a spec file), else the built-in spec of its simulator task ``sim``."""
     import json
 
-    spec = (meta or {}).get("task_spec")
-    if not spec:
-        return tasks.MAX_JOINT_STEP
-    return float(json.loads(spec)["robot"].get("joint_step", tasks.MAX_JOINT_STEP))
+    text = (meta or {}).get("task_spec")
+    return json.loads(text) if text else _native.task_spec(sim)
 
 
 def load_sources(path: str | Path, count: int | None = None) -> list[SourceDemo]:

@@ -13,7 +13,6 @@ use crate::{FRAME_STACK, SimError, Task};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier3d::prelude::*;
-use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// Joint angles (rad) at the start of every episode: flange pointing straight down with the cup
@@ -238,6 +237,12 @@ impl Env {
         self.s.spec.joint_step()
     }
 
+    /// The action (six numbers) that moves the arm from where it is towards joint angles
+    /// `q_goal` in one step, in the spec's action space ([`crate::action::action_toward`]).
+    pub fn action_toward(&self, q_goal: &[f64; 6]) -> [f64; 6] {
+        crate::action::action_toward(&self.s.spec, &self.s.q, q_goal)
+    }
+
     /// Steps after which an episode is truncated (the spec's `episode.max_steps`).
     pub fn max_episode_steps(&self) -> u32 {
         self.s.spec.episode.max_steps
@@ -406,12 +411,7 @@ impl Env {
 
     /// Step with an already validated action (length and finiteness checked by the caller).
     pub(crate) fn step_unchecked(&mut self, action: &[f32]) -> StepOutcome {
-        let mut qn = self.s.q;
-        let step = self.s.spec.joint_step();
-        for i in 0..6 {
-            let a = action[i].clamp(-1.0, 1.0) as f64;
-            qn[i] = (self.s.q[i] + a * step).clamp(-PI, PI);
-        }
+        let qn = crate::action::joint_motion(&self.s.spec, &self.s.q, action);
         let frames = ur3_kin::fk_all(self.s.arm, &qn);
         for i in 0..6 {
             let p = to_pose(&frames[i + 1]);

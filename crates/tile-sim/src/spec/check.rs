@@ -414,6 +414,7 @@ impl TaskSpec {
                 );
             }
         }
+        self.check_tool_space()?;
         positive("table.half_extents", &self.table.half_extents)?;
         finite("table.top_z", &[self.table.top_z])?;
         friction("table.friction", self.table.friction)?;
@@ -484,6 +485,29 @@ impl TaskSpec {
                         ),
                     );
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// `robot.tool_step` / `robot.tool_turn`: only with `robot.action = "tool"`, finite, > 0
+    /// and at most 0.05 m / 0.2 rad per step.
+    fn check_tool_space(&self) -> Result<(), SpecError> {
+        let tool = self.action_space() == super::ActionSpace::Tool;
+        for (field, value, most, unit) in [
+            ("robot.tool_step", self.robot.tool_step, 0.05, "m"),
+            ("robot.tool_turn", self.robot.tool_turn, 0.2, "rad"),
+        ] {
+            let Some(v) = value else { continue };
+            if !tool {
+                return invalid(field, v, "only with robot.action = \"tool\" (the joint space moves joints)");
+            }
+            if !(v.is_finite() && v > 0.0 && v <= most) {
+                return invalid(
+                    field,
+                    v,
+                    format!("must be a finite motion > 0 and at most {most} {unit} per step at full action"),
+                );
             }
         }
         Ok(())

@@ -102,6 +102,31 @@ pub struct RobotSpec {
     /// step moves the tool about as far as on the UR3 (`tasks/tile_suction_ur5e.toml`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joint_step: Option<f64>,
+    /// What an action's first six numbers command ([`crate::action`]): `"joint"` (absent: the
+    /// paper's, each joint's motion) or `"tool"` (the TCP's motion and turn in Base, as a UR's
+    /// `servoL` commands the tool; the joints follow through the Jacobian, each still at most
+    /// `joint_step` per step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub action: Option<ActionSpace>,
+    /// Tool space only: TCP motion (m) per step at full action; absent:
+    /// [`TOOL_STEP`](crate::action::TOOL_STEP) = 0.01 m. Finite, > 0, at most 0.05 m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool_step: Option<f64>,
+    /// Tool space only: TCP turn (rad) per step at full action; absent:
+    /// [`TOOL_TURN`](crate::action::TOOL_TURN) = 0.04 rad. Finite, > 0, at most 0.2 rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool_turn: Option<f64>,
+}
+
+/// What an action's first six numbers command (`robot.action`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionSpace {
+    /// Each joint's motion, `a[i] · joint_step` rad (the paper's).
+    #[default]
+    Joint,
+    /// The TCP's motion `a[0..3] · tool_step` m and turn `a[3..6] · tool_turn` rad, in Base.
+    Tool,
 }
 
 /// The table: a fixed box whose top face is the plane `z = top_z`, centred under the base.
@@ -560,6 +585,23 @@ impl TaskSpec {
     /// it, else [`MAX_JOINT_STEP`](crate::MAX_JOINT_STEP) (0.04 rad, 1 rad/s).
     pub fn joint_step(&self) -> f64 {
         self.robot.joint_step.unwrap_or(crate::MAX_JOINT_STEP)
+    }
+
+    /// What an action's first six numbers command: `robot.action`, else joint motions.
+    pub fn action_space(&self) -> ActionSpace {
+        self.robot.action.unwrap_or_default()
+    }
+
+    /// TCP motion (m) per step at full action in the tool space: `robot.tool_step`, else
+    /// [`TOOL_STEP`](crate::action::TOOL_STEP).
+    pub fn tool_step(&self) -> f64 {
+        self.robot.tool_step.unwrap_or(crate::action::TOOL_STEP)
+    }
+
+    /// TCP turn (rad) per step at full action in the tool space: `robot.tool_turn`, else
+    /// [`TOOL_TURN`](crate::action::TOOL_TURN).
+    pub fn tool_turn(&self) -> f64 {
+        self.robot.tool_turn.unwrap_or(crate::action::TOOL_TURN)
     }
 
     /// Objects (and pads) in the task: the row's `count`, else 1.
