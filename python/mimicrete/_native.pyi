@@ -61,6 +61,7 @@ __all__ = [
     "load_task_spec",
     "task_spec",
     "hand_scale",
+    "joint_motion",
     "DemoWriter",
     "demo_parse_handlog",
     "demo_parse_handlog_str",
