@@ -16,7 +16,6 @@ from mimicrete.robot.aruco import Calibration, MarkerPose, judge
 
 from . import _aruco_scene as scene
 
-pytest.importorskip("cv2")
 sys.path.insert(0, str(Path(__file__).parent.parent))
 from _cli_run import run_cli  # noqa: E402
 

@@ -26,7 +26,6 @@ from mimicrete.robot.tile_pose import FixedTilePose
 from ._rtde_server import LoopbackRobot
 from .conftest import TILE, home_q, tcp_of
 
-pytest.importorskip("rtde_receive")
 sys.path.insert(0, str(Path(__file__).parent.parent))
 from _cli_run import run_cli  # noqa: E402
 
