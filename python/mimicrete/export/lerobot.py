@@ -21,6 +21,9 @@ replay), and LeRobot's own ``timestamp`` (= frame_index / fps), ``frame_index``,
 
 Episode rows hold LeRobot's columns (``episode_index``, ``tasks``, ``length``, the data file and
 row range, ``stats/<feature>/<stat>``) and ours: ``mimicrete/seed`` (the simulator seed, uint64),
+``mimicrete/start`` (a generated demo's recorded start as JSON, ``object_pose``, ``target_offset``,
+TilePlace's ``pad_yaw``, the reset options that start its episode with the seed; "" for a demo
+started at its seed's own start),
 ``mimicrete/success``, ``mimicrete/total_reward``, ``mimicrete/source_demo`` (the MCAP's file
 name), ``mimicrete/source_handlog`` and ``mimicrete/source_handlog_sha256`` (the hand log it came
 from), ``mimicrete/terminated``.
@@ -255,6 +258,7 @@ def _write(ds: DemoSet, root: Path, pa: Any, pq: Any) -> None:
             row.update(
                 {
                     "mimicrete/seed": ep.seed,
+                    "mimicrete/start": json.dumps(ep.start) if ep.start else "",
                     "mimicrete/success": ep.success,
                     "mimicrete/total_reward": float(ep.rewards.sum()),
                     "mimicrete/terminated": bool(ep.terminated[-1]),

@@ -17,10 +17,12 @@ reset, all false; row k + 1: after step k).
 
 The dataset records the gymnasium env spec (``mimicrete/TileSuction-v0``...), so
 ``dataset.recover_environment()`` makes our env. An episode's metadata holds
-``options = {"episode_seed": SEED}``: ``env.reset(options=...)`` starts that very episode, and
-stepping the dataset's actions gives back the recorded observations. The episode's ``seed`` (the
-gymnasium reset seed) is left out: the demos were not started from one. The metadata also holds
-``success``, ``source_demo``, ``source_handlog`` and ``source_handlog_sha256``.
+``options = {"episode_seed": SEED}`` (a generated demo's also holds its recorded start:
+``object_pose``, ``target_offset``, TilePlace's ``pad_yaw``): ``env.reset(options=...)`` starts
+that very episode, and stepping the dataset's actions gives back the recorded observations. The
+episode's ``seed`` (the gymnasium reset seed) is left out: the demos were not started from one.
+The metadata also holds ``success``, ``source_demo``, ``source_handlog`` and
+``source_handlog_sha256``.
 """
 
 from __future__ import annotations
@@ -78,7 +80,7 @@ def buffers(ds: DemoSet) -> list[Any]:
             EpisodeBuffer(
                 id=ep.index,
                 seed=None,
-                options={"episode_seed": ep.seed},
+                options={"episode_seed": ep.seed, **(ep.start or {})},
                 observations=np.concatenate([ep.obs, ep.final_obs[None, :]]).astype(np.float32),
                 actions=ep.actions.astype(np.float32),
                 rewards=ep.rewards.astype(np.float64),

@@ -3,7 +3,9 @@
 Both exporters (:mod:`mimicrete.export.lerobot`, :mod:`mimicrete.export.minari`) read their input
 here. :func:`read_demo_dir` loads every ``*.mcap`` of a directory (sorted by name; ``*.partial``
 files are skipped, as :func:`mimicrete.demos.load` does), requires one task for all of them, and
-replays each episode in the simulator from its seed with its recorded actions. The replay must
+replays each episode in the simulator from its seed with its recorded actions (a generated
+demo, ``mimicrete demogen``, from the explicit start its metadata records: the seed's own start
+moved there, as the demo curriculum replays it). The replay must
 give back the recorded observations, rewards and terminations exactly (the simulator is
 deterministic; on the 60 converted demos of the tests the difference is 0.0), and gives what the
 demo file does not store: the observation after the last step (Minari keeps N + 1 observations
@@ -29,6 +31,7 @@ import numpy as np
 from mimicrete import tasks
 from mimicrete._native import MimicreteError
 from mimicrete.export import levels
+from mimicrete.learn.curriculum import _explicit_start
 
 #: Names of one observation frame's floats per task (tile-sim's ``Task::obs_frame_dim`` layout).
 _JOINTS = [f"q{i}" for i in range(6)]
@@ -116,6 +119,9 @@ class DemoEpisode:
     info: dict[str, np.ndarray]  # INFO_KEYS -> (T,) bool, after each step (replayed)
     seed: int  # the simulator's episode seed (u64)
     success: bool
+    #: the explicit start the episode was replayed from (``object_pose``, ``target_offset``, a
+    #: turned pad's ``pad_yaw``: a generated demo's); None: the paper's start of ``seed``
+    start: dict[str, Any] | None = None
     meta: dict[str, str] = field(default_factory=dict)
     #: (T, act_dim) float32: the actions as the demo recorded them (the effector's switches)
     recorded_actions: np.ndarray | None = None
@@ -227,8 +233,9 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
                 f"{spec.name} ({spec.obs_dim}/{spec.act_dim})"
             )
         seed = int(ep["meta"].get("seed", "0"))
+        start = _explicit_start(ep["meta"])
         level = levels.to_levels(spec.name, act)
-        final_obs, info = _replay_levels(f, spec, seed, obs, act, level, ep, task_file)
+        final_obs, info = _replay_levels(f, spec, seed, obs, act, level, ep, task_file, start)
         episodes.append(
             DemoEpisode(
                 file=str(f),
@@ -243,6 +250,7 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
                 info=info,
                 seed=seed,
                 success=ep["meta"]["success"] == "true",
+                start=start,
                 meta=ep["meta"],
             )
         )
@@ -301,15 +309,16 @@ def _replay_levels(
     level: np.ndarray,
     ep: dict[str, Any],
     task_file: str | None,
+    start: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """:func:`_replay` of the exported actions (the levels as the env takes them). Where they do
     not give back the demo, the recorded actions are replayed too, to say which fails: the demo
     (another simulator), or its level (the effector did not read its command as a latch)."""
     try:
         return _replay(f, spec.sim, seed, obs, levels.to_env(level, ACTION_NAMES[spec.name]), ep,
-                       task_file)  # fmt: skip
+                       task_file, start)  # fmt: skip
     except ExportError as e:
-        _replay(f, spec.sim, seed, obs, recorded, ep, task_file)  # raises for a foreign demo
+        _replay(f, spec.sim, seed, obs, recorded, ep, task_file, start)  # raises: a foreign demo
         why = str(e).removeprefix(f"{f}: ")
         raise ExportError(
             f"{f}: its recorded actions replay, its effector command as a level does not "
@@ -325,14 +334,19 @@ def _replay(
     act: np.ndarray,
     ep: dict[str, Any],
     task_file: str | None = None,
+    start: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Step a fresh simulator (of ``task_file`` if given) reset with ``seed`` through ``act``;
-    check it reproduces the demo; return the observation after the last step and the per-step
-    info flags."""
+    """Step a fresh simulator (of ``task_file`` if given) reset with ``seed`` (at ``start``, a
+    generated demo's explicit start, when given) through ``act``; check it reproduces the demo;
+    return the observation after the last step and the per-step info flags."""
     from mimicrete import _native
 
     env = _native.SimEnv(sim) if task_file is None else _native.SimEnv.from_spec_file(task_file, 0)
-    o = np.asarray(env.reset(seed), dtype=np.float32)
+    where = f"seed {seed}" if start is None else f"seed {seed} at its recorded start"
+    try:
+        o = np.asarray(env.reset(seed, **(start or {})), dtype=np.float32)
+    except (TypeError, ValueError) as e:  # a start the simulator refuses (off the table, ...)
+        raise ExportError(f"{f}: cannot start the replay at its recorded start ({e})") from None
     info = {k: np.zeros(len(act), dtype=bool) for k in INFO_KEYS}
     rewards = np.asarray(ep["rewards"], dtype=np.float32)
     term = np.asarray(ep["terminated"], dtype=bool)
@@ -341,7 +355,7 @@ def _replay(
         if not np.array_equal(o, obs[k]):
             diff = float(np.max(np.abs(o - obs[k])))
             raise ExportError(
-                f"{f}: replaying its actions from seed {seed} gives another observation at step "
+                f"{f}: replaying its actions from {where} gives another observation at step "
                 f"{k} (max difference {diff:.3g}); the demo does not match this simulator"
             )
         o, r, te, tr, inf = env.step(act[k])
