@@ -30,6 +30,7 @@ __all__ = [
     "inspect",
     "load",
     "read",
+    "recorded_start",
     "salvage",
     "salvage_to",
     "step_arrays",
@@ -48,6 +49,16 @@ STEP_DTYPES: dict[str, Any] = {
     "truncated": bool,
     "episode": np.int64,
 }
+
+
+def recorded_start(meta: Mapping[str, str]) -> dict[str, Any] | None:
+    """The explicit start a demo's episode metadata records (a generated demo's: ``object_pose``,
+    ``target_offset`` and a turned pad's ``pad_yaw``, what ``SimVecEnv.reset_replay`` and the gym
+    reset options take), None for a demo that starts at its seed's own start."""
+    if "object_pose" not in meta:
+        return None
+    keys = ("object_pose", "target_offset", "pad_yaw")
+    return {k: json.loads(meta[k]) for k in keys if k in meta}
 
 
 def step_arrays(rows: Mapping[str, Any]) -> dict[str, np.ndarray]:

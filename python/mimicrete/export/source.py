@@ -30,8 +30,8 @@ import numpy as np
 
 from mimicrete import tasks
 from mimicrete._native import MimicreteError
+from mimicrete.demos import recorded_start
 from mimicrete.export import levels
-from mimicrete.learn.curriculum import _explicit_start
 
 #: Names of one observation frame's floats per task (tile-sim's ``Task::obs_frame_dim`` layout).
 _JOINTS = [f"q{i}" for i in range(6)]
@@ -233,7 +233,7 @@ def read_demo_dir(demos_dir: str | os.PathLike[str]) -> DemoSet:
                 f"{spec.name} ({spec.obs_dim}/{spec.act_dim})"
             )
         seed = int(ep["meta"].get("seed", "0"))
-        start = _explicit_start(ep["meta"])
+        start = recorded_start(ep["meta"])
         level = levels.to_levels(spec.name, act)
         final_obs, info = _replay_levels(f, spec, seed, obs, act, level, ep, task_file, start)
         episodes.append(

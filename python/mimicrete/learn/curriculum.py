@@ -56,6 +56,8 @@ from typing import Any
 
 import numpy as np
 
+from mimicrete.demos import recorded_start
+
 from .config import DemoCurriculumSettings
 from .demo_data import LoadedDemos
 
@@ -90,20 +92,10 @@ def demo_tracks(demos: LoadedDemos) -> list[DemoTrack]:
         acts = np.asarray(demos.arrays["actions"][ep == e], np.float32)
         if len(acts) < 2:
             continue
-        tracks.append(DemoTrack(int(meta["seed"]), acts, _explicit_start(meta)))
+        tracks.append(DemoTrack(int(meta["seed"]), acts, recorded_start(meta)))
     if not tracks:
         raise ValueError("no demo to start a curriculum from")
     return tracks
-
-
-def _explicit_start(meta: dict[str, str]) -> dict[str, list[float]] | None:
-    """The explicit start a (generated) demo's metadata records, None for a seed's own start."""
-    if "object_pose" not in meta:
-        return None
-    import json
-
-    keys = ("object_pose", "target_offset", "pad_yaw")
-    return {k: json.loads(meta[k]) for k in keys if k in meta}
 
 
 def start_schedule(length: int, step_fraction: float) -> list[int]:
