@@ -12,6 +12,7 @@ start, 130 on Ctrl-C / SIGTERM."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -97,7 +98,7 @@ def main(args: argparse.Namespace) -> int:
     from mimicrete.robot import deploy as dep
     from mimicrete.robot.gates import Limits, StartRefused
     from mimicrete.robot.observe import ObservationError
-    from mimicrete.robot.tile_pose import TilePoseError, parse_source
+    from mimicrete.robot.tile_pose import TilePoseError
 
     if args.replay is not None:
         return _replay(args)
@@ -268,3 +269,30 @@ class _SimTile:
 
     def close(self) -> None:
         pass
+
+
+def parse_source(text: str, calibration: str | None = None) -> Any:
+    """``fixed:X,Y,YAW``, ``file:PATH`` or ``aruco:CAMERA`` (with ``calibration``, the camera's
+    calibration file) -> a tile pose source of :mod:`mimicrete.robot.tile_pose` or
+    :mod:`mimicrete.robot.aruco` (``TilePoseError`` naming the flag)."""
+    from mimicrete.robot.tile_pose import FileTilePose, FixedTilePose, TilePoseError
+
+    kind, _, rest = text.partition(":")
+    if kind == "fixed":
+        parts = rest.split(",")
+        try:
+            x, y, yaw = (float(p) for p in parts)
+        except ValueError:
+            raise TilePoseError(
+                f"--tile-pose {text}: fixed:X,Y,YAW takes three numbers (m, m, rad)"
+            ) from None
+        if not all(math.isfinite(v) for v in (x, y, yaw)):
+            raise TilePoseError(f"--tile-pose {text}: the numbers must be finite")
+        return FixedTilePose(x, y, yaw)
+    if kind == "file" and rest:
+        return FileTilePose(rest)
+    if kind == "aruco" and rest:
+        from mimicrete.robot.aruco import ArucoTilePose
+
+        return ArucoTilePose(rest, calibration)
+    raise TilePoseError(f"--tile-pose {text}: expected fixed:X,Y,YAW, file:PATH or aruco:CAMERA")

@@ -85,27 +85,3 @@ def parse_line(text: str, where: str) -> tuple[float, float, float]:
             raise TilePoseError(f"{where}: field {k!r} must be a finite number, got {v!r}")
         out.append(float(v))
     return out[0], out[1], out[2]
-
-
-def parse_source(text: str, calibration: str | None = None):
-    """``fixed:X,Y,YAW``, ``file:PATH`` or ``aruco:CAMERA`` (with ``calibration``, the camera's
-    calibration file: :mod:`.aruco`) -> a source (``TilePoseError`` naming the flag)."""
-    kind, _, rest = text.partition(":")
-    if kind == "fixed":
-        parts = rest.split(",")
-        try:
-            x, y, yaw = (float(p) for p in parts)
-        except ValueError:
-            raise TilePoseError(
-                f"--tile-pose {text}: fixed:X,Y,YAW takes three numbers (m, m, rad)"
-            ) from None
-        if not all(math.isfinite(v) for v in (x, y, yaw)):
-            raise TilePoseError(f"--tile-pose {text}: the numbers must be finite")
-        return FixedTilePose(x, y, yaw)
-    if kind == "file" and rest:
-        return FileTilePose(rest)
-    if kind == "aruco" and rest:
-        from .aruco import ArucoTilePose
-
-        return ArucoTilePose(rest, calibration)
-    raise TilePoseError(f"--tile-pose {text}: expected fixed:X,Y,YAW, file:PATH or aruco:CAMERA")
