@@ -6,7 +6,6 @@ needed (tests/experiments/test_peers.py runs the whole pipeline in the lerobot v
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -18,19 +17,6 @@ from mimicrete.export import source
 
 NAMES = source.ACTION_NAMES["suction"]
 OLD_NAMES = [*NAMES[:6], "suction_command"]
-
-
-@pytest.fixture(scope="module")
-def one_demo(tmp_path_factory) -> Path:
-    from mimicrete import demonstrator as synth
-    from mimicrete.teleop import convert
-
-    root = tmp_path_factory.mktemp("peer-levels")
-    out = root / "demos"
-    out.mkdir()
-    for i, p in enumerate(synth.synth_hands("suction", 1, 7, root / "hands")):
-        convert.convert_log(p, "suction", out, episode_index=i)
-    return out
 
 
 def test_the_harness_dataset_holds_the_suction_level(one_demo, tmp_path):

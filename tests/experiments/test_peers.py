@@ -22,19 +22,6 @@ REPO = Path(__file__).resolve().parents[2]
 LEROBOT_PY = Path(os.environ.get("MIMICRETE_LEROBOT_PYTHON", REPO / ".venv-export/bin/python"))
 
 
-@pytest.fixture(scope="module")
-def one_demo(tmp_path_factory) -> Path:
-    from mimicrete import demonstrator as synth
-    from mimicrete.teleop import convert
-
-    root = tmp_path_factory.mktemp("peers-demos")
-    out = root / "demos"
-    out.mkdir()
-    for i, p in enumerate(synth.synth_hands("suction", 1, 7, root / "hands")):
-        convert.convert_log(p, "suction", out, episode_index=i)
-    return out
-
-
 def test_dataset_gets_environment_state(one_demo, tmp_path):
     root = peers.make_dataset(one_demo, 1, tmp_path)
     info = json.loads((root / "meta/info.json").read_text())
