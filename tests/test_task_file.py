@@ -323,6 +323,7 @@ BAD_PLACE_SPECS = [
      ["effector.seal.vacuum_kpa = 120.0", "below the atmosphere's pressure"]),
     (("safety_factor = 1.5", "safety_factor = 0.5"),
      ["effector.seal.safety_factor = 0.5", "must be a finite number >= 1"]),
+    (("stroke = 0.010", "stroke = -0.01"), ["effector.seal.stroke = -0.01", "a travel in [0, 0.05] m"]),
     (("success_yaw_deg = 2.0", "success_yaw_deg = 50.0"),
      ["thresholds.success_yaw_deg = 50.0", "an angle in (0, 45) degrees"]),
     (("rest_steps = 3", "rest_steps = 0"), ["thresholds.rest_steps = 0", "1 to 100 steps"]),

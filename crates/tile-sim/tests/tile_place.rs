@@ -133,41 +133,54 @@ fn suction_on_with_the_lips_10_mm_above_the_face_takes_nothing() {
     }
 }
 
+/// The built-in spec with rigid cups (`[effector.seal]`'s `stroke` 0): they give only `gap`.
+fn rigid_cups() -> Arc<TaskSpec> {
+    let text = TaskSpec::builtin_toml(T).replace("stroke = 0.010", "stroke = 0.0");
+    assert_ne!(text, TaskSpec::builtin_toml(T), "the built-in spec sets the cups' stroke");
+    Arc::new(TaskSpec::from_toml(&text, "rigid.toml").unwrap())
+}
+
 #[test]
 fn a_held_tile_lifts_with_the_cups_and_lands_on_the_table_not_through_it() {
-    let mut env = holding(T.spec(), 4);
-    let mut o = obs();
-    let rest = TILE_HALF_Z; // the centre of a tile lying on the table
-    for _ in 0..10 {
-        let out = env.step(&act(move_cups(&env, [0.0, 0.0, 0.004]), 0.0), &mut o).unwrap();
-        assert!(out.held);
-    }
-    let lifted = env.snapshot().object.t[2];
-    assert!(lifted > rest + 0.03, "lifted 4 cm: {lifted} from {rest}");
-    // Down at 2 mm a step towards 1 cm below where the tile rests on the table: the table
-    // stops the tile, the cups give up to their stroke (seal.gap, 3 mm), and then the arm is
-    // stopped as a real one stops on its force limit (the episode fails).
-    let mut lowest = f64::INFINITY;
-    let mut end = None;
-    for k in 0..40 {
-        let out = env.step(&act(move_cups(&env, [0.0, 0.0, -0.002]), 0.0), &mut o).unwrap();
-        lowest = lowest.min(env.snapshot().object.t[2]);
-        if out.terminated {
-            end = Some((k, out));
-            break;
+    // (spec, how far the cups give below the face before the arm stops: gap + stroke)
+    for (spec, give) in [(T.spec(), 0.003 + 0.010), (rigid_cups(), 0.003)] {
+        let mut env = holding(spec, 4);
+        let mut o = obs();
+        let rest = TILE_HALF_Z; // the centre of a tile lying on the table
+        for _ in 0..10 {
+            let out = env.step(&act(move_cups(&env, [0.0, 0.0, 0.004]), 0.0), &mut o).unwrap();
+            assert!(out.held);
         }
+        let lifted = env.snapshot().object.t[2];
+        assert!(lifted > rest + 0.03, "lifted 4 cm: {lifted} from {rest}");
+        // Down at 2 mm a step, into the table where the tile rests on it: the
+        // table stops the tile, the cups give up to gap + stroke (their lips stay sealed on
+        // the face), and then the arm is stopped as a real one stops on its force limit (the
+        // episode fails).
+        let mut lowest = f64::INFINITY;
+        let mut end = None;
+        for k in 0..40 {
+            let out = env.step(&act(move_cups(&env, [0.0, 0.0, -0.002]), 0.0), &mut o).unwrap();
+            lowest = lowest.min(env.snapshot().object.t[2]);
+            if out.terminated {
+                end = Some((k, out));
+                break;
+            }
+            let pressed = rest + TILE_HALF_Z - env.snapshot().tcp.t[2];
+            assert!(out.held, "give {give}: the lips stay sealed pressed {pressed} m into the face");
+        }
+        let (k, out) = end.expect("pressing the tile into the table stops the arm");
+        assert!(out.fell && out.reward == -0.5, "a protective stop is a failure: {out:?}");
+        let s = env.snapshot();
+        let pressed = rest + TILE_HALF_Z - s.tcp.t[2];
+        assert!(
+            pressed > give && pressed < give + 0.006,
+            "give {give}: stopped at step {k} with the cups {pressed} m below the face at rest"
+        );
+        // Rapier's contacts are soft: pressed, the tile sinks a little into the table (measured
+        // 1.6-2.7 mm at the stop), where a held kinematic tile would have followed the cups down.
+        assert!(lowest > rest - 0.003, "give {give}: the tile went into the table: {lowest} vs {rest}");
     }
-    let (k, out) = end.expect("pressing the tile into the table stops the arm");
-    assert!(out.fell && out.reward == -0.5, "a protective stop is a failure: {out:?}");
-    let s = env.snapshot();
-    let pressed = rest + TILE_HALF_Z - s.tcp.t[2];
-    assert!(
-        pressed > 0.003 && pressed < 0.009,
-        "stopped at step {k} with the cups {pressed} m below the face at rest"
-    );
-    // Rapier's contacts are soft: pressed, the tile sinks a little into the table (measured
-    // 1.6-2.7 mm at the stop), where a held kinematic tile would have followed the cups down.
-    assert!(lowest > rest - 0.003, "the tile went into the table: {lowest} against {rest}");
 }
 
 #[test]

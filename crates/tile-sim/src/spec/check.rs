@@ -269,6 +269,9 @@ fn check_seal(seal: Option<&SealSpec>, rule: Option<Rule>, row: bool) -> Result<
     if !(s.safety_factor.is_finite() && s.safety_factor >= 1.0) {
         return invalid("effector.seal.safety_factor", s.safety_factor, "must be a finite number >= 1");
     }
+    if !(s.stroke.is_finite() && (0.0..=0.05).contains(&s.stroke)) {
+        return invalid("effector.seal.stroke", s.stroke, "must be a travel in [0, 0.05] m");
+    }
     friction("effector.seal.lip_friction", s.lip_friction)
 }
 

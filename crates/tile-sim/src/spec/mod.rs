@@ -199,7 +199,8 @@ pub enum EffectorSpec {
 /// A suction head's seal and holding force (`[effector.seal]`, the TilePlace logic,
 /// `task/tile_place.rs`). A cup seals when its lip lies on the tile's face: the lip centre within
 /// `gap` of the face plane (either side: a lip pressed in counts), the whole lip on the face, and
-/// the cup's axis within `angle_deg` of the face normal. While the suction is on and a cup
+/// the cup's axis within `angle_deg` of the face normal (a lip pushed into the face by up to
+/// `stroke` more stays on it: the cup's spring mount gives). While the suction is on and a cup
 /// stays sealed the vacuum builds up over `time`; the hold's force limits are then
 /// `vacuum_kpa · π · cup_radius² · sealed cups / safety_factor` along the cups' axis (peel),
 /// `lip_friction` times that across it (shear), and that force times `cup_offset` as a torque.
@@ -227,6 +228,11 @@ pub struct SealSpec {
     /// Friction coefficient of the lips on the face: the shear limit over the peel limit.
     #[serde(serialize_with = "decimal")]
     pub lip_friction: f32,
+    /// Travel (m) of the cups' spring mounts (level compensators; absent: 0, rigid cups):
+    /// pressed onto a face that does not give, a cup's lip stays on it (sealed) while its mount
+    /// gives, as far as `gap + stroke` below the face; pressed further, the arm stops.
+    #[serde(default, serialize_with = "decimal")]
+    pub stroke: f32,
 }
 
 /// The object the task moves.

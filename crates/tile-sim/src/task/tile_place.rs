@@ -7,7 +7,8 @@
 //! # The hold
 //! * **Seal, per cup.** With the suction on, a cup seals when its lip lies on the tile's face:
 //!   the lip centre within `seal.gap` of the face's plane (either side: a lip pressed a little
-//!   into the face counts), the whole lip inside the face's outline, and the cup's axis within
+//!   into the face counts, and with spring-mounted cups `seal.stroke` more: the mount gives and
+//!   the lip stays on the face), the whole lip inside the face's outline, and the cup's axis within
 //!   `seal.angle_deg` of the face's normal. Judged after each physics step, on the poses the step
 //!   left (so a held tile lagging its cups is judged where it is).
 //! * **Vacuum.** From the first step a cup is sealed the vacuum builds up linearly over
@@ -27,8 +28,8 @@
 //!   the tile away from the lips, and once no lip is within `seal.gap` of the face the hold is
 //!   gone (the grip broke: the tile falls or stays where it was pushed). Pressed onto a tile
 //!   that rests on something, the cups push back with at most [`CUP_PUSH`] each and give up to
-//!   `seal.gap`; pressed further, the arm stops (a protective stop, as a real arm stops on its
-//!   force limit): the episode fails.
+//!   `seal.gap + seal.stroke`; pressed further, the arm stops (a protective stop, as a real arm
+//!   stops on its force limit): the episode fails.
 //! * **Release.** The suction command off takes the hold's forces away; its joint stays, force
 //!   free, until the lips are `seal.gap` off the face ([`SealState::parting`]: a lip peels off,
 //!   it does not kick). The tile's height at that moment is kept to judge the drop.
@@ -61,8 +62,8 @@ use rapier3d::prelude::*;
 const SLIP: f32 = 0.0005;
 const SLIP_ANG: f32 = 0.5 * std::f32::consts::PI / 180.0;
 
-/// The force (N) one cup pushes back with when pressed onto the face (its lip's and bellows'
-/// stiffness; a flat Ø30 mm cup gives a few newtons over its stroke). A held tile pressed against
+/// The force (N) one cup pushes back with when pressed onto the face (its lip's stiffness and
+/// its mount's spring; a level compensator's spring pushes with a few newtons over its stroke). A held tile pressed against
 /// the table or the pad is pushed by the cups with at most this per cup, while it is pulled by
 /// up to the vacuum's peel force.
 const CUP_PUSH: f32 = 5.0;
@@ -82,7 +83,7 @@ pub(crate) struct SealState {
     pub(crate) level: f32,
     /// The hold broke (no lip left on the face with the suction on) in the last step.
     pub(crate) broke: bool,
-    /// The cups were pressed into the held tile's face beyond `seal.gap` (the cups' stroke) in
+    /// The cups were pressed into the held tile's face beyond `seal.gap + seal.stroke` in
     /// the last step: the arm pushed the tile against something that does not give.
     pub(crate) pressed: bool,
     /// The tile's centre height (m) when it was last let go.
@@ -131,7 +132,8 @@ fn sealed_cups(spec: &TaskSpec, tool0: &Pose, tile: &Pose, half: [f32; 3]) -> u8
     let mut k = 0;
     for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
         let lip = *tool0 * Vector::new(sx * off, sy * off, tcp_z);
-        if (lip - c).dot(n).abs() > seal.gap {
+        let gap = (lip - c).dot(n);
+        if gap > seal.gap || gap < -(seal.gap + seal.stroke) {
             continue;
         }
         let local = inv * lip;
@@ -312,7 +314,8 @@ impl State {
         let (_, _, tcp_z, seal) = head(&self.spec);
         if self.seal.joint.is_some() || self.seal.parting.is_some() {
             let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
-            self.seal.pressed = lip_gap(tcp, &self.object_pose(), self.tile_half()[2]) < -seal.gap;
+            let give = seal.gap + seal.stroke;
+            self.seal.pressed = lip_gap(tcp, &self.object_pose(), self.tile_half()[2]) < -give;
         }
         let cups = if self.suction_on {
             sealed_cups(&self.spec, &self.tool0, &self.object_pose(), self.tile_half())
