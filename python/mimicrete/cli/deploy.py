@@ -190,23 +190,23 @@ def main(args: argparse.Namespace) -> int:
         source.close()
         raise UsageError(str(e)) from None
 
-    if args.mode == "live":
-        print(
-            f"LIVE on {args.host}: the arm will move (speed cap {limits.speed_cap:g} rad/s, "
-            f"suction on digital output {args.suction_output}); keep a hand on the emergency "
-            "stop; Ctrl-C stops it",
-            file=sys.stderr,
-        )
-    policy = dep.torch_policy(actor)
-    policy(dep.Observer(task.spec, [0.0, 0.0, 0.0]).frames.reshape(-1))  # warm up before timing
-    out_dir = Path(args.out) if args.out else run_dir / "deploy"
-    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-    out = out_dir / f"deploy_{args.mode}_{stamp}.mcap"
-    n = 1
-    while out.exists():
-        out = out_dir / f"deploy_{args.mode}_{stamp}_{n}.mcap"
-        n += 1
-    try:
+    try:  # the robot is connected: whatever stops us now disconnects it (ur-rtde's thread)
+        if args.mode == "live":
+            print(
+                f"LIVE on {args.host}: the arm will move (speed cap {limits.speed_cap:g} rad/s, "
+                f"suction on digital output {args.suction_output}); keep a hand on the emergency "
+                "stop; Ctrl-C stops it",
+                file=sys.stderr,
+            )
+        policy = dep.torch_policy(actor)
+        policy(dep.Observer(task.spec, [0.0, 0.0, 0.0]).frames.reshape(-1))  # warm up before timing
+        out_dir = Path(args.out) if args.out else run_dir / "deploy"
+        stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+        out = out_dir / f"deploy_{args.mode}_{stamp}.mcap"
+        n = 1
+        while out.exists():
+            out = out_dir / f"deploy_{args.mode}_{stamp}_{n}.mcap"
+            n += 1
         outcome = dep.run(
             robot,
             policy,
@@ -222,6 +222,10 @@ def main(args: argparse.Namespace) -> int:
         robot.close()
         source.close()
         raise UsageError(f"start refused: {e}") from None
+    except KeyboardInterrupt:  # Ctrl-C before the control loop took the signals over
+        robot.close()
+        source.close()
+        raise
     lat = outcome.latency_ms
     lat_text = f", read -> command p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms" if lat else ""
     gates = ", ".join(f"{g} {k}" for g, k in sorted(outcome.gate_counts.items())) or "none"

@@ -162,21 +162,31 @@ def latency_stats(ms: list[float]) -> dict[str, float]:
     }
 
 
+#: what the loop's stop says for each signal that asks it to stop
+SIGNAL_REASONS = {signal.SIGINT: "interrupted (Ctrl-C)", signal.SIGTERM: "SIGTERM received"}
+
+
 @contextlib.contextmanager
-def _sigterm_stops() -> Iterator[None]:
-    """SIGTERM raises :class:`Stop` in the main thread while the loop runs (then restored)."""
+def _signals_ask_to_stop() -> Iterator[list[str]]:
+    """While the loop runs (main thread; then restored), SIGINT and SIGTERM only ask it to stop:
+    the handler notes the signal's reason in the list it yields, and the loop stops at its next
+    tick. An exception raised from the handler would surface wherever the loop happened to be,
+    inside the policy's call it read as a policy fault (seen: "policy error: Stop: SIGTERM
+    received", exit 1)."""
+    asked: list[str] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield asked
         return
 
     def handler(signum: int, frame: object) -> None:
-        raise Stop("SIGTERM received", "signal")
+        asked.append(SIGNAL_REASONS[signal.Signals(signum)])
 
-    old = signal.signal(signal.SIGTERM, handler)
+    old = {sig: signal.signal(sig, handler) for sig in SIGNAL_REASONS}
     try:
-        yield
+        yield asked
     finally:
-        signal.signal(signal.SIGTERM, old)
+        for sig, h in old.items():
+            signal.signal(sig, h)
 
 
 @contextlib.contextmanager
@@ -237,8 +247,10 @@ def run(
     last_cmd_at: float | None = None
     src: tuple[float, float, float] | None = None
     try:
-        with _sigterm_stops():
+        with _signals_ask_to_stop() as asked:
             while True:
+                if asked:
+                    raise Stop(asked[0], "signal")
                 if ticks is not None and step >= ticks:
                     reason, kind = f"ran the {ticks} ticks asked for", "ticks"
                     break
@@ -331,8 +343,8 @@ def run(
                         time.sleep(delay)
     except Stop as s:
         reason, kind = s.reason, s.kind
-    except KeyboardInterrupt:
-        reason, kind = "interrupted (Ctrl-C)", "signal"
+    except KeyboardInterrupt:  # a Ctrl-C in the instant before the loop's handler is in place
+        reason, kind = SIGNAL_REASONS[signal.SIGINT], "signal"
     finally:
         if not reason:  # an exception of our own: still stop and close, then let it through
             reason, kind = "internal error", "error"
