@@ -250,3 +250,37 @@ fn the_placed_rule_needs_the_seal_and_a_suction_head_without_a_row() {
         TaskSpec::builtin_toml(Task::TileSuction).replace("[thresholds]", "[thresholds]\nrule = \"paper\"");
     assert_eq!(TaskSpec::from_toml(&paper, "paper.toml").unwrap().task(), Task::TileSuction);
 }
+
+#[test]
+fn the_tcp_crossing_a_safety_plane_is_a_protective_stop() {
+    let [lo, hi] = T.spec().robot.tcp_box.expect("TilePlace's cell has safety planes");
+    // Straight up at a centimetre a step from the home pose: the episode ends, failed, in the
+    // step the TCP crossed the top plane.
+    let mut env = Env::new(T, 0);
+    let mut o = obs();
+    env.reset(Some(7), &mut o).unwrap();
+    let mut end = None;
+    for k in 0..100 {
+        let z = env.snapshot().tcp.t[2];
+        let out = env.step(&act(move_cups(&env, [0.0, 0.0, 0.01]), 0.0), &mut o).unwrap();
+        if out.terminated {
+            end = Some((k, z, out));
+            break;
+        }
+    }
+    let (k, before, out) = end.expect("the TCP went up to the plane");
+    let after = env.snapshot().tcp.t[2];
+    assert!(out.fell && out.reward == -0.5 && !out.installed, "a protective stop fails: {out:?}");
+    assert!(before <= hi[2] && after > hi[2], "step {k}: {before} -> {after}, plane at {}", hi[2]);
+    // Without the planes the same motion runs on.
+    let text = TaskSpec::builtin_toml(T);
+    let line = text.lines().find(|l| l.starts_with("tcp_box")).expect("the spec's line").to_string();
+    let spec = Arc::new(TaskSpec::from_toml(&text.replace(&line, ""), "open.toml").unwrap());
+    let mut env = Env::from_spec(spec, 0);
+    env.reset(Some(7), &mut o).unwrap();
+    for _ in 0..=k {
+        let out = env.step(&act(move_cups(&env, [0.0, 0.0, 0.01]), 0.0), &mut o).unwrap();
+        assert!(!out.terminated, "no planes, no stop");
+    }
+    assert!(env.snapshot().tcp.t[2] > hi[2] && lo[2] < 0.0);
+}

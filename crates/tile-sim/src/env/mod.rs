@@ -409,6 +409,13 @@ impl Env {
         Ok(out)
     }
 
+    /// Whether the TCP is outside the spec's `robot.tcp_box` (false without one).
+    fn tcp_left_its_box(&self) -> bool {
+        let Some([lo, hi]) = self.s.spec.robot.tcp_box else { return false };
+        let t = self.s.tcp().translation;
+        [t.x, t.y, t.z].iter().enumerate().any(|(i, &v)| f64::from(v) < lo[i] || f64::from(v) > hi[i])
+    }
+
     /// Step with an already validated action (length and finiteness checked by the caller).
     pub(crate) fn step_unchecked(&mut self, action: &[f32]) -> StepOutcome {
         let qn = crate::action::joint_motion(&self.s.spec, &self.s.q, action);
@@ -447,6 +454,11 @@ impl Env {
         }
         self.step_idx += 1;
         self.logic.evaluate(&mut self.s, &mut out);
+        if !out.terminated && self.tcp_left_its_box() {
+            out.reward += self.s.spec.rewards.fail; // a protective stop at a safety plane
+            out.fell = true;
+            out.terminated = true;
+        }
         out.picked = self.s.picked;
         out.held = self.s.held;
         if !out.terminated && self.step_idx >= self.s.spec.episode.max_steps {

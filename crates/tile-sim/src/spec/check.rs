@@ -418,6 +418,7 @@ impl TaskSpec {
             }
         }
         self.check_tool_space()?;
+        self.check_tcp_box(&arm)?;
         positive("table.half_extents", &self.table.half_extents)?;
         finite("table.top_z", &[self.table.top_z])?;
         friction("table.friction", self.table.friction)?;
@@ -512,6 +513,31 @@ impl TaskSpec {
                     format!("must be a finite motion > 0 and at most {most} {unit} per step at full action"),
                 );
             }
+        }
+        Ok(())
+    }
+
+    /// `robot.tcp_box`: finite, each min below its max, the TCP at `home_q` inside.
+    fn check_tcp_box(&self, arm: &ur3_kin::UrModel) -> Result<(), SpecError> {
+        let Some([lo, hi]) = self.robot.tcp_box else { return Ok(()) };
+        if !(lo.iter().chain(&hi).all(|v| v.is_finite()) && lo.iter().zip(&hi).all(|(a, b)| a < b)) {
+            return invalid(
+                "robot.tcp_box",
+                [lo, hi],
+                "must be [[x, y, z] min, [x, y, z] max] in m, each min below its max",
+            );
+        }
+        let home = ur3_kin::fk(arm, &self.robot.home_q);
+        let tcp = home * nalgebra::Point3::new(0.0, 0.0, f64::from(self.tcp_z()));
+        if (0..3).any(|i| tcp[i] < lo[i] || tcp[i] > hi[i]) {
+            return invalid(
+                "robot.tcp_box",
+                [lo, hi],
+                format!(
+                    "the TCP at home_q, ({:.3}, {:.3}, {:.3}) m, lies outside it",
+                    tcp[0], tcp[1], tcp[2]
+                ),
+            );
         }
         Ok(())
     }

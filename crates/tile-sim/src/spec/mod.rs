@@ -116,6 +116,12 @@ pub struct RobotSpec {
     /// [`TOOL_TURN`](crate::action::TOOL_TURN) = 0.04 rad. Finite, > 0, at most 0.2 rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool_turn: Option<f64>,
+    /// The cell's safety planes: the TCP must stay inside this box, `[[x, y, z] min, [x, y, z]
+    /// max]` (Base frame, m). A step that leaves it is a protective stop, as a UR stops when its
+    /// tool crosses a safety plane: the episode fails (`rewards.fail`). Absent: no limit. Each
+    /// min below its max, and the TCP at `home_q` inside.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tcp_box: Option<[[f64; 3]; 2]>,
 }
 
 /// What an action's first six numbers command (`robot.action`).
