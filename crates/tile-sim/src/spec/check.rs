@@ -418,7 +418,7 @@ impl TaskSpec {
             }
         }
         self.check_tool_space()?;
-        self.check_tcp_box(&arm)?;
+        self.check_tcp_box(arm)?;
         positive("table.half_extents", &self.table.half_extents)?;
         finite("table.top_z", &[self.table.top_z])?;
         friction("table.friction", self.table.friction)?;
