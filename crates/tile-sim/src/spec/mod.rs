@@ -241,6 +241,13 @@ pub struct SealSpec {
     pub stroke: f32,
 }
 
+impl SealSpec {
+    /// How far (m) a lip may be pressed below the face and stay on it: `gap + stroke`.
+    pub fn give(&self) -> f32 {
+        self.gap + self.stroke
+    }
+}
+
 /// The object the task moves.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]

@@ -63,9 +63,9 @@ const SLIP: f32 = 0.0005;
 const SLIP_ANG: f32 = 0.5 * std::f32::consts::PI / 180.0;
 
 /// The force (N) one cup pushes back with when pressed onto the face (its lip's stiffness and
-/// its mount's spring; a level compensator's spring pushes with a few newtons over its stroke). A held tile pressed against
-/// the table or the pad is pushed by the cups with at most this per cup, while it is pulled by
-/// up to the vacuum's peel force.
+/// its mount's spring; a level compensator's spring pushes with a few newtons over its
+/// stroke). A held tile pressed against the table or the pad is pushed by the cups with at most
+/// this per cup, while it is pulled by up to the vacuum's peel force.
 const CUP_PUSH: f32 = 5.0;
 
 /// TilePlace's seal and placing state.
@@ -133,7 +133,7 @@ fn sealed_cups(spec: &TaskSpec, tool0: &Pose, tile: &Pose, half: [f32; 3]) -> u8
     for (sx, sy) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
         let lip = *tool0 * Vector::new(sx * off, sy * off, tcp_z);
         let gap = (lip - c).dot(n);
-        if gap > seal.gap || gap < -(seal.gap + seal.stroke) {
+        if gap > seal.gap || gap < -seal.give() {
             continue;
         }
         let local = inv * lip;
@@ -314,8 +314,7 @@ impl State {
         let (_, _, tcp_z, seal) = head(&self.spec);
         if self.seal.joint.is_some() || self.seal.parting.is_some() {
             let tcp = self.tool0 * Vector::new(0.0, 0.0, tcp_z);
-            let give = seal.gap + seal.stroke;
-            self.seal.pressed = lip_gap(tcp, &self.object_pose(), self.tile_half()[2]) < -give;
+            self.seal.pressed = lip_gap(tcp, &self.object_pose(), self.tile_half()[2]) < -seal.give();
         }
         let cups = if self.suction_on {
             sealed_cups(&self.spec, &self.tool0, &self.object_pose(), self.tile_half())
