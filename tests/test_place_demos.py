@@ -126,6 +126,30 @@ def test_demogen_carries_five_placements_to_the_wide_starts(
     assert turned_tiles >= 5 and turned_pads >= 5, (turned_tiles, turned_pads)
 
 
+def test_demogen_played_three_times_faster_still_places_in_a_third_of_the_steps(
+    place_demos: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "fast"
+    r = run_cli(
+        "demogen", "--demos", str(place_demos), "--source-count", "5", "--count", "10",
+        "--starts", "wide", "--seed", "1", "--speed", "3", "--out", str(out), "--no-progress",
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert json.loads((out / "demogen.json").read_text())["speed"] == 3.0
+    sources = {p.name: len(_native.demo_read(str(p))["actions"]) for p in place_demos.glob("*")
+               if p.suffix == ".mcap"}  # fmt: skip
+    for path in sorted(out.glob("gen_*.mcap")):
+        d = _native.demo_read(str(path))
+        meta = d["meta"]
+        assert meta["speed"] == "3.0"
+        start = {k: json.loads(meta[k]) for k in ("object_pose", "target_offset", "pad_yaw")
+                 if k in meta}  # fmt: skip
+        ok, where = placement_of(int(meta["seed"]), d["actions"], start)
+        assert ok and where["xy_error"] <= 0.005 and abs(where["yaw_error_deg"]) <= 2.0, where
+        # a third of the source's steps, plus the waits that do not shrink (the seal, the rest)
+        assert len(d["actions"]) <= 0.45 * sources[meta["source_demo"]], path.name
+
+
 def test_the_curriculum_replays_a_generated_demo_at_its_turned_pad(tmp_path: Path) -> None:
     """A generated demo's start (the tile turned, the pad moved and turned) is where the reverse
     curriculum replays it: the replayed state is the recorded one."""

@@ -64,6 +64,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="grasp up to M metres off the object's centre, the place corrected for it (default 0)",
     )
     parser.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        metavar="X",
+        help="play the source demos X times faster (1 to 10; default 1): a person's demo hovers "
+        "and creeps where a robot need not; the arm's step limits still apply, and episodes that "
+        "then fail are not kept",
+    )
+    parser.add_argument(
         "--overwrite", action="store_true", help="write into an --out that holds demos already"
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -100,6 +109,8 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(f"--action-noise must be in [0, 1], got {args.action_noise}")
     if not 0 <= args.grasp_jitter <= 0.05:
         raise UsageError(f"--grasp-jitter must be in [0, 0.05] m, got {args.grasp_jitter}")
+    if not 1 <= args.speed <= 10:
+        raise UsageError(f"--speed must be in [1, 10], got {args.speed}")
     if not 0 <= args.seed < 2**32:
         raise UsageError(f"--seed must be in [0, 2**32), got {args.seed}")
     if args.starts not in ("wide", "training", "robust") and not Path(args.starts).is_file():
@@ -142,6 +153,7 @@ def main(args: argparse.Namespace) -> int:
             progress=progress,
             grasp_jitter=args.grasp_jitter,
             action_noise=args.action_noise,
+            speed=args.speed,
         )
     except dg.DemoGenError as e:
         raise UsageError(str(e)) from None
@@ -154,6 +166,7 @@ def main(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "action_noise": args.action_noise,
         "grasp_jitter": args.grasp_jitter,
+        "speed": args.speed,
         "attempts": rep.attempts,
         "kept": rep.kept,
         "yield": round(rep.yield_, 4),

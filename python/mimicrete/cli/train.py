@@ -127,6 +127,7 @@ def main(args: argparse.Namespace) -> int:
             Path(bc.generate_from),
             bc.generate_sources or 0,
             task=demo_task,
+            speed=bc.generate_speed,
         )
     elif args.make_demos and demos:
         learn.ensure_demos(Path(demos), cfg.behavior.demo_episodes or 1, task=demo_task)

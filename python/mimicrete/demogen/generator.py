@@ -262,6 +262,7 @@ def generate_episode(
     rotate: bool = False,
     grasp_jitter: float = 0.0,
     action_noise: float | None = None,
+    speed: float = 1.0,
 ) -> GeneratedEpisode:
     """Run one generated episode of ``src`` at ``start`` in ``sim`` (a ``SimEnv`` of the
     source's task).
@@ -287,7 +288,13 @@ def generate_episode(
     ``action_noise``, 0.05 in its configs). The noisy action is the one executed and recorded (so
     a curriculum's replay reaches the recorded states); the IK keeps tracking the clean path, so
     the next action corrects the deviation, and the demos show the way back to the path from
-    states beside it (DART, Laskey et al. 2017), which noise-free demos never visit."""
+    states beside it (DART, Laskey et al. 2017), which noise-free demos never visit.
+
+    ``speed`` (≥ 1): each segment is played ``speed`` times faster (:func:`retime`): a person's
+    demo hovers and creeps where a robot need not, and every step it takes is a step the learner
+    must credit a sparse reward across. The simulator still clips each step to the arm's limits
+    (``joint_step``, ``tool_step``), so a fast stretch is followed a few steps late, and an
+    episode that no longer succeeds is not kept."""
     spec = src.spec
     noise = spec.action_noise if action_noise is None else float(action_noise)
     ep = GeneratedEpisode(src.name, start, int(seed), task=spec.sim)
@@ -328,6 +335,10 @@ def generate_episode(
                 commands = _spin_from_start(commands)
             follow = spec.follow_object and seg.relative_to == "target"
             offsets = seg.object_offsets_in(frames[seg.relative_to]) if follow else None
+            if speed != 1.0:
+                keep = retime(len(poses), speed)
+                poses, commands = poses[keep], _window_commands(commands, keep, spec.latched)
+                offsets = None if offsets is None else offsets[keep]
             steer = np.zeros(2)  # how far the TCP is moved so the object keeps the source's path
             closing = False
             for k, (p, c) in enumerate(zip(poses, commands, strict=True)):
@@ -349,6 +360,31 @@ def generate_episode(
     except _Abort as e:
         ep.why = str(e)
     return ep
+
+
+def retime(n: int, speed: float) -> np.ndarray:
+    """The indices of ``n`` steps played ``speed`` times faster: the last step of each window of
+    about ``speed`` steps, counted back from the last step ``n − 1`` (``ceil(n / speed)`` of
+    them, every window ``floor(speed)`` or ``ceil(speed)`` long)."""
+    if not speed >= 1.0:
+        raise DemoGenError(f"speed must be at least 1, got {speed}")
+    m = max(1, int(np.ceil(n / speed - 1e-9)))
+    back = np.floor(np.arange(m - 1, -1, -1) * speed + 1e-9).astype(int)
+    return np.maximum(0, n - 1 - back)
+
+
+def _window_commands(commands: np.ndarray, keep: np.ndarray, latched: bool) -> np.ndarray:
+    """The effector commands of the steps :func:`retime` keeps: a level's (the gripper, the
+    spin) is its window's last; a latched switch (the suction's, sent on one step) is the
+    window's last non-zero one, so no switch is skipped."""
+    out = np.array(commands[keep], np.float64, copy=True)
+    if latched:
+        lo = 0
+        for j, hi in enumerate(keep):
+            on = np.flatnonzero(np.any(commands[lo : hi + 1] != 0.0, axis=1))
+            out[j] = commands[lo + on[-1]] if len(on) else 0.0
+            lo = hi + 1
+    return out
 
 
 def _spin_from_start(commands: np.ndarray) -> np.ndarray:
@@ -499,6 +535,7 @@ def generate(
     rotate: bool = False,
     grasp_jitter: float = 0.0,
     action_noise: float | None = None,
+    speed: float = 1.0,
 ) -> Report:
     """Generate until ``count`` installing demos are written into ``out`` (or ``max_attempts``,
     default ``4 · count + 20``, are used up). ``starts``: a named distribution (drawn with
@@ -541,6 +578,7 @@ def generate(
                 rotate=rotate,
                 grasp_jitter=grasp_jitter,
                 action_noise=action_noise,
+                speed=speed,
             )
         except ValueError as e:  # the simulator refused the start (off the table, out of reach)
             raise DemoGenError(f"start {rep.attempts}: {e}") from None
@@ -550,6 +588,8 @@ def generate(
             extra = {"attempt": rep.attempts - 1, "demogen_seed": seed, **spec_meta}
             if noise > 0:
                 extra["action_noise"] = noise
+            if speed != 1.0:
+                extra["speed"] = speed
             write_episode(ep, name, rep.kept, extra, env=sim)
             rep.files.append(name)
             rep.kept += 1

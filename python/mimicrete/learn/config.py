@@ -15,8 +15,9 @@ is strict too). mimicrete's own additions are marked "extension" below:
 - ``behaviors.<name>.stop_on_convergence``: stop before ``max_steps`` once the training
   episodes' installed rate has held a threshold for some summaries (``ConvergenceSettings``);
   ``mimicrete train --stop-on-convergence`` (what ``python train.py`` passes) turns it on.
-- ``behavioral_cloning.generate_from`` / ``generate_sources`` / ``generate_count``: ``demo_path``
-  holds demos generated at the wide starts from these (``mimicrete demogen``); ``train
+- ``behavioral_cloning.generate_from`` / ``generate_sources`` / ``generate_count`` /
+  ``generate_speed``: ``demo_path`` holds demos generated at the wide starts from these
+  (``mimicrete demogen``); ``train
   --make-demos`` makes them when missing (``demo_data.ensure_generated_demos``).
 - ``env_settings`` (env_id, num_envs, seed) and ``torch_settings`` (device, num_threads,
   overlap_gail).
@@ -110,6 +111,7 @@ class BehavioralCloningSettings:
     generate_from: str | None = None
     generate_sources: int | None = None
     generate_count: int | None = None
+    generate_speed: float = 1.0  # ... played this many times faster (`demogen --speed`)
 
 
 @dataclass
@@ -249,6 +251,7 @@ RANGES: dict[tuple[type, str], Range] = {
     (BehavioralCloningSettings, "ee_class_balance"): UNIT,
     (BehavioralCloningSettings, "generate_sources"): COUNT,
     (BehavioralCloningSettings, "generate_count"): COUNT,
+    (BehavioralCloningSettings, "generate_speed"): Range(1, 10),
     (DemoCurriculumSettings, "reset_prob"): UNIT,
     (DemoCurriculumSettings, "step_fraction"): Range(0, 1, lo_open=True),
     (DemoCurriculumSettings, "window"): COUNT,

@@ -344,11 +344,12 @@ def ensure_generated_demos(
     *,
     task: str = "suction",
     log: Any = None,
+    speed: float = 1.0,
 ) -> Path:
     """Fill ``demo_dir`` with ``count`` demos generated at the wide starts by ``mimicrete demogen``
-    (seed 0) from the first ``source_count`` demos of ``sources`` (made first by
-    :func:`ensure_demos` when missing), unless it holds ``count`` already. Says so through
-    ``log``."""
+    (seed 0, played ``speed`` times faster) from the first ``source_count`` demos of ``sources``
+    (made first by :func:`ensure_demos` when missing), unless it holds ``count`` already. Says so
+    through ``log``."""
     demo_dir, sources = Path(demo_dir), Path(sources)
     have = count_demo_episodes(demo_dir)
     if have >= count:
@@ -357,7 +358,9 @@ def ensure_generated_demos(
     (log or logger.info)(
         f"demos: {demo_dir} has {have} episodes, generating {count} at the wide starts from the "
         f"first {source_count} of {sources} (as `mimicrete demogen --demos {sources} "
-        f"--source-count {source_count} --count {count} --starts wide --out {demo_dir} --seed 0`)"
+        f"--source-count {source_count} --count {count} --starts wide --out {demo_dir} --seed 0"
+        + (f" --speed {speed:g}" if speed != 1.0 else "")
+        + "`)"
     )
     from mimicrete import demogen
 
@@ -373,7 +376,11 @@ def ensure_generated_demos(
             bar.refresh()
 
         rep = demogen.generate(
-            demogen.load_sources(sources, source_count), count, demo_dir, progress=shown
+            demogen.load_sources(sources, source_count),
+            count,
+            demo_dir,
+            progress=shown,
+            speed=speed,
         )
     if rep.kept < count:
         raise RuntimeError(
