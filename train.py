@@ -1,17 +1,22 @@
 """`python train.py [FLAGS]` is `mimicrete train --make-demos --stop-on-convergence --config
-configs/wide_gen5.yaml --compare tests/learn/data/group3_policy.pt [FLAGS]` (a --config or --compare
-among FLAGS replaces the default; the comparison is left out where that file is missing).
+configs/place_gen5.yaml [FLAGS]` (a --config among FLAGS replaces the default).
 
-With no flags it trains what does best on the wide starts (docs/wide_starts.md),
-configs/wide_gen5.yaml: 5 of the demos in demos/suction turned into 500 demos at the wide starts
-(demos/gen5, made by `mimicrete demogen` when missing), trained for up to 1M steps, stopping early
-once training has converged (installed >= 99 % in 3 summaries in a row; run.json records it). It
-evaluates the policy on 100 episodes from the paper's training starts and 100 from the wide starts,
-beside the paper's recipe (group 3, trained on the 60 demos) on the same starts and the paper's own
-Table 5 row, and draws both policies' success over the table (success_map.png), all in
-runs/wide_gen5-seed0/. On a fresh checkout there are no demos yet: it makes them first (a scripted
-person's hand logs in data/hands/suction, turned into MCAP demos by the teleoperation path, exactly
-as `make demos`, then the generated ones) and says so."""
+With no flags it trains the main job: TilePlace, the tile set down square on its pad as a tiler
+means it (crates/tile-sim/tasks/tile_place.toml: the cups hold only sealed on the face, the held
+tile still collides, success = placed within 5 mm and 2 degrees). configs/place_gen5.yaml: 5 of
+the demos in demos/place turned into 500 demos at the wide starts, played 4 times faster
+(demos/gen_place5_x4, made by `mimicrete demogen` when missing); BC pretraining, then PPO + BC
+with a reverse curriculum, for up to 2M steps, stopping early once training has converged (placed
+>= 99 % in 3 summaries in a row; run.json records it). It evaluates the policy on 100 episodes
+from the paper's training starts and 100 from the wide starts, prints where the tiles ended (the
+placement tables) and draws its success over the table (success_map.png), all in
+runs/place_gen5-seed0/. On a fresh checkout there are no demos yet: it makes them first (a
+scripted person's hand logs in data/hands/place, turned into MCAP demos by the teleoperation path,
+exactly as `make demos-place`, then the generated ones) and says so.
+
+The paper's task and rule (TileSuction, installed = the tile's centre within 3 cm, still held) keep
+their own config: `python train.py --config configs/wide_gen5.yaml --compare
+tests/learn/data/group3_policy.pt` is what this script ran before (docs/RESULTS.md)."""
 
 import os
 import signal
@@ -33,12 +38,7 @@ from mimicrete.cli import main  # noqa: E402
 
 def _defaults(flags: list[str]) -> list[str]:
     given = {f.split("=", 1)[0] for f in flags}
-    out = [] if "--config" in given else ["--config", "configs/wide_gen5.yaml"]
-    paper = os.path.join(os.path.dirname(os.path.abspath(__file__)), "tests", "learn", "data",
-                         "group3_policy.pt")  # fmt: skip
-    if "--compare" not in given and os.path.isfile(paper):
-        out += ["--compare", paper]
-    return out
+    return [] if "--config" in given else ["--config", "configs/place_gen5.yaml"]
 
 
 if __name__ == "__main__":

@@ -89,6 +89,12 @@ def test_round_trip_and_overrides(tmp_path):
             ),
             "survivor_bias",
         ),
+        (
+            lambda d: d["behaviors"]["TileSuction"]["behavioral_cloning"].update(
+                generate_speed=0.5
+            ),
+            r"behavioral_cloning.generate_speed.*0.5",
+        ),
     ],
 )
 def test_bad_configs_are_rejected(mutate, message):

@@ -196,3 +196,22 @@ def test_no_placement_off_the_simulator_or_for_screw(tmp_path):
         assert "Installed rate" in out and "placement (" not in out and "placed by" not in out
         assert "placement" not in res
         assert all("placement" not in e for e in res["per_episode"])
+
+
+def test_a_rate_short_of_whole_is_printed_to_a_tenth_never_rounded_to_100():
+    from mimicrete.learn.evaluate import format_rows, percent
+
+    assert [percent(x) for x in (1.0, 0.995, 0.97, 0.955, 0.0, 1 / 3)] == [
+        "100%", "99.5%", "97%", "95.5%", "0%", "33.3%"
+    ]  # fmt: skip
+    row = format_rows([("run", {"picked_rate": 1.0, "installed_rate": 0.995,
+                                "mean_episode_length": 106.3})])  # fmt: skip
+    assert row.splitlines()[1].split() == ["run", "100%", "99.5%", "106.3"]
+
+
+def test_success_is_called_placed_where_the_spec_judges_by_the_placed_rule():
+    from mimicrete.learn.evaluate import success_word
+
+    assert success_word("TilePlace-v0") == "placed"
+    assert success_word("TileSuction-v0") == "installed"
+    assert success_word("BlockGrip-v0") == "installed"

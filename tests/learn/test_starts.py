@@ -153,14 +153,18 @@ def test_train_ends_with_the_row_on_the_training_and_the_wide_starts_beside_the_
     from mimicrete.cli.train import _eval_rows
 
     out = _eval_rows(run_dir, 4, "group3", None).splitlines()
-    assert out[0].split()[:3] == ["run", "Picked", "rate"] and len(out) == 5
+    assert out[0].split()[:3] == ["run", "Picked", "rate"] and len(out) == 4 + 2 * 8 + 1
     assert out[1].startswith("run, training starts") and out[2].startswith("run, wide starts")
     assert out[3].split()[-3:] == ["97%", "97%", "90.0"] and "paper, group 3" in out[3]
-    assert out[4] == f"plot: {run_dir / 'success_map.png'} (installed rate over the tile's start " \
-        "x, y; wide starts)"  # fmt: skip
+    # where the tiles ended, on each set of starts (mimicrete eval's placement table)
+    assert out[4] == "run, training starts:" and out[5].startswith("placement (4 episodes)")
+    assert out[12] == "run, wide starts:" and out[13].startswith("placement (4 episodes)")
+    assert out[11].startswith("placed by the placed rule") and out[19].startswith("placed by")
+    assert out[20] == f"plot: {run_dir / 'success_map.png'} (installed rate over the tile's " \
+        "start x, y; wide starts)"  # fmt: skip
     assert json.loads((run_dir / "eval_wide.json").read_text())["starts"] == "wide"
     # a config that is not one of the paper's groups: no paper row
-    assert len(_eval_rows(run_dir, 4, "wide", None).splitlines()) == 4
+    assert len(_eval_rows(run_dir, 4, "wide", None).splitlines()) == 4 + 2 * 8
 
 
 def test_eval_records_each_episodes_start_and_draws_the_map(run_dir):

@@ -1,7 +1,8 @@
 """`python train.py` on a fresh checkout (configs and train.py, no demos): it makes the demos the
-way `make demos` does, generates the wide-start demos from 5 of them, says so, and trains
-(issue 12: it stopped with "demo path demos/suction does not exist"); it evaluates on the training
-and the wide starts, beside a compared policy, and draws the success maps (issue 22 §4)."""
+way `make demos-place` does, generates the wide-start demos from 5 of them, says so, and trains
+the main job, TilePlace (issue 12: it stopped with "demo path demos/suction does not exist"); it
+evaluates on the training and the wide starts, prints where the tiles ended, compares with another
+policy on the very same starts, and draws the success maps (issue 22 §4, issue 46)."""
 
 from __future__ import annotations
 
@@ -37,48 +38,51 @@ def test_train_py_on_a_fresh_checkout_makes_the_demos_and_trains(tmp_path):
         cwd=tmp_path, capture_output=True, text=True, env=env, timeout=1800,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
-    assert "demos: demos/suction has 0 episodes, making 60" in r.stdout
-    made = "demos: demos/gen5 has 0 episodes, generating 6 at the wide starts from the first 5 of "
-    assert made + "demos/suction" in r.stdout
-    assert len(list((tmp_path / "demos/suction").glob("*.mcap"))) == 60
-    assert len(list((tmp_path / "demos/gen5").glob("*.mcap"))) == 6
-    run = tmp_path / "runs/wide_gen5-seed0"
-    assert json.loads((run / "run.json").read_text())["demos"] == "demos/gen5"
+    assert "demos: demos/place has 0 episodes, making 60" in r.stdout
+    made = "demos: demos/gen_place5_x4 has 0 episodes, generating 6 at the wide starts from the "
+    assert made + "first 5 of demos/place" in r.stdout and "--speed 4`" in r.stdout
+    assert len(list((tmp_path / "demos/place").glob("*.mcap"))) == 60
+    assert len(list((tmp_path / "demos/gen_place5_x4").glob("*.mcap"))) == 6
+    run = tmp_path / "runs/place_gen5-seed0"
+    assert json.loads((run / "run.json").read_text())["demos"] == "demos/gen_place5_x4"
     assert json.loads((run / "eval.json").read_text())["episodes"] == 2
     wide = json.loads((run / "eval_wide.json").read_text())
     assert wide["starts"] == "wide" and len(wide["per_episode"]) == 2
-    for ep in wide["per_episode"]:  # each episode's start, inside the wide box (tile-sim)
+    for ep in wide["per_episode"]:  # each episode's start, inside TilePlace's wide box
         x, y, yaw = ep["object_pose"]
-        assert 0.035 <= x <= 0.285 and 0.26 <= y <= 0.36 and abs(yaw) <= 0.5236
-        assert ep["installed"] in (True, False) and 1 <= ep["length"] <= 1000
-    assert "wide_gen5-seed0, wide starts" in r.stdout and "trained 1024 steps" in r.stdout
+        assert 0.055 <= x <= 0.285 and 0.26 <= y <= 0.36 and abs(yaw) <= 0.5236
+        assert ep["installed"] in (True, False) and 1 <= ep["length"] <= 750
+    assert "place_gen5-seed0, wide starts" in r.stdout and "trained 1024 steps" in r.stdout
+    for where in ("training", "wide"):  # the placement tables under the rows
+        assert f"place_gen5-seed0, {where} starts:\nplacement (2 episodes)" in r.stdout
+    assert "placed by the placed rule" in r.stdout
     assert (run / "success_map.png").stat().st_size > 10_000
-    # the hand logs are the ones `make demos` writes (synth-hands --episodes 60 --seed 0)
+    # the hand logs are the ones `make demos-place` writes (synth-hands --episodes 60 --seed 0)
     from mimicrete import cli
 
-    assert cli.main(["synth-hands", "--task", "suction", "--episodes", "60", "--seed", "0",
+    assert cli.main(["synth-hands", "--task", "place", "--episodes", "60", "--seed", "0",
                      "--out", str(tmp_path / "make_demos")]) == 0  # fmt: skip
-    made = sorted((tmp_path / "data/hands/suction").iterdir())
+    made = sorted((tmp_path / "data/hands/place").iterdir())
     assert [p.name for p in made] == sorted(p.name for p in (tmp_path / "make_demos").iterdir())
     assert all(p.read_bytes() == (tmp_path / "make_demos" / p.name).read_bytes() for p in made)
     # a second `python train.py` finds the demos (and the run) and does not make them again
-    # (and the generated ones): with the paper's recipe beside, on the very same starts
-    paper = REPO / "tests/learn/data/group3_policy.pt"
+    # (and the generated ones): with the first run's policy beside, on the very same starts
+    first = tmp_path / "first.pt"
+    shutil.copy(run / "policy.pt", first)
     r2 = subprocess.run(
-        [sys.executable, "train.py", *SMALL, "--force", "--compare", str(paper)],
+        [sys.executable, "train.py", *SMALL, "--force", "--compare", str(first)],
         cwd=tmp_path, capture_output=True, text=True, env=env, timeout=1800,
     )  # fmt: skip
     assert r2.returncode == 0, r2.stderr[-3000:]
     assert "making" not in r2.stdout and "generating" not in r2.stdout
-    assert "group3_policy, training starts" in r2.stdout
-    assert "group3_policy, wide starts" in r2.stdout
-    assert "paper, group 3 (Table 5)" in r2.stdout
+    assert "first, training starts" in r2.stdout and "first, wide starts" in r2.stdout
     wide2 = json.loads((run / "eval_wide.json").read_text())
+
     def starts(res):  # episodes are listed in finishing order
         return sorted(e["object_pose"] for e in res["per_episode"])
 
     assert starts(wide2) == starts(wide)  # the same seed, the same starts
-    theirs = json.loads((run / "compare/group3_policy/eval_wide.json").read_text())
+    theirs = json.loads((run / "compare/first/eval_wide.json").read_text())
     assert starts(theirs) == starts(wide2)  # the compared policy's, kept with the run
 
 

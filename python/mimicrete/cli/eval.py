@@ -113,7 +113,8 @@ def main(args: argparse.Namespace) -> int:
         if not eps:
             raise UsageError(f"--map: {es.env_id} episodes have no object start to draw")
         title = f"{run_dir.name}, {res['starts']}"
-        out = success_map([(title, eps)], written.with_name(written.stem + "_map.png"))
+        word = learn.evaluate.success_word(es.env_id, es.task_file)
+        out = success_map([(title, eps)], written.with_name(written.stem + "_map.png"), word=word)
         print(f"wrote {out}")
     if fmt is not None:
         try:

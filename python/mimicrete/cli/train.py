@@ -249,34 +249,44 @@ def _paper_row(name: str) -> tuple[str, dict] | None:
 def _eval_rows(run_dir: Path, episodes: int, config_stem: str, compare: Path | None) -> str:
     """Table 5's row of the final policy on the training starts and, for the simulator's tasks,
     on the wide starts (the eval files say which), with the paper's row for a paper group; the
-    same for the ``compare`` policy, and both success maps over the wide starts."""
+    same for the ``compare`` policy, and both success maps over the wide starts. Under the rows,
+    the trained policy's placement tables (where its objects ended; not Screw's)."""
     from mimicrete import learn
     from mimicrete.learn.env import sim_task_of
     from mimicrete.learn.plots import success_map
     from mimicrete.learn.run_files import load_policy
 
-    sim = sim_task_of(load_policy(run_dir)[1].env_settings.env_id) is not None
+    es = load_policy(run_dir)[1].env_settings
+    sim = sim_task_of(es.env_id) is not None
     rows: list[tuple[str, dict]] = []
     maps = []
     seed = _eval_seed(run_dir)
     marked = None
+    placements = []
     for rd in [run_dir] if compare is None else [run_dir, compare]:
         own = learn.evaluate_run(rd, episodes, seed)
         rows.append((f"{rd.name}, training starts", own))
         if sim and marked is None:
             marked = [e["object_pose"] for e in own["per_episode"]]
+        results = [("training starts", own)]
         if sim:
             wide = learn.evaluate_run(rd, episodes, seed, starts="wide")
             rows.append((f"{rd.name}, wide starts", wide))
             maps.append((f"{rd.name}, wide starts", wide["per_episode"]))
+            results.append(("wide starts", wide))
+        if rd == run_dir:
+            placements = [(where, r["placement"]) for where, r in results if "placement" in r]
     for name in dict.fromkeys([config_stem] + ([compare.name] if compare else [])):
         paper = _paper_row(name)
         if paper is not None:
             rows.append(paper)
     table = learn.format_rows(rows)
+    for where, summary in placements:
+        table += f"\n{run_dir.name}, {where}:\n" + learn.evaluate.format_placement(summary)
     if maps:
-        out = success_map(maps, run_dir / "success_map.png", marked=marked)
-        table += f"\nplot: {out} (installed rate over the tile's start x, y; wide starts)"
+        word = learn.evaluate.success_word(es.env_id, es.task_file)
+        out = success_map(maps, run_dir / "success_map.png", marked=marked, word=word)
+        table += f"\nplot: {out} ({word} rate over the tile's start x, y; wide starts)"
     return table
 
 

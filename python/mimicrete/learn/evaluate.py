@@ -371,6 +371,28 @@ def evaluate_run(
     return res
 
 
+def success_word(env_id: str, task_file: str | None = None) -> str:
+    """What a success of ``env_id`` (the spec file ``task_file``'s task) is called: ``placed``
+    where its spec judges by the placed rule (TilePlace), else ``installed``."""
+    from mimicrete import _native, tasks
+
+    from .env import sim_task_of
+
+    if task_file is not None:
+        spec = tasks.load_task_file(task_file)[1]
+    else:
+        sim = sim_task_of(env_id)
+        spec = _native.task_spec(sim) if sim is not None else {}
+    return "placed" if spec.get("thresholds", {}).get("rule") == "placed" else "installed"
+
+
+def percent(share: float) -> str:
+    """``share`` as a percentage, to a tenth where a whole number would round it (199 of 200
+    is 99.5 %, never "100%")."""
+    whole = abs(share * 100 - round(share * 100)) < 1e-9
+    return f"{share:.0%}" if whole else f"{share:.1%}"
+
+
 def format_rows(rows: list[tuple[str, dict]]) -> str:
     """Table 5's columns for each ``(name, result)``, under one header."""
     w = max(24, *(len(n) for n, _ in rows))
@@ -378,7 +400,7 @@ def format_rows(rows: list[tuple[str, dict]]) -> str:
     lines = [head]
     for name, res in rows:
         lines.append(
-            f"{name:<{w}} {res['picked_rate']:>12.0%} {res['installed_rate']:>15.0%} "
+            f"{name:<{w}} {percent(res['picked_rate']):>12} {percent(res['installed_rate']):>15} "
             f"{res['mean_episode_length']:>23.1f}"
         )
     return "\n".join(lines)
@@ -406,13 +428,13 @@ def format_placement(summary: dict[str, Any]) -> str:
             continue
         row = f"{name:<{w}} {mw['median'] * scale:>8.1f} {mw['worst'] * scale:>8.1f}"
         lines.append(row + (f"  ({summary['holds']} holds)" if key == "hold_gaps" else ""))
-    lines.append(f"{'held at the end':<{w}} {summary['held_share']:>8.0%}")
+    lines.append(f"{'held at the end':<{w}} {percent(summary['held_share']):>8}")
     rule = summary["placed_rule"]
     tolerances = (
         f"released, |height| <= {rule['rest_height'] * 1e3:g} mm, "
         f"xy <= {rule['success_dist'] * 1e3:g} mm, |yaw| <= {rule['success_yaw_deg']:g} deg"
     )
     lines.append(
-        f"{'placed by the placed rule':<{w}} {summary['placed_share']:>8.0%}  ({tolerances})"
+        f"{'placed by the placed rule':<{w}} {percent(summary['placed_share']):>8}  ({tolerances})"
     )
     return "\n".join(lines)

@@ -12,6 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .evaluate import percent  # noqa: E402
 from .run_files import read_scalars  # noqa: E402
 
 CURVES = [
@@ -70,11 +71,14 @@ def success_map(
     out: Path,
     bins: tuple[int, int] = (5, 4),
     marked: list[list[float]] | None = None,
+    word: str = "installed",
 ) -> Path:
-    """Installed rate as a heat map over the object's start x, y, one panel per ``(title,
+    """Success rate as a heat map over the object's start x, y, one panel per ``(title,
     episodes)`` (an evaluation's ``per_episode`` records: ``object_pose`` and ``installed``), all
     on the same ``bins`` (x, y) cells spanning the starts given; each cell reads its rate and
-    its number of episodes. ``marked``: object poses drawn as dots (the training starts)."""
+    its number of episodes. ``marked``: object poses drawn as dots (the training starts);
+    ``word``: what a success is called (``installed``, or ``placed`` for a task judged by the
+    placed rule: :func:`mimicrete.learn.evaluate.success_word`)."""
     xy = np.array([e["object_pose"][:2] for _, eps in panels for e in eps], float)
     if xy.size == 0:
         raise ValueError("success_map: no episode with an object_pose")
@@ -101,11 +105,11 @@ def success_map(
         if marked:
             m = np.array([q[:2] for q in marked], float)
             ax.plot(m[:, 0], m[:, 1], "k.", ms=3)
-        ax.set_title(f"{title}: {ok.mean():.0%} of {len(eps)} installed", fontsize=9)
+        ax.set_title(f"{title}: {percent(ok.mean())} of {len(eps)} {word}", fontsize=9)
         ax.set_xlabel("tile start x (m, Base)" + ("; dots: the training starts" if marked else ""))
         ax.set_ylabel("tile start y (m)")
         ax.set_aspect("equal")
-    fig.colorbar(im, ax=axes[0].tolist(), label="installed rate", shrink=0.8)
+    fig.colorbar(im, ax=axes[0].tolist(), label=f"{word} rate", shrink=0.8)
     _save(fig, Path(out))
     plt.close(fig)
     return Path(out)
