@@ -128,3 +128,40 @@ def test_cli_through_teleop_refuses_another_layout(tmp_path):
     assert r.returncode == 2
     assert "--through-teleop records the page's right hand (WebXR)" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_through_the_server_the_hands_yaw_squares_a_turned_tile_to_a_turned_pad(tmp_path):
+    """TilePlace live (issue 46 §3): the tile starts turned 20-25° and its pad -12 to -8°; the
+    scripted person's hand, read by the live server, turns the tile through ~30° onto the pad's
+    yaw and sets it down; the demo is judged by the placed rule."""
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[2] / "crates/tile-sim/tasks/tile_place.toml"
+    paper = 'object_x = [0.0, 0.15]\nobject_y = [0.32, 0.32]\nyaw_deg = [0.0, 0.0]\n' \
+        "target_jitter = 0.0\npad_follows = false\n"  # fmt: skip
+    turned = "object_x = [0.1, 0.15]\nobject_y = [0.32, 0.32]\nyaw_deg = [20.0, 25.0]\n" \
+        "target_jitter = 0.0\npad_follows = true\npad_yaw_deg = [-12.0, -8.0]\n"  # fmt: skip
+    text = src.read_text()
+    assert paper in text
+    spec = tmp_path / "turned.toml"
+    spec.write_text(text.replace(paper, turned, 1))
+    out = tmp_path / "live"
+    cmd = [sys.executable, "-m", "mimicrete", "synth-hands", "--through-teleop"]
+    r = subprocess.run(
+        [*cmd, "--task-file", str(spec), "--episodes", "2", "--seed", "3", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stderr
+    placed = 0
+    for k in range(2):
+        path = out / f"place_{k:04d}.mcap"
+        f = demos.load(path).obs[:, -32:]  # TilePlace's frame: cos 4ψ, sin 4ψ of tile and pad
+        tile = np.degrees(np.arctan2(f[:, 25], f[:, 24]) / 4)
+        pad = np.degrees(np.arctan2(f[0, 27], f[0, 26]) / 4)
+        assert 20.0 <= tile[0] <= 25.0 + 1.0 and -12.0 - 1.0 <= pad <= -8.0 + 1.0
+        assert abs(tile[-1] - pad) < 2.0, (k, tile[0], tile[-1], pad)  # turned ~30° by the hand
+        result = demos.inspect(path)["metadata"]["episode"]["result"]
+        placed += result == '"placed"'
+    assert placed >= 1
