@@ -14,6 +14,7 @@ from tests._cli_run import run_cli
 from mimicrete import _native, demos, kin
 from mimicrete import demogen as dg
 from mimicrete.demogen import generator as gen
+from mimicrete.demogen import segment as sg
 from mimicrete.demogen.generator import GeneratedEpisode, _Runner
 
 
@@ -368,7 +369,7 @@ def test_cli_action_noise_perturbs_the_played_actions_by_sigma(source_dir, tmp_p
 @settings(max_examples=200, deadline=None)
 @given(n=hs.integers(1, 600), speed=hs.floats(1.0, 10.0))
 def test_retime_keeps_every_window_s_last_step_and_the_segment_s_end(n, speed):
-    keep = gen.retime(n, speed)
+    keep = sg.retime(n, speed)
     assert len(keep) == max(1, int(np.ceil(n / speed - 1e-9)))
     assert keep[-1] == n - 1 and keep[0] >= 0
     gaps = np.diff(np.concatenate([[-1], keep]))
@@ -376,22 +377,22 @@ def test_retime_keeps_every_window_s_last_step_and_the_segment_s_end(n, speed):
 
 
 def test_retime_at_speed_one_keeps_every_step_and_below_one_is_refused():
-    np.testing.assert_array_equal(gen.retime(7, 1.0), np.arange(7))
+    np.testing.assert_array_equal(sg.retime(7, 1.0), np.arange(7))
     with pytest.raises(dg.DemoGenError, match="speed"):
-        gen.retime(7, 0.5)
+        sg.retime(7, 0.5)
 
 
 def test_a_latched_switch_inside_a_skipped_window_is_kept():
     commands = np.zeros((9, 1))
     commands[4, 0] = 1.0  # the suction's switch, on one step
     commands[7, 0] = -1.0  # the release
-    keep = gen.retime(9, 3.0)  # steps 2, 5, 8
-    out = gen._window_commands(commands, keep, latched=True)
+    keep = sg.retime(9, 3.0)  # steps 2, 5, 8
+    out = sg.window_commands(commands, keep, latched=True)
     np.testing.assert_array_equal(out[:, 0], [0.0, 1.0, -1.0])
     # a level (the gripper) is its window's last value
     levels = np.repeat([[-1.0], [1.0], [1.0]], 3, axis=0)
     levels[3] = -1.0
-    np.testing.assert_array_equal(gen._window_commands(levels, keep, False)[:, 0], [-1, 1, 1])
+    np.testing.assert_array_equal(sg.window_commands(levels, keep, False)[:, 0], [-1, 1, 1])
 
 
 def test_cli_speed_out_of_range_exits_2(source_dir, tmp_path):

@@ -41,7 +41,9 @@ from .segment import (
     TaskFrames,
     frame,
     frame_yaws,
+    retime,
     task_frames,
+    window_commands,
 )
 
 CONTROL_DT = tasks.CONTROL_DT
@@ -290,11 +292,11 @@ def generate_episode(
     the next action corrects the deviation, and the demos show the way back to the path from
     states beside it (DART, Laskey et al. 2017), which noise-free demos never visit.
 
-    ``speed`` (≥ 1): each segment is played ``speed`` times faster (:func:`retime`): a person's
-    demo hovers and creeps where a robot need not, and every step it takes is a step the learner
-    must credit a sparse reward across. The simulator still clips each step to the arm's limits
-    (``joint_step``, ``tool_step``), so a fast stretch is followed a few steps late, and an
-    episode that no longer succeeds is not kept."""
+    ``speed`` (≥ 1): each segment is played ``speed`` times faster (:func:`.segment.retime`): a
+    person's demo hovers and creeps where a robot need not, and every step it takes is a step the
+    learner must credit a sparse reward across. The simulator still clips each step to the arm's
+    limits (``joint_step``, ``tool_step``), so a fast stretch is followed a few steps late, and
+    an episode that no longer succeeds is not kept."""
     spec = src.spec
     noise = spec.action_noise if action_noise is None else float(action_noise)
     ep = GeneratedEpisode(src.name, start, int(seed), task=spec.sim)
@@ -337,7 +339,7 @@ def generate_episode(
             offsets = seg.object_offsets_in(frames[seg.relative_to]) if follow else None
             if speed != 1.0:
                 keep = retime(len(poses), speed)
-                poses, commands = poses[keep], _window_commands(commands, keep, spec.latched)
+                poses, commands = poses[keep], window_commands(commands, keep, spec.latched)
                 offsets = None if offsets is None else offsets[keep]
             steer = np.zeros(2)  # how far the TCP is moved so the object keeps the source's path
             closing = False
@@ -360,31 +362,6 @@ def generate_episode(
     except _Abort as e:
         ep.why = str(e)
     return ep
-
-
-def retime(n: int, speed: float) -> np.ndarray:
-    """The indices of ``n`` steps played ``speed`` times faster: the last step of each window of
-    about ``speed`` steps, counted back from the last step ``n − 1`` (``ceil(n / speed)`` of
-    them, every window ``floor(speed)`` or ``ceil(speed)`` long)."""
-    if not speed >= 1.0:
-        raise DemoGenError(f"speed must be at least 1, got {speed}")
-    m = max(1, int(np.ceil(n / speed - 1e-9)))
-    back = np.floor(np.arange(m - 1, -1, -1) * speed + 1e-9).astype(int)
-    return np.maximum(0, n - 1 - back)
-
-
-def _window_commands(commands: np.ndarray, keep: np.ndarray, latched: bool) -> np.ndarray:
-    """The effector commands of the steps :func:`retime` keeps: a level's (the gripper, the
-    spin) is its window's last; a latched switch (the suction's, sent on one step) is the
-    window's last non-zero one, so no switch is skipped."""
-    out = np.array(commands[keep], np.float64, copy=True)
-    if latched:
-        lo = 0
-        for j, hi in enumerate(keep):
-            on = np.flatnonzero(np.any(commands[lo : hi + 1] != 0.0, axis=1))
-            out[j] = commands[lo + on[-1]] if len(on) else 0.0
-            lo = hi + 1
-    return out
 
 
 def _spin_from_start(commands: np.ndarray) -> np.ndarray:

@@ -349,3 +349,28 @@ def _check_spec_file(src: SourceDemo) -> None:
             f"{src.name}: task file {path} is not the spec the demo was recorded in (it changed "
             "since)"
         )
+
+
+def retime(n: int, speed: float) -> np.ndarray:
+    """The indices of ``n`` steps played ``speed`` times faster: the last step of each window of
+    about ``speed`` steps, counted back from the last step ``n − 1`` (``ceil(n / speed)`` of
+    them, every window ``floor(speed)`` or ``ceil(speed)`` long)."""
+    if not speed >= 1.0:
+        raise DemoGenError(f"speed must be at least 1, got {speed}")
+    m = max(1, int(np.ceil(n / speed - 1e-9)))
+    back = np.floor(np.arange(m - 1, -1, -1) * speed + 1e-9).astype(int)
+    return np.maximum(0, n - 1 - back)
+
+
+def window_commands(commands: np.ndarray, keep: np.ndarray, latched: bool) -> np.ndarray:
+    """The effector commands of the steps :func:`retime` keeps: a level's (the gripper, the
+    spin) is its window's last; a latched switch (the suction's, sent on one step) is the
+    window's last non-zero one, so no switch is skipped."""
+    out = np.array(commands[keep], np.float64, copy=True)
+    if latched:
+        lo = 0
+        for j, hi in enumerate(keep):
+            on = np.flatnonzero(np.any(commands[lo : hi + 1] != 0.0, axis=1))
+            out[j] = commands[lo + on[-1]] if len(on) else 0.0
+            lo = hi + 1
+    return out
